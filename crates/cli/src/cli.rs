@@ -1,0 +1,120 @@
+//! Command-line arguments and what each subcommand does.
+
+use crate::driver::{self, BuildOptions, GRAPH_FILE, MERGE_FILE};
+use crate::ui::Ui;
+use anyhow::{Context, Result};
+use clap::{Parser, Subcommand};
+use crowd_core::config::PipelineFile;
+use std::path::PathBuf;
+
+#[derive(Debug, Parser)]
+#[command(
+    name = "crowd",
+    version,
+    about = "The crowd-patches asset compiler: painted layers in, endless collision-free crowds out."
+)]
+pub struct Cli {
+    /// Print nothing but results and errors; no progress bars.
+    #[arg(long, short, global = true)]
+    pub quiet: bool,
+    /// Worker threads (default: one per core). Outputs are identical for any count.
+    #[arg(long, global = true, value_name = "N")]
+    pub threads: Option<usize>,
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Run every stage in order, skipping the ones whose output is up to date.
+    Build {
+        #[arg(long, default_value = "pipeline.ron", value_name = "FILE")]
+        pipeline: PathBuf,
+        /// Rebuild every stage even when its output is up to date.
+        #[arg(long)]
+        force: bool,
+    },
+    /// Stage 1: merge the painted layers into grids.
+    Merge {
+        #[arg(long, default_value = "pipeline.ron", value_name = "FILE")]
+        pipeline: PathBuf,
+        /// Output file (default: `merge.ron` in the pipeline's output folder).
+        #[arg(long, short, value_name = "FILE")]
+        output: Option<PathBuf>,
+    },
+    /// Stage 2: cut the merged grids into the patch graph.
+    Graph {
+        #[arg(long, default_value = "pipeline.ron", value_name = "FILE")]
+        pipeline: PathBuf,
+        /// Stage 1's file (default: `merge.ron` in the pipeline's output folder).
+        #[arg(long, short, value_name = "FILE")]
+        input: Option<PathBuf>,
+        /// Output file (default: `graph.ron` in the pipeline's output folder).
+        #[arg(long, short, value_name = "FILE")]
+        output: Option<PathBuf>,
+    },
+    /// A readable summary of any stage file.
+    Inspect { file: PathBuf },
+    /// A picture of a stage file (merged maps, patch graph) as PNG.
+    Render {
+        file: PathBuf,
+        #[arg(long, short, value_name = "OUT.png")]
+        output: PathBuf,
+    },
+    /// The figures of a build folder (`--json` for one JSON object).
+    Report {
+        dir: PathBuf,
+        #[arg(long)]
+        json: bool,
+    },
+}
+
+pub fn run(cli: Cli) -> Result<()> {
+    if let Some(n) = cli.threads {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(n.max(1))
+            .build_global()
+            .context("cannot set up the worker threads")?;
+    }
+    let ui = Ui { quiet: cli.quiet };
+    match cli.command {
+        Command::Build { pipeline, force } => {
+            driver::build(&pipeline, &BuildOptions { force }, &ui)?;
+        }
+        Command::Merge { pipeline, output } => {
+            let p = PipelineFile::load(&pipeline)?;
+            let out = output.unwrap_or_else(|| p.output_dir().join(MERGE_FILE));
+            driver::ensure_parent(&out)?;
+            let bar = ui.stage_bar("merge");
+            crowd_merge::run(&p, &out, &bar)?;
+            ui.say(format!("merge: wrote {}", out.display()));
+        }
+        Command::Graph {
+            pipeline,
+            input,
+            output,
+        } => {
+            let p = PipelineFile::load(&pipeline)?;
+            let input = input.unwrap_or_else(|| p.output_dir().join(MERGE_FILE));
+            let out = output.unwrap_or_else(|| p.output_dir().join(GRAPH_FILE));
+            driver::ensure_parent(&out)?;
+            let bar = ui.stage_bar("graph");
+            crowd_graph::run(&p, &input, &out, &bar)?;
+            ui.say(format!("graph: wrote {}", out.display()));
+        }
+        Command::Inspect { file } => print!("{}", crate::inspect::inspect(&file)?),
+        Command::Render { file, output } => {
+            let legend = crate::inspect::render(&file, &output)?;
+            ui.say(format!("wrote {}: {legend}", output.display()));
+        }
+        Command::Report { dir, json } => {
+            let report = crate::report::Report::gather(&dir)?;
+            if json {
+                println!("{}", serde_json::to_string_pretty(&report.to_json())?);
+            } else {
+                print!("{}", report.to_text());
+            }
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,211 @@
+//! `crowd inspect` and `crowd render`: any stage file, told apart by its header.
+
+use anyhow::{Result, bail};
+use crowd_core::files;
+use crowd_core::maps::MergeFile;
+use crowd_core::patch_graph::BorderAxis;
+use crowd_core::{MergedMaps, PatchGraph};
+use std::fmt::Write;
+use std::path::Path;
+
+/// A readable summary of a stage file.
+pub fn inspect(path: &Path) -> Result<String> {
+    let header = files::read_header(path)?;
+    match header.stage.as_str() {
+        MergeFile::STAGE => {
+            let (file, maps) = MergeFile::load(path)?;
+            Ok(inspect_merge(&file, &maps))
+        }
+        PatchGraph::STAGE => Ok(inspect_graph(&PatchGraph::load(path)?)),
+        other => bail!(
+            "{}: `crowd inspect` does not know `{other}` files",
+            path.display()
+        ),
+    }
+}
+
+/// Renders a stage file to `out` and returns the legend of the picture.
+pub fn render(path: &Path, out: &Path) -> Result<&'static str> {
+    let header = files::read_header(path)?;
+    let (image, legend) = match header.stage.as_str() {
+        MergeFile::STAGE => {
+            let (_, maps) = MergeFile::load(path)?;
+            (crowd_render::render_maps(&maps), crowd_render::MAPS_LEGEND)
+        }
+        PatchGraph::STAGE => (
+            crowd_render::render_graph(&PatchGraph::load(path)?),
+            crowd_render::GRAPH_LEGEND,
+        ),
+        other => bail!(
+            "{}: `crowd render` does not know `{other}` files",
+            path.display()
+        ),
+    };
+    crowd_render::save_png(&image, out)?;
+    Ok(legend)
+}
+
+fn range(values: impl Iterator<Item = f64>) -> (f64, f64, f64) {
+    let (mut lo, mut hi, mut sum, mut n) = (f64::INFINITY, f64::NEG_INFINITY, 0.0, 0usize);
+    for v in values {
+        lo = lo.min(v);
+        hi = hi.max(v);
+        sum += v;
+        n += 1;
+    }
+    if n == 0 {
+        (0.0, 0.0, 0.0)
+    } else {
+        (lo, sum / n as f64, hi)
+    }
+}
+
+fn inspect_merge(file: &MergeFile, maps: &MergedMaps) -> String {
+    let mut s = String::new();
+    let h = &file.header;
+    let _ = writeln!(s, "stage file: {} (format version {})", h.stage, h.version);
+    let _ = writeln!(s, "built from: {}", h.input_hash);
+    let _ = writeln!(
+        s,
+        "maps:       {} x {} px at {} m/px = {} x {} m",
+        file.width,
+        file.height,
+        file.meters_per_pixel,
+        file.width as f64 * file.meters_per_pixel,
+        file.height as f64 * file.meters_per_pixel
+    );
+    let _ = writeln!(s, "layers:");
+    for l in &file.layers {
+        let _ = writeln!(
+            s,
+            "  {:<10} weight {:<5} {:<18} {}  ({})",
+            l.kind.name(),
+            l.weight,
+            l.format,
+            l.path,
+            l.hash.short()
+        );
+    }
+    let n = (file.width as u64 * file.height as u64).max(1);
+    let pct = |k: u64| 100.0 * k as f64 / n as f64;
+    let m = &file.summary;
+    let (_, wmean, wmax) = range(maps.walkers.as_slice().iter().map(|&v| v as f64));
+    let (_, smean, smax) = range(maps.standers.as_slice().iter().map(|&v| v as f64));
+    let _ = writeln!(
+        s,
+        "walker density:  {:>8} px painted ({:.1} %), mean {wmean:.4}, max {wmax:.4}",
+        m.walker_pixels,
+        pct(m.walker_pixels)
+    );
+    let _ = writeln!(
+        s,
+        "stander density: {:>8} px painted ({:.1} %), mean {smean:.4}, max {smax:.4}",
+        m.stander_pixels,
+        pct(m.stander_pixels)
+    );
+    let _ = writeln!(
+        s,
+        "direction:       {:>8} px painted ({:.1} %)",
+        m.directed_pixels,
+        pct(m.directed_pixels)
+    );
+    let _ = writeln!(
+        s,
+        "obstacles:       {:>8} px blocked ({:.1} %)",
+        m.blocked_pixels,
+        pct(m.blocked_pixels)
+    );
+    let _ = writeln!(
+        s,
+        "grids:      {} ({} bytes, {})",
+        file.grids.file,
+        file.grids.bytes,
+        file.grids.hash.short()
+    );
+    s
+}
+
+fn inspect_graph(g: &PatchGraph) -> String {
+    let mut s = String::new();
+    let h = &g.header;
+    let area = g.patch_area();
+    let _ = writeln!(s, "stage file: {} (format version {})", h.stage, h.version);
+    let _ = writeln!(s, "built from: {}", h.input_hash);
+    let w = &g.world;
+    let _ = writeln!(
+        s,
+        "world:      {} x {} cells of {} m ({} x {} m of maps)",
+        w.cols, w.rows, w.patch_side_m, w.size_m.x, w.size_m.y
+    );
+    if w.size_m.x > (w.cols as f64) * w.patch_side_m
+        || w.size_m.y > (w.rows as f64) * w.patch_side_m
+    {
+        let strip = g.dropped.uncovered_strip_m;
+        let _ = writeln!(
+            s,
+            "            {} m (east) and {} m (north) of the maps are not a whole patch and are left out",
+            strip.x, strip.y
+        );
+    }
+    let _ = writeln!(
+        s,
+        "patches:    {} kept, {} empty and {} blocked dropped",
+        g.patches.len(),
+        g.dropped.empty.len(),
+        g.dropped.blocked.len()
+    );
+    let walkers: f64 = g.patches.iter().map(|p| p.walker_density * area).sum();
+    let standers: f64 = g.patches.iter().map(|p| p.stander_density * area).sum();
+    let (lo, mean, hi) = range(g.patches.iter().map(|p| p.walker_density));
+    let _ = writeln!(
+        s,
+        "walkers:    {} requested, {walkers:.2} in patches; density {lo:.4} / {mean:.4} / {hi:.4} per m2 (min / mean / max)",
+        g.walkers_requested
+    );
+    let (_, smean, shi) = range(g.patches.iter().map(|p| p.stander_density));
+    let _ = writeln!(
+        s,
+        "standers:   {} requested, {standers:.2} in patches; density mean {smean:.4}, max {shi:.4} per m2",
+        g.standers_requested
+    );
+    let directed = g.patches.iter().filter(|p| p.direction.is_some()).count();
+    let _ = writeln!(s, "directions: {directed} patches request one");
+    let partial = g.patches.iter().filter(|p| !p.obstacles.is_empty()).count();
+    let rects: usize = g.patches.iter().map(|p| p.obstacles.len()).sum();
+    let _ = writeln!(
+        s,
+        "obstacles:  {partial} patches hold partial obstacles ({rects} rectangles)"
+    );
+    let open = g
+        .borders
+        .iter()
+        .filter(|b| b.open.len() == 1 && (b.open[0].len() - w.patch_side_m).abs() < 1e-9)
+        .count();
+    let closed = g.borders.iter().filter(|b| b.open.is_empty()).count();
+    let vertical = g
+        .borders
+        .iter()
+        .filter(|b| b.axis == BorderAxis::Vertical)
+        .count();
+    let _ = writeln!(
+        s,
+        "borders:    {} shared ({vertical} north-south, {} west-east): {open} fully open, {} partly closed, {closed} closed",
+        g.borders.len(),
+        g.borders.len() - vertical,
+        g.borders.len() - open - closed
+    );
+    let _ = writeln!(s, "components: {}", g.components.len());
+    let mut by_size: Vec<_> = g.components.iter().collect();
+    by_size.sort_by(|a, b| b.patches.cmp(&a.patches).then(a.id.cmp(&b.id)));
+    for c in by_size.iter().take(5) {
+        let _ = writeln!(
+            s,
+            "  #{:<5} {:>6} patches, {:>10.1} walkers, {:>8.1} standers",
+            c.id, c.patches, c.walkers, c.standers
+        );
+    }
+    if by_size.len() > 5 {
+        let _ = writeln!(s, "  ... and {} smaller", by_size.len() - 5);
+    }
+    s
+}

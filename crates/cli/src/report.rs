@@ -1,0 +1,84 @@
+//! `crowd report`: the figures a build folder holds so far, as text or one JSON object.
+
+use crate::driver::{GRAPH_FILE, MERGE_FILE, read_timings};
+use anyhow::{Result, bail};
+use crowd_core::PatchGraph;
+use serde_json::{Map, Value, json};
+use std::collections::BTreeMap;
+use std::path::Path;
+
+/// Figures gathered from the stage files of a build folder.
+pub struct Report {
+    pub graph: Option<PatchGraph>,
+    pub stage_seconds: BTreeMap<String, f64>,
+}
+
+impl Report {
+    pub fn gather(dir: &Path) -> Result<Report> {
+        if !dir.join(MERGE_FILE).exists() && !dir.join(GRAPH_FILE).exists() {
+            bail!(
+                "{}: no stage files here; expected a build folder (the `output` of a pipeline) \
+                 holding {MERGE_FILE} or {GRAPH_FILE}",
+                dir.display()
+            );
+        }
+        let graph_path = dir.join(GRAPH_FILE);
+        let graph = if graph_path.exists() {
+            Some(PatchGraph::load(&graph_path)?)
+        } else {
+            None
+        };
+        Ok(Report {
+            graph,
+            stage_seconds: read_timings(dir),
+        })
+    }
+
+    pub fn to_json(&self) -> Value {
+        let mut out = Map::new();
+        if let Some(g) = &self.graph {
+            let area = g.patch_area();
+            out.insert("patches".into(), json!(g.patches.len()));
+            out.insert("components".into(), json!(g.components.len()));
+            out.insert("walkers_requested".into(), json!(g.walkers_requested));
+            out.insert("standers_requested".into(), json!(g.standers_requested));
+            let walkers: f64 = g.patches.iter().map(|p| p.walker_density * area).sum();
+            let standers: f64 = g.patches.iter().map(|p| p.stander_density * area).sum();
+            out.insert("walkers_in_patches".into(), json!(walkers));
+            out.insert("standers_in_patches".into(), json!(standers));
+            out.insert("patch_side_m".into(), json!(g.world.patch_side_m));
+            out.insert("dropped_empty".into(), json!(g.dropped.empty.len()));
+            out.insert("dropped_blocked".into(), json!(g.dropped.blocked.len()));
+            out.insert(
+                "directed_patches".into(),
+                json!(g.patches.iter().filter(|p| p.direction.is_some()).count()),
+            );
+            out.insert("borders".into(), json!(g.borders.len()));
+            out.insert(
+                "closed_borders".into(),
+                json!(g.borders.iter().filter(|b| b.open.is_empty()).count()),
+            );
+        }
+        out.insert("stage_seconds".into(), json!(self.stage_seconds));
+        Value::Object(out)
+    }
+
+    pub fn to_text(&self) -> String {
+        let json = self.to_json();
+        let mut s = String::new();
+        for (key, value) in json.as_object().expect("an object") {
+            if let Value::Object(stages) = value {
+                for (stage, secs) in stages {
+                    s += &format!(
+                        "{:<22} {:.3} s\n",
+                        format!("{key}.{stage}"),
+                        secs.as_f64().unwrap_or(0.0)
+                    );
+                }
+            } else {
+                s += &format!("{key:<22} {value}\n");
+            }
+        }
+        s
+    }
+}

@@ -1,0 +1,58 @@
+//! Progress bars and messages: shown on a terminal, quiet otherwise or with `--quiet`.
+
+use crowd_core::Progress;
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use std::io::IsTerminal;
+
+/// How much the command says while it works.
+#[derive(Debug, Clone, Copy)]
+pub struct Ui {
+    pub quiet: bool,
+}
+
+impl Ui {
+    /// A line for a person, on stderr (stdout is kept for reports and JSON).
+    pub fn say(&self, message: impl AsRef<str>) {
+        if !self.quiet {
+            eprintln!("{}", message.as_ref());
+        }
+    }
+
+    /// A progress bar for one stage.
+    pub fn stage_bar(&self, stage: &str) -> StageBar {
+        let bar = if self.quiet || !std::io::stderr().is_terminal() {
+            ProgressBar::hidden()
+        } else {
+            let bar = ProgressBar::with_draw_target(Some(0), ProgressDrawTarget::stderr());
+            bar.set_style(
+                ProgressStyle::with_template("{prefix:>8} [{bar:40.cyan/blue}] {pos}/{len} {msg}")
+                    .expect("a valid template")
+                    .progress_chars("=> "),
+            );
+            bar
+        };
+        bar.set_prefix(stage.to_string());
+        StageBar(bar)
+    }
+}
+
+/// An indicatif bar that stages drive through [`Progress`].
+pub struct StageBar(ProgressBar);
+
+impl Progress for StageBar {
+    fn begin(&self, phase: &str, total: u64) {
+        self.0.set_message(phase.to_string());
+        self.0.set_position(0);
+        self.0.set_length(total);
+    }
+
+    fn advance(&self, steps: u64) {
+        self.0.inc(steps);
+    }
+}
+
+impl Drop for StageBar {
+    fn drop(&mut self) {
+        self.0.finish_and_clear();
+    }
+}

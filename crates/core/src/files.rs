@@ -1,0 +1,195 @@
+//! The rules every stage file follows.
+//!
+//! - RON, so a person can read it; bulky arrays go to a binary side file that the RON names with
+//!   its size and hash.
+//! - A [`Header`] with the stage kind, its format version and the hash of everything the file was
+//!   built from, so the build driver reruns only stale stages.
+//! - Written to a temporary name in the same folder and renamed, so an interrupted build never
+//!   leaves a half-written file where a good one was.
+
+use crate::error::{Error, LineCol, Result};
+use crate::hash::Hash;
+use serde::de::DeserializeOwned;
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+
+/// The first field of every stage file.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Header {
+    /// Which stage wrote the file (`"merge"`, `"graph"`, ...).
+    pub stage: String,
+    /// The stage's format version; a file of another version is rebuilt, never misread.
+    pub version: u32,
+    /// Hash of the stage's inputs and settings.
+    pub input_hash: Hash,
+}
+
+/// A binary side file, named by the RON file that owns it.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct SideFile {
+    /// File name, in the folder of the RON file.
+    pub file: String,
+    pub bytes: u64,
+    pub hash: Hash,
+}
+
+impl SideFile {
+    /// Reads the side file next to `owner` and checks its size and hash.
+    pub fn read(&self, owner: &Path) -> Result<Vec<u8>> {
+        let path = owner.with_file_name(&self.file);
+        let bytes = std::fs::read(&path).map_err(|e| Error::io(&path, "read", e))?;
+        if bytes.len() as u64 != self.bytes || Hash::of(&bytes) != self.hash {
+            return Err(Error::stage_file(
+                &path,
+                format!(
+                    "is {} bytes with hash {}, but {} expects {} bytes with hash {}; \
+                     the build was interrupted or the file was changed: build again",
+                    bytes.len(),
+                    Hash::of(&bytes).short(),
+                    owner.display(),
+                    self.bytes,
+                    self.hash.short()
+                ),
+            ));
+        }
+        Ok(bytes)
+    }
+}
+
+/// Writes `bytes` to `path` through a temporary file in the same folder and a rename.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let tmp = path.with_file_name(format!(".{name}.tmp{}", std::process::id()));
+    let result = std::fs::write(&tmp, bytes).and_then(|_| std::fs::rename(&tmp, path));
+    if let Err(e) = result {
+        let _ = std::fs::remove_file(&tmp);
+        return Err(Error::io(path, "write", e));
+    }
+    Ok(())
+}
+
+/// Creates `dir` if needed and proves that files can be written in it, before any work is done.
+pub fn ensure_writable_dir(dir: &Path) -> Result<()> {
+    std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, "create the output folder", e))?;
+    let probe = dir.join(format!(".write-probe{}", std::process::id()));
+    std::fs::write(&probe, b"")
+        .and_then(|_| std::fs::remove_file(&probe))
+        .map_err(|e| Error::io(dir, "write in the output folder", e))
+}
+
+/// RON text of a stage file: one item of a list per line, so files stay readable and diffable.
+pub fn to_ron<T: Serialize>(value: &T) -> String {
+    let config = ron::ser::PrettyConfig::new()
+        .depth_limit(2)
+        .indentor("  ".to_string())
+        .separate_tuple_members(false)
+        .struct_names(false);
+    let mut text = ron::ser::to_string_pretty(value, config).expect("stage files serialise");
+    text.push('\n');
+    text
+}
+
+/// Reads and parses a RON stage file.
+pub fn read_ron<T: DeserializeOwned>(path: &Path) -> Result<T> {
+    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, "read", e))?;
+    parse_ron(path, &text)
+}
+
+/// Parses RON text read from `path`.
+pub fn parse_ron<T: DeserializeOwned>(path: &Path, text: &str) -> Result<T> {
+    ron::Options::default()
+        .from_str(text)
+        .map_err(|e| Error::Syntax {
+            path: path.to_path_buf(),
+            place: LineCol {
+                line: e.span.start.line,
+                col: e.span.start.col,
+            },
+            message: e.code.to_string(),
+        })
+}
+
+/// Just the header of a stage file, for staleness checks and `crowd inspect`.
+pub fn read_header(path: &Path) -> Result<Header> {
+    #[derive(Deserialize)]
+    struct Peek {
+        header: Header,
+    }
+    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, "read", e))?;
+    // The header is the first field: parse only up to its end, not the whole (large) file.
+    let end = text
+        .find("\n  header:")
+        .and_then(|start| text[start..].find("),\n").map(|close| start + close + 2));
+    let peek: Peek = match end {
+        Some(end) => {
+            parse_ron(path, &format!("{}\n)", &text[..end])).or_else(|_| parse_ron(path, &text))?
+        }
+        None => parse_ron(path, &text)?,
+    };
+    Ok(peek.header)
+}
+
+/// Checks that a stage file is of the expected stage and version.
+pub fn expect_stage(path: &Path, header: &Header, stage: &str, version: u32) -> Result<()> {
+    if header.stage != stage {
+        return Err(Error::stage_file(
+            path,
+            format!("is a `{}` file; expected a `{stage}` file", header.stage),
+        ));
+    }
+    if header.version != version {
+        return Err(Error::stage_file(
+            path,
+            format!(
+                "is `{stage}` format version {}; this build reads version {version}: build again",
+                header.version
+            ),
+        ));
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[derive(Debug, PartialEq, Serialize, Deserialize)]
+    struct Demo {
+        header: Header,
+        items: Vec<(u32, f64)>,
+    }
+
+    #[test]
+    fn header_is_read_without_the_rest() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("demo.ron");
+        let demo = Demo {
+            header: Header {
+                stage: "demo".into(),
+                version: 3,
+                input_hash: Hash::of(b"x"),
+            },
+            items: vec![(1, 0.5), (2, 1.5)],
+        };
+        write_atomic(&path, to_ron(&demo).as_bytes()).unwrap();
+        assert_eq!(read_header(&path).unwrap(), demo.header);
+        assert_eq!(read_ron::<Demo>(&path).unwrap(), demo);
+        let leftovers: Vec<_> = std::fs::read_dir(dir.path()).unwrap().collect();
+        assert_eq!(leftovers.len(), 1, "no temporary file is left behind");
+    }
+
+    #[test]
+    fn a_folder_under_a_file_is_not_writable() {
+        let dir = tempfile::tempdir().unwrap();
+        let file = dir.path().join("plain-file");
+        std::fs::write(&file, b"x").unwrap();
+        let err = ensure_writable_dir(&file.join("out")).unwrap_err();
+        assert!(
+            err.to_string().contains("cannot create the output folder"),
+            "{err}"
+        );
+    }
+}

@@ -1,0 +1,167 @@
+//! Stage 2's output: square crowd patches, the borders they share and where people can cross.
+
+use crate::files::Header;
+use glam::DVec2;
+use serde::{Deserialize, Serialize};
+
+/// Index of a patch in [`PatchGraph::patches`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
+pub struct PatchId(pub u32);
+
+/// Place of a patch in the world: column (east) and row (north), from the south-west corner.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
+pub struct Cell {
+    pub col: u32,
+    pub row: u32,
+}
+
+/// An axis-aligned rectangle in patch-local metres (origin at the patch's south-west corner).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Rect {
+    pub min: DVec2,
+    pub max: DVec2,
+}
+
+impl Rect {
+    pub fn area(&self) -> f64 {
+        let size = self.max - self.min;
+        size.x * size.y
+    }
+}
+
+/// Where the painting asks people to walk, and how strongly.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct RequestedDirection {
+    /// Unit vector, world frame.
+    pub dir: DVec2,
+    /// Mean direction weight over the patch (layer weight x alpha).
+    pub weight: f64,
+}
+
+/// One crowd patch and what the painting requests of it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Patch {
+    pub id: PatchId,
+    pub cell: Cell,
+    /// Requested walkers per m2 of patch area.
+    pub walker_density: f64,
+    /// Requested standing characters per m2 of patch area.
+    pub stander_density: f64,
+    pub direction: Option<RequestedDirection>,
+    /// Share of the patch area covered by obstacles.
+    pub obstacle_coverage: f64,
+    /// The partial obstacles inside the patch, as static obstacles in patch-local metres.
+    pub obstacles: Vec<Rect>,
+    /// Connected component (patches reachable through open borders).
+    pub component: u32,
+}
+
+/// Which way a border runs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum BorderAxis {
+    /// A north-south line: `a` is the west patch, `b` the east one; positions run northward.
+    Vertical,
+    /// A west-east line: `a` is the south patch, `b` the north one; positions run eastward.
+    Horizontal,
+}
+
+/// A stretch of a border, in metres from the border's south or west end.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Interval {
+    pub start: f64,
+    pub end: f64,
+}
+
+impl Interval {
+    pub fn len(&self) -> f64 {
+        self.end - self.start
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.end <= self.start
+    }
+}
+
+/// A border shared by two kept patches, with the intervals where people can cross.
+/// A border fully closed by obstacles is kept with no open interval.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Border {
+    pub a: PatchId,
+    pub b: PatchId,
+    pub axis: BorderAxis,
+    pub open: Vec<Interval>,
+}
+
+/// The world grid the patches are cut from.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct World {
+    pub cols: u32,
+    pub rows: u32,
+    pub patch_side_m: f64,
+    pub meters_per_pixel: f64,
+    /// Size of the painted maps, in metres.
+    pub size_m: DVec2,
+}
+
+/// A connected component of the patch graph.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Component {
+    pub id: u32,
+    pub patches: u32,
+    /// Requested walkers in the component (sum of density x area).
+    pub walkers: f64,
+    pub standers: f64,
+}
+
+/// Cells of the world grid that did not become patches.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Dropped {
+    /// Nothing painted.
+    pub empty: Vec<Cell>,
+    /// Covered by obstacles.
+    pub blocked: Vec<Cell>,
+    /// Metres east and north of the last whole patch that no patch covers, when the maps are
+    /// not a whole number of patches.
+    pub uncovered_strip_m: DVec2,
+}
+
+/// `graph.ron`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PatchGraph {
+    pub header: Header,
+    pub world: World,
+    pub walkers_requested: u64,
+    pub standers_requested: u64,
+    pub radius_m: f64,
+    pub dropped: Dropped,
+    pub components: Vec<Component>,
+    pub patches: Vec<Patch>,
+    pub borders: Vec<Border>,
+}
+
+impl PatchGraph {
+    pub const STAGE: &'static str = "graph";
+    pub const VERSION: u32 = 1;
+
+    /// Area of one patch in m2.
+    pub fn patch_area(&self) -> f64 {
+        self.world.patch_side_m * self.world.patch_side_m
+    }
+
+    /// World position of a patch's south-west corner.
+    pub fn world_from_patch(&self, cell: Cell) -> DVec2 {
+        DVec2::new(cell.col as f64, cell.row as f64) * self.world.patch_side_m
+    }
+
+    pub fn patch(&self, id: PatchId) -> &Patch {
+        &self.patches[id.0 as usize]
+    }
+
+    /// Reads and checks `graph.ron`.
+    pub fn load(path: &std::path::Path) -> crate::Result<PatchGraph> {
+        let graph: PatchGraph = crate::files::read_ron(path)?;
+        crate::files::expect_stage(path, &graph.header, Self::STAGE, Self::VERSION)?;
+        Ok(graph)
+    }
+}

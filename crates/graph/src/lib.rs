@@ -1,0 +1,260 @@
+//! Stage 2, graph: [`MergedMaps`] in, [`PatchGraph`] out (Crowd Art section 5, "From maps to
+//! crowd patches").
+//!
+//! The world is cut into square patches of the configured side. Each patch gets the mean of its
+//! pixels: walker and stander density (scaled so the scene holds the requested numbers of
+//! characters), direction (where the direction weight asks for one) and obstacle coverage.
+//! Empty and blocked patches are dropped; partial obstacles stay inside their patch as static
+//! obstacles. Every border two kept patches share records the intervals where people can cross,
+//! and petgraph's union-find gives the connected components.
+//!
+//! [`build_graph`] is the pure core; [`run`] is the I/O edge.
+
+mod borders;
+mod cells;
+mod components;
+
+use crowd_core::config::{GraphSettings, PipelineFile};
+use crowd_core::files::{self, Header};
+use crowd_core::maps::MergeFile;
+use crowd_core::patch_graph::{Dropped, World};
+use crowd_core::{Error, Hash, Hasher, MergedMaps, Patch, PatchGraph, PatchId, Progress, Result};
+use glam::DVec2;
+use std::path::Path;
+
+/// Everything of the pipeline that stage 2 reads, besides the merged maps.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct GraphInputs {
+    pub walkers: u64,
+    pub standers: u64,
+    pub patch_side_m: f64,
+    pub radius_m: f64,
+    pub settings: GraphSettings,
+}
+
+/// Why painted maps and settings cannot make a patch graph.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum GraphProblem {
+    #[error(
+        "`walkers` is 0 but the density layers paint {pixels} pixels outside obstacles; \
+         set `walkers` above 0 or remove the density layers"
+    )]
+    ZeroWalkers { pixels: u64 },
+    #[error(
+        "`walkers` is {walkers} but the density layers paint nothing outside obstacles and \
+         empty patches; paint where they walk or set `walkers` to 0"
+    )]
+    NothingToWalkOn { walkers: u64 },
+    #[error(
+        "`standers` is {standers} but the static layers paint nothing outside obstacles and \
+         empty patches; paint where they stand or set `standers` to 0"
+    )]
+    NowhereToStand { standers: u64 },
+    #[error(
+        "no walkable patch: of {cells} patches of {side_m} m, {empty} are empty (mean painted \
+         density at most `graph.empty_below`) and {blocked} are blocked by obstacles"
+    )]
+    NoWalkablePatch {
+        cells: u32,
+        side_m: f64,
+        empty: u32,
+        blocked: u32,
+    },
+    #[error(
+        "the maps are {width_m} x {height_m} m, smaller than one patch of {side_m} m; \
+         use a smaller `patch_side_m`"
+    )]
+    MapsSmallerThanAPatch {
+        width_m: f64,
+        height_m: f64,
+        side_m: f64,
+    },
+}
+
+impl GraphProblem {
+    /// The pipeline field a person should look at.
+    pub fn field(&self) -> &'static str {
+        match self {
+            GraphProblem::ZeroWalkers { .. } | GraphProblem::NothingToWalkOn { .. } => "walkers",
+            GraphProblem::NowhereToStand { .. } => "standers",
+            GraphProblem::NoWalkablePatch { .. } => "scene.layers",
+            GraphProblem::MapsSmallerThanAPatch { .. } => "patch_side_m",
+        }
+    }
+}
+
+/// Builds the patch graph. Deterministic whatever the thread count.
+pub fn build_graph(
+    maps: &MergedMaps,
+    inputs: &GraphInputs,
+    input_hash: Hash,
+    progress: &dyn Progress,
+) -> std::result::Result<PatchGraph, GraphProblem> {
+    let mpp = maps.meters_per_pixel;
+    let side_px = (inputs.patch_side_m / mpp).round() as u32;
+    let cols = maps.width() / side_px;
+    let rows = maps.height() / side_px;
+    let size_m = DVec2::new(maps.width() as f64, maps.height() as f64) * mpp;
+    if cols == 0 || rows == 0 {
+        return Err(GraphProblem::MapsSmallerThanAPatch {
+            width_m: size_m.x,
+            height_m: size_m.y,
+            side_m: inputs.patch_side_m,
+        });
+    }
+    let world = World {
+        cols,
+        rows,
+        patch_side_m: inputs.patch_side_m,
+        meters_per_pixel: mpp,
+        size_m,
+    };
+    let layout = cells::Layout::new(maps, side_px, cols, rows);
+    progress.begin("graph", rows as u64 + 2);
+    let stats = cells::measure(maps, &layout, progress);
+    check_walkers(maps, inputs)?;
+
+    let s = &inputs.settings;
+    let mut empty = Vec::new();
+    let mut blocked = Vec::new();
+    let mut kept = Vec::new();
+    for stat in &stats {
+        if stat.coverage >= s.blocked_above {
+            blocked.push(stat.cell);
+        } else if stat.mean_walkers + stat.mean_standers <= s.empty_below {
+            empty.push(stat.cell);
+        } else {
+            kept.push(stat);
+        }
+    }
+    if kept.is_empty() {
+        return Err(GraphProblem::NoWalkablePatch {
+            cells: cols * rows,
+            side_m: inputs.patch_side_m,
+            empty: empty.len() as u32,
+            blocked: blocked.len() as u32,
+        });
+    }
+    let area = inputs.patch_side_m * inputs.patch_side_m;
+    // Sums in patch order, on one thread: the scale factor is bit-identical on every run.
+    let painted_walkers: f64 = kept.iter().map(|c| c.mean_walkers).sum();
+    let painted_standers: f64 = kept.iter().map(|c| c.mean_standers).sum();
+    if inputs.walkers > 0 && painted_walkers <= 0.0 {
+        return Err(GraphProblem::NothingToWalkOn {
+            walkers: inputs.walkers,
+        });
+    }
+    if inputs.standers > 0 && painted_standers <= 0.0 {
+        return Err(GraphProblem::NowhereToStand {
+            standers: inputs.standers,
+        });
+    }
+    let scale = |people: u64, painted: f64| {
+        if people == 0 {
+            0.0
+        } else {
+            people as f64 / (area * painted)
+        }
+    };
+    let walker_scale = scale(inputs.walkers, painted_walkers);
+    let stander_scale = scale(inputs.standers, painted_standers);
+
+    let mut patches: Vec<Patch> = kept
+        .iter()
+        .enumerate()
+        .map(|(i, c)| Patch {
+            id: PatchId(i as u32),
+            cell: c.cell,
+            walker_density: c.mean_walkers * walker_scale,
+            stander_density: c.mean_standers * stander_scale,
+            direction: c.direction(s.direction_min_weight),
+            obstacle_coverage: c.coverage,
+            obstacles: c.obstacles.clone(),
+            component: 0,
+        })
+        .collect();
+    progress.advance(1);
+    let min_opening = s.min_opening_m.unwrap_or(2.0 * inputs.radius_m);
+    let borders = borders::find(maps, &layout, &patches, min_opening);
+    let components = components::label(&mut patches, &borders, area);
+    progress.advance(1);
+
+    Ok(PatchGraph {
+        header: Header {
+            stage: PatchGraph::STAGE.to_string(),
+            version: PatchGraph::VERSION,
+            input_hash,
+        },
+        world,
+        walkers_requested: inputs.walkers,
+        standers_requested: inputs.standers,
+        radius_m: inputs.radius_m,
+        dropped: Dropped {
+            empty,
+            blocked,
+            uncovered_strip_m: DVec2::new(
+                (maps.width() - cols * side_px) as f64,
+                (maps.height() - rows * side_px) as f64,
+            ) * mpp,
+        },
+        components,
+        patches,
+        borders,
+    })
+}
+
+fn check_walkers(maps: &MergedMaps, inputs: &GraphInputs) -> std::result::Result<(), GraphProblem> {
+    if inputs.walkers == 0 {
+        let pixels = maps.walkers.as_slice().iter().filter(|&&v| v > 0.0).count() as u64;
+        if pixels > 0 {
+            return Err(GraphProblem::ZeroWalkers { pixels });
+        }
+    }
+    Ok(())
+}
+
+/// What stage 2 reads from a pipeline.
+pub fn inputs(pipeline: &PipelineFile) -> GraphInputs {
+    let p = &pipeline.pipeline;
+    GraphInputs {
+        walkers: p.walkers,
+        standers: p.standers,
+        patch_side_m: p.patch_side_m,
+        radius_m: p.radius_m,
+        settings: p.graph.clone(),
+    }
+}
+
+/// The hash of stage 2's inputs: the merge file's bytes and the graph settings.
+pub fn input_hash(merge_file_bytes: &[u8], inputs: &GraphInputs) -> Hash {
+    Hasher::new(PatchGraph::STAGE, PatchGraph::VERSION)
+        .part(
+            "merge file",
+            Hash::of(merge_file_bytes).to_string().as_bytes(),
+        )
+        .value("inputs", inputs)
+        .finish()
+}
+
+/// Runs stage 2: reads `merge` (stage 1's file), writes `out`.
+pub fn run(
+    pipeline: &PipelineFile,
+    merge: &Path,
+    out: &Path,
+    progress: &dyn Progress,
+) -> Result<PatchGraph> {
+    let merge_bytes = std::fs::read(merge).map_err(|e| Error::io(merge, "read", e))?;
+    let (_, maps) = MergeFile::load(merge)?;
+    if (maps.meters_per_pixel - pipeline.pipeline.scene.meters_per_pixel).abs() > 1e-12 {
+        return Err(Error::stage_file(
+            merge,
+            "was merged at another `scene.meters_per_pixel` than the pipeline's: merge again",
+        ));
+    }
+    let inputs = inputs(pipeline);
+    let hash = input_hash(&merge_bytes, &inputs);
+    let graph = build_graph(&maps, &inputs, hash, progress)
+        .map_err(|problem| pipeline.scene_error(problem.field(), problem.to_string()))?;
+    files::write_atomic(out, files::to_ron(&graph).as_bytes())?;
+    Ok(graph)
+}
