@@ -33,6 +33,9 @@ pub enum Command {
         /// Rebuild every stage even when its output is up to date.
         #[arg(long)]
         force: bool,
+        /// Write the stage files here instead of the pipeline's `output` folder.
+        #[arg(long, short, value_name = "DIR")]
+        output: Option<PathBuf>,
     },
     /// Stage 1: merge the painted layers into grids.
     Merge {
@@ -78,8 +81,12 @@ pub fn run(cli: Cli) -> Result<()> {
     }
     let ui = Ui { quiet: cli.quiet };
     match cli.command {
-        Command::Build { pipeline, force } => {
-            driver::build(&pipeline, &BuildOptions { force }, &ui)?;
+        Command::Build {
+            pipeline,
+            force,
+            output,
+        } => {
+            driver::build(&pipeline, &BuildOptions { force, output }, &ui)?;
         }
         Command::Merge { pipeline, output } => {
             let p = PipelineFile::load(&pipeline)?;

@@ -5,15 +5,18 @@
 //! times: a fresh clone or a `touch` that changes nothing rebuilds nothing, and a changed pixel
 //! always rebuilds). A rerun stage whose output bytes come out the same leaves the next stage up
 //! to date.
+//!
+//! A build is all or nothing: stage outputs are kept in memory and written (each file
+//! atomically) only once every stage has succeeded, so a build that fails changes no file.
 
 use crate::ui::Ui;
 use anyhow::Result;
 use crowd_core::config::PipelineFile;
 use crowd_core::files::{self, Header};
 use crowd_core::maps::MergeFile;
-use crowd_core::{Error, Hash, PatchGraph};
+use crowd_core::{Error, Hash, MergedMaps, PatchGraph};
 use std::collections::BTreeMap;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 pub const MERGE_FILE: &str = "merge.ron";
@@ -24,7 +27,10 @@ pub const TIMINGS_FILE: &str = "timings.ron";
 
 #[derive(Debug, Clone, Default)]
 pub struct BuildOptions {
+    /// Rebuild every stage.
     pub force: bool,
+    /// Build folder instead of the pipeline's `output`.
+    pub output: Option<PathBuf>,
 }
 
 /// What happened to one stage in a build.
@@ -35,21 +41,30 @@ pub struct StageOutcome {
     pub seconds: Option<f64>,
 }
 
+/// Files to write once every stage has succeeded, in order.
+#[derive(Default)]
+struct Pending(Vec<(PathBuf, Vec<u8>)>);
+
 /// Runs every stage of the pipeline at `pipeline_path`.
 pub fn build(pipeline_path: &Path, options: &BuildOptions, ui: &Ui) -> Result<Vec<StageOutcome>> {
     let pipeline = PipelineFile::load(pipeline_path)?;
-    let out = pipeline.output_dir();
+    let out = options
+        .output
+        .clone()
+        .unwrap_or_else(|| pipeline.output_dir());
     files::ensure_writable_dir(&out)?;
     let mut timings = read_timings(&out);
     let mut outcomes = Vec::new();
+    let mut pending = Pending::default();
 
-    // Stage 1: merge.
+    // Stage 1: merge. Its maps stay in memory for stage 2 when it runs.
     let merge_path = out.join(MERGE_FILE);
     let layers = crowd_merge::read_layers(&pipeline)?;
     let hash = crowd_merge::input_hash(&pipeline, &layers);
     let fresh = !options.force
         && is_current(&merge_path, MergeFile::STAGE, MergeFile::VERSION, hash)
         && MergeFile::load(&merge_path).is_ok();
+    let mut merged: Option<(Vec<u8>, MergedMaps)> = None;
     outcomes.push(stage(
         ui,
         "merge",
@@ -59,20 +74,22 @@ pub fn build(pipeline_path: &Path, options: &BuildOptions, ui: &Ui) -> Result<Ve
         || {
             let bar = ui.stage_bar("merge");
             let decoded = crowd_merge::decode(&layers)?;
-            let maps = crowd_merge::merge(
-                &decoded,
-                &pipeline.pipeline.merge,
-                pipeline.pipeline.scene.meters_per_pixel,
-                &bar,
-            );
-            crowd_merge::write(&merge_path, &pipeline, &layers, &decoded, hash, &maps)?;
+            let p = &pipeline.pipeline;
+            let maps = crowd_merge::merge(&decoded, &p.merge, p.scene.meters_per_pixel, &bar);
+            let encoded =
+                crowd_merge::encode(&merge_path, &pipeline, &layers, &decoded, hash, &maps);
+            merged = Some((encoded.ron_bytes().to_vec(), maps));
+            pending.0.extend(encoded.writes);
             Ok(())
         },
     )?);
 
     // Stage 2: graph.
     let graph_path = out.join(GRAPH_FILE);
-    let merge_bytes = std::fs::read(&merge_path).map_err(|e| Error::io(&merge_path, "read", e))?;
+    let merge_bytes = match &merged {
+        Some((bytes, _)) => bytes.clone(),
+        None => std::fs::read(&merge_path).map_err(|e| Error::io(&merge_path, "read", e))?,
+    };
     let hash = crowd_graph::input_hash(&merge_bytes, &crowd_graph::inputs(&pipeline));
     let fresh =
         !options.force && is_current(&graph_path, PatchGraph::STAGE, PatchGraph::VERSION, hash);
@@ -84,11 +101,21 @@ pub fn build(pipeline_path: &Path, options: &BuildOptions, ui: &Ui) -> Result<Ve
         &mut timings,
         || {
             let bar = ui.stage_bar("graph");
-            crowd_graph::run(&pipeline, &merge_path, &graph_path, &bar)?;
+            let maps = match merged.take() {
+                Some((_, maps)) => maps,
+                None => MergeFile::load(&merge_path)?.1,
+            };
+            let graph = crowd_graph::build(&pipeline, &merge_path, &merge_bytes, &maps, &bar)?;
+            pending
+                .0
+                .push((graph_path.clone(), files::to_ron(&graph).into_bytes()));
             Ok(())
         },
     )?);
 
+    for (path, bytes) in &pending.0 {
+        files::write_atomic(path, bytes)?;
+    }
     files::write_atomic(&out.join(TIMINGS_FILE), files::to_ron(&timings).as_bytes())?;
     Ok(outcomes)
 }

@@ -104,7 +104,7 @@ impl Default for MergeSettings {
 #[serde(deny_unknown_fields, default)]
 pub struct GraphSettings {
     /// A patch whose mean painted density (walkers and standers, 0..1 per layer) is at most this
-    /// is empty and dropped. The default is one 8-bit gray level.
+    /// is empty and dropped. The default drops only patches where nothing at all is painted.
     pub empty_below: f64,
     /// A patch whose obstacle coverage reaches this share of its area is blocked and dropped.
     pub blocked_above: f64,
@@ -117,7 +117,7 @@ pub struct GraphSettings {
 impl Default for GraphSettings {
     fn default() -> Self {
         GraphSettings {
-            empty_below: 1.0 / 255.0,
+            empty_below: 0.0,
             blocked_above: 0.8,
             direction_min_weight: 0.25,
             min_opening_m: None,

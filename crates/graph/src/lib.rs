@@ -245,6 +245,20 @@ pub fn run(
 ) -> Result<PatchGraph> {
     let merge_bytes = std::fs::read(merge).map_err(|e| Error::io(merge, "read", e))?;
     let (_, maps) = MergeFile::load(merge)?;
+    let graph = build(pipeline, merge, &merge_bytes, &maps, progress)?;
+    files::write_atomic(out, files::to_ron(&graph).as_bytes())?;
+    Ok(graph)
+}
+
+/// Builds the graph of a pipeline from stage 1's maps and the bytes of its file (`merge` names
+/// it in messages). Problems of the scene point at the pipeline setting to change.
+pub fn build(
+    pipeline: &PipelineFile,
+    merge: &Path,
+    merge_bytes: &[u8],
+    maps: &MergedMaps,
+    progress: &dyn Progress,
+) -> Result<PatchGraph> {
     if (maps.meters_per_pixel - pipeline.pipeline.scene.meters_per_pixel).abs() > 1e-12 {
         return Err(Error::stage_file(
             merge,
@@ -252,9 +266,10 @@ pub fn run(
         ));
     }
     let inputs = inputs(pipeline);
-    let hash = input_hash(&merge_bytes, &inputs);
-    let graph = build_graph(&maps, &inputs, hash, progress)
-        .map_err(|problem| pipeline.scene_error(problem.field(), problem.to_string()))?;
-    files::write_atomic(out, files::to_ron(&graph).as_bytes())?;
-    Ok(graph)
+    let hash = input_hash(merge_bytes, &inputs);
+    build_graph(maps, &inputs, hash, progress)
+        .map_err(|problem| pipeline.scene_error(problem.field(), problem.to_string()))
 }
+
+#[cfg(test)]
+mod tests;

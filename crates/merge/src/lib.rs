@@ -21,7 +21,7 @@ use crowd_core::config::PipelineFile;
 use crowd_core::files::{self, Header, SideFile};
 use crowd_core::maps::{LayerRecord, MapsSummary, MergeFile, MergedMaps};
 use crowd_core::{Hash, Hasher, Progress, Result};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// The hash of everything stage 1 reads: layer contents, kinds, weights, scale and settings.
 /// Paths are left out on purpose: moving a layer file does not make the build stale.
@@ -49,18 +49,38 @@ pub fn summarize(maps: &MergedMaps) -> MapsSummary {
     }
 }
 
-/// Writes `out` (RON) and its side file (`.bin` beside it), side file first, each atomically.
-pub fn write(
+/// Stage 1's files, encoded but not yet written: the side file first, then the RON that names it.
+pub struct Encoded {
+    pub file: MergeFile,
+    pub writes: Vec<(PathBuf, Vec<u8>)>,
+}
+
+impl Encoded {
+    /// The bytes of the RON file (what stage 2's input hash is made of).
+    pub fn ron_bytes(&self) -> &[u8] {
+        &self.writes.last().expect("the RON file is written last").1
+    }
+
+    /// Writes every file atomically, side file first.
+    pub fn write(&self) -> Result<()> {
+        for (path, bytes) in &self.writes {
+            files::write_atomic(path, bytes)?;
+        }
+        Ok(())
+    }
+}
+
+/// Encodes `out` (RON) and its side file (`.bin` beside it).
+pub fn encode(
     out: &Path,
     pipeline: &PipelineFile,
     layers: &[LayerBytes],
     decoded: &[PaintedLayer],
     input_hash: Hash,
     maps: &MergedMaps,
-) -> Result<MergeFile> {
+) -> Encoded {
     let bytes = maps.to_bytes();
     let side = out.with_extension("bin");
-    files::write_atomic(&side, &bytes)?;
     let file = MergeFile {
         header: Header {
             stage: MergeFile::STAGE.to_string(),
@@ -92,8 +112,11 @@ pub fn write(
             hash: Hash::of(&bytes),
         },
     };
-    files::write_atomic(out, files::to_ron(&file).as_bytes())?;
-    Ok(file)
+    let ron = files::to_ron(&file).into_bytes();
+    Encoded {
+        file,
+        writes: vec![(side, bytes), (out.to_path_buf(), ron)],
+    }
 }
 
 /// Runs stage 1 from a pipeline to `out`.
@@ -107,5 +130,7 @@ pub fn run(pipeline: &PipelineFile, out: &Path, progress: &dyn Progress) -> Resu
         pipeline.pipeline.scene.meters_per_pixel,
         progress,
     );
-    write(out, pipeline, &layers, &decoded, hash, &maps)
+    let encoded = encode(out, pipeline, &layers, &decoded, hash, &maps);
+    encoded.write()?;
+    Ok(encoded.file)
 }

@@ -1,0 +1,171 @@
+use super::*;
+use crowd_core::Grid;
+use crowd_core::patch_graph::{BorderAxis, Cell, Interval};
+use glam::Vec2;
+use proptest::prelude::*;
+
+/// Maps of `w x h` pixels at 1 m per pixel, uniformly painted, with `blocked` pixels.
+fn maps(w: u32, h: u32, blocked: impl Fn(u32, u32) -> bool) -> MergedMaps {
+    let mut m = MergedMaps {
+        meters_per_pixel: 1.0,
+        walkers: Grid::filled(w, h, 1.0),
+        standers: Grid::filled(w, h, 0.0),
+        flow: Grid::filled(w, h, Vec2::ZERO),
+        flow_weight: Grid::filled(w, h, 0.0),
+        blocked: Grid::filled(w, h, false),
+    };
+    for y in 0..h {
+        for x in 0..w {
+            if blocked(x, y) {
+                m.blocked.as_mut_slice()[(y * w + x) as usize] = true;
+                m.walkers.as_mut_slice()[(y * w + x) as usize] = 0.0;
+            }
+        }
+    }
+    m
+}
+
+fn inputs(walkers: u64) -> GraphInputs {
+    GraphInputs {
+        walkers,
+        standers: 0,
+        patch_side_m: 4.0,
+        radius_m: 0.3,
+        settings: GraphSettings::default(),
+    }
+}
+
+fn build(m: &MergedMaps, walkers: u64) -> PatchGraph {
+    build_graph(m, &inputs(walkers), Hash::of(b"test"), &()).unwrap()
+}
+
+#[test]
+fn requested_densities_add_up_to_the_requested_walkers() {
+    let mut m = maps(16, 8, |_, _| false);
+    for (i, v) in m.walkers.as_mut_slice().iter_mut().enumerate() {
+        *v = (i % 7) as f32 / 6.0;
+    }
+    let g = build(&m, 1234);
+    let total: f64 = g
+        .patches
+        .iter()
+        .map(|p| p.walker_density * g.patch_area())
+        .sum();
+    assert!((total - 1234.0).abs() < 1e-9, "{total}");
+}
+
+#[test]
+fn patches_are_numbered_from_the_south_west_corner() {
+    // Block the north-east 4 x 4 pixels: image rows 0..4 are the north edge.
+    let g = build(&maps(8, 8, |x, y| x >= 4 && y < 4), 10);
+    let cells: Vec<_> = g.patches.iter().map(|p| (p.cell.col, p.cell.row)).collect();
+    assert_eq!(cells, vec![(0, 0), (1, 0), (0, 1)]);
+    assert_eq!(g.dropped.blocked, vec![Cell { col: 1, row: 1 }]);
+}
+
+#[test]
+fn an_obstacle_closes_part_of_a_border() {
+    // A wall 2 px thick across the vertical border x = 4, over the 2 southmost pixels.
+    let g = build(&maps(8, 4, |x, y| (3..5).contains(&x) && y >= 2), 10);
+    assert_eq!(g.borders.len(), 1);
+    let b = &g.borders[0];
+    assert_eq!(b.axis, BorderAxis::Vertical);
+    assert_eq!(
+        b.open,
+        vec![Interval {
+            start: 2.0,
+            end: 4.0
+        }]
+    );
+    // The wall stays inside both patches as static obstacles.
+    assert_eq!(g.patches[0].obstacles.len(), 1);
+    assert_eq!(g.patches[0].obstacles[0].min, DVec2::new(3.0, 0.0));
+    assert_eq!(g.patches[0].obstacles[0].max, DVec2::new(4.0, 2.0));
+}
+
+#[test]
+fn an_opening_narrower_than_a_character_is_closed() {
+    // The border x = 4 is walled but for one 0.5 m pixel: too narrow for a 0.6 m character.
+    let mut m = maps(16, 8, |x, y| (7..9).contains(&x) && y != 3);
+    m.meters_per_pixel = 0.5;
+    let mut i = inputs(10);
+    i.patch_side_m = 4.0;
+    let g = build_graph(&m, &i, Hash::of(b"t"), &()).unwrap();
+    assert!(g.borders[0].open.is_empty());
+    assert_eq!(g.components.len(), 2, "a closed border splits the graph");
+}
+
+#[test]
+fn unpainted_patches_are_dropped_and_split_components() {
+    let mut m = maps(12, 4, |_, _| false);
+    for y in 0..4 {
+        for x in 4..8 {
+            m.walkers.as_mut_slice()[(y * 12 + x) as usize] = 0.0;
+        }
+    }
+    let g = build(&m, 10);
+    assert_eq!(g.patches.len(), 2);
+    assert_eq!(g.dropped.empty, vec![Cell { col: 1, row: 0 }]);
+    assert_eq!(g.components.len(), 2);
+    assert!(g.borders.is_empty(), "dropped patches share no border");
+}
+
+#[test]
+fn zero_walkers_with_painted_density_is_refused() {
+    let err = build_graph(&maps(8, 8, |_, _| false), &inputs(0), Hash::of(b"t"), &()).unwrap_err();
+    assert_eq!(err, GraphProblem::ZeroWalkers { pixels: 64 });
+}
+
+#[test]
+fn a_fully_blocked_scene_has_no_walkable_patch() {
+    let err = build_graph(&maps(8, 8, |_, _| true), &inputs(5), Hash::of(b"t"), &()).unwrap_err();
+    assert!(
+        matches!(err, GraphProblem::NoWalkablePatch { blocked: 4, .. }),
+        "{err}"
+    );
+}
+
+#[test]
+fn directions_are_requested_only_where_weighted_enough() {
+    let mut m = maps(8, 4, |_, _| false);
+    for y in 0..4 {
+        for x in 0..8 {
+            let i = (y * 8 + x) as usize;
+            m.flow.as_mut_slice()[i] = Vec2::new(0.0, 1.0);
+            m.flow_weight.as_mut_slice()[i] = if x < 4 { 1.0 } else { 0.1 };
+        }
+    }
+    let g = build(&m, 10);
+    let d = g.patches[0]
+        .direction
+        .expect("a strongly painted direction");
+    assert_eq!(d.dir, DVec2::Y);
+    assert_eq!(g.patches[1].direction, None);
+}
+
+proptest! {
+    /// The static obstacles of a patch cover exactly its blocked pixels, without overlap.
+    #[test]
+    fn obstacle_rectangles_cover_exactly_the_blocked_pixels(mask in proptest::collection::vec(any::<bool>(), 64)) {
+        let m = maps(8, 8, |x, y| mask[(y * 8 + x) as usize] && !(x == 0 && y == 7));
+        let mut i = inputs(10);
+        i.patch_side_m = 8.0;
+        i.settings.blocked_above = 1.0;
+        let g = build_graph(&m, &i, Hash::of(b"t"), &()).unwrap();
+        let p = &g.patches[0];
+        let area: f64 = p.obstacles.iter().map(|r| r.area()).sum();
+        prop_assert!((area - p.obstacle_coverage * 64.0).abs() < 1e-9);
+        for (k, a) in p.obstacles.iter().enumerate() {
+            for b in &p.obstacles[k + 1..] {
+                let overlap = a.min.x < b.max.x && b.min.x < a.max.x && a.min.y < b.max.y && b.min.y < a.max.y;
+                prop_assert!(!overlap);
+            }
+            // Every rectangle lies on blocked pixels (pixel (x, k) from the south-west).
+            for yy in a.min.y as u32..a.max.y as u32 {
+                for xx in a.min.x as u32..a.max.x as u32 {
+                    prop_assert!(*m.blocked.get(xx, 7 - yy));
+                }
+            }
+        }
+    }
+}

@@ -1,0 +1,235 @@
+//! Bad input: a clear error naming the file, the place and what was expected; a non-zero exit;
+//! and the outputs of an earlier good build left untouched. Every case uses a real broken file.
+
+use crate::util::*;
+use std::path::{Path, PathBuf};
+
+/// A folder with a good pipeline over copies of the city layers, already built once.
+struct Setup {
+    dir: tempfile::TempDir,
+    pipeline: PathBuf,
+    good: Vec<(String, Vec<u8>)>,
+}
+
+impl Setup {
+    fn new() -> Setup {
+        let dir = tempfile::tempdir().unwrap();
+        for layer in ["density", "obstacles"] {
+            std::fs::copy(
+                shared_scenes().join("city").join(format!("{layer}.png")),
+                dir.path().join(format!("{layer}.png")),
+            )
+            .unwrap();
+        }
+        let pipeline = write_pipeline(
+            dir.path(),
+            &[
+                ("Density", &dir.path().join("density.png")),
+                ("Obstacles", &dir.path().join("obstacles.png")),
+            ],
+            "",
+        );
+        crowd_ok(&["build", "-q", "--pipeline", s(&pipeline)]);
+        let good = snapshot(&dir.path().join("out"));
+        Setup {
+            dir,
+            pipeline,
+            good,
+        }
+    }
+
+    fn path(&self, name: &str) -> PathBuf {
+        self.dir.path().join(name)
+    }
+
+    /// Rewrites the pipeline text.
+    fn edit(&self, from: &str, to: &str) {
+        let text = std::fs::read_to_string(&self.pipeline).unwrap();
+        assert!(text.contains(from), "{from:?} not in the pipeline");
+        std::fs::write(&self.pipeline, text.replacen(from, to, 1)).unwrap();
+    }
+
+    /// Builds, expects failure, checks the earlier outputs are intact, returns the message.
+    fn fails(&self) -> String {
+        let err = crowd_err(&["build", "--pipeline", s(&self.pipeline)]);
+        assert!(
+            snapshot(&self.path("out")) == self.good,
+            "earlier outputs changed"
+        );
+        err
+    }
+}
+
+fn assert_has(err: &str, parts: &[&str]) {
+    for part in parts {
+        assert!(err.contains(part), "expected {part:?} in:\n{err}");
+    }
+}
+
+#[test]
+fn a_missing_layer_file_names_the_pipeline_line() {
+    let t = Setup::new();
+    std::fs::remove_file(t.path("density.png")).unwrap();
+    let err = t.fails();
+    assert_has(
+        &err,
+        &[
+            "pipeline.ron:5:",
+            "scene.layers[0].path",
+            "density.png",
+            "cannot be read",
+        ],
+    );
+}
+
+#[test]
+fn a_file_that_is_not_an_image_is_refused() {
+    let t = Setup::new();
+    std::fs::write(
+        t.path("density.png"),
+        "this is a text file, not a painting\n",
+    )
+    .unwrap();
+    let err = t.fails();
+    assert_has(
+        &err,
+        &[
+            "density.png",
+            "is not a PNG image",
+            "expected the PNG signature",
+        ],
+    );
+}
+
+#[test]
+fn a_truncated_png_is_refused() {
+    let t = Setup::new();
+    let bytes = std::fs::read(t.path("density.png")).unwrap();
+    std::fs::write(t.path("density.png"), &bytes[..bytes.len() / 2]).unwrap();
+    let err = t.fails();
+    assert_has(
+        &err,
+        &[
+            "density.png",
+            "damaged or truncated PNG",
+            &format!("({} bytes)", bytes.len() / 2),
+        ],
+    );
+}
+
+#[test]
+fn layers_of_different_pixel_sizes_are_refused() {
+    let t = Setup::new();
+    std::fs::copy(
+        shared_scenes().join("lanes/density.png"),
+        t.path("obstacles.png"),
+    )
+    .unwrap();
+    let err = t.fails();
+    assert_has(
+        &err,
+        &[
+            "obstacles.png",
+            "is 160 x 64 pixels",
+            "400 x 400 pixels",
+            "same pixel size",
+        ],
+    );
+}
+
+#[test]
+fn a_ron_syntax_error_names_line_and_column() {
+    let t = Setup::new();
+    t.edit("walkers: 1000,", "walkers: 1000\n    oops");
+    let err = t.fails();
+    assert_has(&err, &["pipeline.ron:10:5:"]);
+}
+
+#[test]
+fn an_unknown_field_suggests_the_nearest_name() {
+    let t = Setup::new();
+    t.edit("radius_m:", "raduis_m:");
+    let err = t.fails();
+    assert_has(
+        &err,
+        &[
+            "pipeline.ron:",
+            "unknown field `raduis_m`",
+            "did you mean `radius_m`?",
+        ],
+    );
+}
+
+#[test]
+fn zero_or_negative_sizes_are_refused() {
+    for (field, bad) in [
+        ("patch_side_m", "-8.0"),
+        ("period_s", "0.0"),
+        ("radius_m", "-0.3"),
+    ] {
+        let t = Setup::new();
+        let text = std::fs::read_to_string(&t.pipeline).unwrap();
+        let line = text
+            .lines()
+            .find(|l| l.trim_start().starts_with(field))
+            .unwrap()
+            .to_string();
+        t.edit(&line, &format!("    {field}: {bad},"));
+        let err = t.fails();
+        assert_has(
+            &err,
+            &[
+                "pipeline.ron:",
+                &format!("`{field}` is {}", bad.trim_end_matches(".0")),
+                "expected a positive number",
+            ],
+        );
+    }
+}
+
+#[test]
+fn zero_walkers_over_a_painted_density_map_is_refused() {
+    let t = Setup::new();
+    t.edit("walkers: 1000,", "walkers: 0,");
+    let err = t.fails();
+    assert_has(
+        &err,
+        &[
+            "pipeline.ron:9:5:",
+            "`walkers` is 0",
+            "pixels outside obstacles",
+        ],
+    );
+}
+
+#[test]
+fn a_scene_without_a_walkable_patch_is_refused() {
+    let t = Setup::new();
+    let all_blocked = image::GrayImage::from_pixel(400, 400, image::Luma([255]));
+    all_blocked.save(t.path("obstacles.png")).unwrap();
+    let err = t.fails();
+    assert_has(
+        &err,
+        &["pipeline.ron", "no walkable patch", "2500 are blocked"],
+    );
+}
+
+#[test]
+fn an_output_folder_that_cannot_be_written_is_refused() {
+    let t = Setup::new();
+    std::fs::write(t.path("not-a-folder"), b"a plain file").unwrap();
+    t.edit("output: \"out\"", "output: \"not-a-folder/out\"");
+    let err = t.fails();
+    assert_has(
+        &err,
+        &["not-a-folder/out", "cannot create the output folder"],
+    );
+}
+
+#[test]
+fn a_stage_file_of_another_kind_is_refused_by_inspect() {
+    let t = Setup::new();
+    let err = crowd_err(&["inspect", s(&t.path("pipeline.ron"))]);
+    assert_has(&err, &["pipeline.ron"]);
+    let _ = Path::new("");
+}
