@@ -10,7 +10,13 @@ pub fn root() -> PathBuf {
 
 /// `../shared/scenes`, beside the repository.
 pub fn shared_scenes() -> PathBuf {
-    root().join("../shared/scenes")
+    let scenes = root().join("../shared/scenes");
+    assert!(
+        scenes.is_dir(),
+        "the tests read the painted scenes of ../shared/scenes beside the repository; {} is missing",
+        scenes.display()
+    );
+    scenes
 }
 
 /// Names of the shared scenes.

@@ -24,7 +24,9 @@ fn stages(c: &mut Criterion) {
         let inputs = crowd_graph::inputs(&p);
 
         let mut group = c.benchmark_group(scene);
-        group.sample_size(20).measurement_time(Duration::from_secs(8));
+        group
+            .sample_size(20)
+            .measurement_time(Duration::from_secs(8));
         group.bench_function("merge (read + decode + merge)", |b| {
             b.iter(|| {
                 let layers = crowd_merge::read_layers(&p).unwrap();

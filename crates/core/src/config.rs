@@ -173,7 +173,7 @@ impl PipelineFile {
         if path.is_absolute() {
             path.to_path_buf()
         } else {
-            self.base_dir().join(path)
+            tidy(&self.base_dir().join(path))
         }
     }
 
@@ -314,6 +314,27 @@ impl PipelineFile {
             ));
         }
         Ok(())
+    }
+}
+
+/// Removes `.` and `dir/..` from a relative path, for readable messages
+/// (`assets/pipelines/../../build` is `build`).
+fn tidy(path: &Path) -> PathBuf {
+    use std::path::Component;
+    let mut out: Vec<Component> = Vec::new();
+    for c in path.components() {
+        match c {
+            Component::CurDir => {}
+            Component::ParentDir if matches!(out.last(), Some(Component::Normal(_))) => {
+                out.pop();
+            }
+            other => out.push(other),
+        }
+    }
+    if out.is_empty() {
+        PathBuf::from(".")
+    } else {
+        out.iter().collect()
     }
 }
 
@@ -473,6 +494,23 @@ mod tests {
             Some(LineCol { line: 6, col: 28 })
         );
         assert_eq!(f.place_of("graph.empty_below"), None);
+    }
+
+    #[test]
+    fn paths_resolve_against_the_pipeline_folder() {
+        let f = PipelineFile::parse(Path::new("assets/pipelines/p.ron"), GOOD.to_string()).unwrap();
+        assert_eq!(
+            f.resolve(Path::new("../../build/x")),
+            PathBuf::from("build/x")
+        );
+        assert_eq!(
+            f.resolve(Path::new("../../../shared/a.png")),
+            PathBuf::from("../shared/a.png")
+        );
+        assert_eq!(
+            f.resolve(Path::new("/abs/a.png")),
+            PathBuf::from("/abs/a.png")
+        );
     }
 
     #[test]

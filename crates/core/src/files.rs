@@ -123,12 +123,21 @@ pub fn read_header(path: &Path) -> Result<Header> {
     let end = text
         .find("\n  header:")
         .and_then(|start| text[start..].find("),\n").map(|close| start + close + 2));
-    let peek: Peek = match end {
+    let parsed: Result<Peek> = match end {
         Some(end) => {
-            parse_ron(path, &format!("{}\n)", &text[..end])).or_else(|_| parse_ron(path, &text))?
+            parse_ron(path, &format!("{}\n)", &text[..end])).or_else(|_| parse_ron(path, &text))
         }
-        None => parse_ron(path, &text)?,
+        None => parse_ron(path, &text),
     };
+    let peek = parsed.map_err(|e| {
+        Error::stage_file(
+            path,
+            format!(
+                "is not a stage file of this pipeline (expected RON starting with \
+                 `header: (stage: ..., version: ..., input_hash: ...)`): {e}"
+            ),
+        )
+    })?;
     Ok(peek.header)
 }
 
