@@ -363,6 +363,9 @@ fn describe_ron_error(code: &ron::Error) -> String {
             suggestion(found, expected),
             list(expected)
         ),
+        ron::Error::IntegerOutOfBounds => "integer out of range here; expected a whole number \
+            of 0 or more (`walkers`, `standers` and `seed` are counts)"
+            .to_string(),
         other => other.to_string(),
     }
 }
