@@ -142,16 +142,7 @@ fn sixteen_bit_layers_merge_like_their_eight_bit_originals() {
 
 #[test]
 fn report_prints_the_figures_as_json() {
-    let dir = tempfile::tempdir().unwrap();
-    let out = dir.path().join("out");
-    crowd_ok(&[
-        "build",
-        "-q",
-        "--pipeline",
-        s(&scene_pipeline("city")),
-        "--output",
-        s(&out),
-    ]);
+    let (_dir, out) = build_shared_scene("city");
     let json: serde_json::Value =
         serde_json::from_slice(&crowd_ok(&["report", s(&out), "--json"]).stdout).unwrap();
     assert_eq!(json["walkers_requested"], 5000);

@@ -5,16 +5,7 @@ use crowd_core::PatchGraph;
 use glam::DVec2;
 
 fn build_scene(name: &str) -> (tempfile::TempDir, PatchGraph) {
-    let dir = tempfile::tempdir().unwrap();
-    let out = dir.path().join("out");
-    crowd_ok(&[
-        "build",
-        "-q",
-        "--pipeline",
-        s(&scene_pipeline(name)),
-        "--output",
-        s(&out),
-    ]);
+    let (dir, out) = build_shared_scene(name);
     let graph = PatchGraph::load(&out.join("graph.ron")).unwrap();
     (dir, graph)
 }
@@ -152,16 +143,7 @@ fn center_flow_asks_for_east_exactly_where_its_alpha_paints_a_direction() {
 #[test]
 fn graph_pictures_render() {
     for name in ["city", "ring"] {
-        let dir = tempfile::tempdir().unwrap();
-        let out = dir.path().join("out");
-        crowd_ok(&[
-            "build",
-            "-q",
-            "--pipeline",
-            s(&scene_pipeline(name)),
-            "--output",
-            s(&out),
-        ]);
+        let (dir, out) = build_shared_scene(name);
         for stage in ["merge", "graph"] {
             let png = dir.path().join(format!("{stage}.png"));
             crowd_ok(&[

@@ -38,6 +38,22 @@ pub fn scene_pipeline(name: &str) -> PathBuf {
     root().join("assets/pipelines").join(format!("{name}.ron"))
 }
 
+/// Builds a shared scene into a new temporary folder; returns it and the build folder in it.
+pub fn build_shared_scene(name: &str) -> (tempfile::TempDir, PathBuf) {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    let pipeline = scene_pipeline(name);
+    crowd_ok(&[
+        "build",
+        "-q",
+        "--pipeline",
+        s(&pipeline),
+        "--output",
+        s(&out),
+    ]);
+    (dir, out)
+}
+
 /// Runs `crowd` with `args`.
 pub fn crowd(args: &[&str]) -> Output {
     std::process::Command::new(env!("CARGO_BIN_EXE_crowd"))
