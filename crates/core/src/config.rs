@@ -32,6 +32,10 @@ pub struct Pipeline {
     pub merge: MergeSettings,
     #[serde(default)]
     pub graph: GraphSettings,
+    #[serde(default)]
+    pub optimize: OptimizeSettings,
+    #[serde(default, rename = "match")]
+    pub matching: MatchSettings,
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -121,6 +125,59 @@ impl Default for GraphSettings {
             blocked_above: 0.8,
             direction_min_weight: 0.25,
             min_opening_m: None,
+        }
+    }
+}
+
+/// Settings of stage 3.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct OptimizeSettings {
+    /// Largest density any patch may reach, characters per m2 (Crowd Art: 0.35).
+    pub rho_max: f64,
+    /// Optimisation steps at most.
+    pub max_iterations: u32,
+    /// The loop stops when E has improved by less than this over the last `patience` steps.
+    pub tolerance: f64,
+    pub patience: u32,
+}
+
+impl Default for OptimizeSettings {
+    fn default() -> Self {
+        OptimizeSettings {
+            rho_max: 0.35,
+            max_iterations: 400,
+            tolerance: 1e-4,
+            patience: 25,
+        }
+    }
+}
+
+/// Settings of stage 4 (also used by stage 3 to measure density and direction).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct MatchSettings {
+    /// Free walking speed of the fundamental diagram, m/s (Ramirez et al.: 1.33).
+    pub comfort_speed: f64,
+    /// Slower than this, a walker pauses instead; m/s.
+    pub min_speed: f64,
+    /// Faster than this is implausible: the walker stays for extra periods; m/s.
+    pub max_speed: f64,
+    /// Weight of the requested-direction term of the matching score.
+    pub direction_gain: f64,
+    /// How far towards the centre a walker turns when entering and leaving by the same border,
+    /// as a share of the patch side.
+    pub turn_depth: f64,
+}
+
+impl Default for MatchSettings {
+    fn default() -> Self {
+        MatchSettings {
+            comfort_speed: 1.33,
+            min_speed: 0.5,
+            max_speed: 1.8,
+            direction_gain: 3.0,
+            turn_depth: 0.3,
         }
     }
 }
@@ -311,6 +368,36 @@ impl PipelineFile {
             return Err(self.field_error(
                 "graph.min_opening_m",
                 format!("is {w}; expected a positive width in metres"),
+            ));
+        }
+        let o = &p.optimize;
+        if !(o.rho_max.is_finite() && o.rho_max > 0.0) {
+            return Err(self.field_error(
+                "optimize.rho_max",
+                format!(
+                    "is {}; expected a positive density in characters per m2",
+                    o.rho_max
+                ),
+            ));
+        }
+        let m = &p.matching;
+        if !(m.min_speed > 0.0 && m.min_speed < m.comfort_speed && m.comfort_speed < m.max_speed) {
+            return Err(self.field_error(
+                "match.comfort_speed",
+                format!(
+                    "is {} m/s with `min_speed` {} and `max_speed` {}; expected \
+                     0 < min_speed < comfort_speed < max_speed",
+                    m.comfort_speed, m.min_speed, m.max_speed
+                ),
+            ));
+        }
+        if !(m.turn_depth > 0.0 && m.turn_depth < 0.5) {
+            return Err(self.field_error(
+                "match.turn_depth",
+                format!(
+                    "is {}; expected a share of the patch side in (0, 0.5)",
+                    m.turn_depth
+                ),
             ));
         }
         Ok(())

@@ -12,9 +12,14 @@ pub mod grid;
 pub mod hash;
 pub mod maps;
 pub mod patch_graph;
+pub mod patterns;
 pub mod progress;
+pub mod trajectories;
 
-pub use config::{GraphSettings, LayerKind, LayerSpec, MergeSettings, Pipeline, Scene};
+pub use config::{
+    GraphSettings, LayerKind, LayerSpec, MatchSettings, MergeSettings, OptimizeSettings, Pipeline,
+    Scene,
+};
 pub use error::{Error, Result};
 pub use grid::Grid;
 pub use hash::{Hash, Hasher};

@@ -1,0 +1,229 @@
+//! Stage 4's output (and later stages'): per patch, standing characters and space-time
+//! trajectories from an entry crossing to an exit crossing.
+
+use crate::error::{Error, Result};
+use crate::files::{Header, SideFile};
+use glam::DVec2;
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+
+/// What a control point is for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum PointKind {
+    /// On the border where the character enters: fixed by the patterns.
+    Entry,
+    /// On the border where the character leaves: fixed by the patterns.
+    Exit,
+    /// Where the trajectory passes a multiple of the period (it wraps around in time).
+    Split,
+    /// Start or end of a pause (two points at the same place, different times).
+    Pause,
+    /// A turn towards the patch centre (entry and exit on the same border).
+    Turn,
+}
+
+impl PointKind {
+    fn code(self) -> u8 {
+        self as u8
+    }
+
+    fn from_code(code: u8) -> Option<PointKind> {
+        use PointKind::*;
+        [Entry, Exit, Split, Pause, Turn]
+            .get(code as usize)
+            .copied()
+    }
+
+    /// Boundary points are fixed by the patterns and never move.
+    pub fn is_boundary(self) -> bool {
+        matches!(self, PointKind::Entry | PointKind::Exit)
+    }
+}
+
+/// A point of a trajectory in patch-local metres and unwrapped time: times grow from the entry
+/// time in [0, period) and may pass the period; the character's position at time `t mod period`
+/// in the looping animation is the trajectory's at `t`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ControlPoint {
+    pub pos: DVec2,
+    pub t: f64,
+    pub kind: PointKind,
+}
+
+/// A walker's path through one patch, piecewise linear in space-time.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Trajectory {
+    /// Index of the entry crossing in the patterns.
+    pub entry: u32,
+    /// Index of the exit crossing.
+    pub exit: u32,
+    pub points: Vec<ControlPoint>,
+}
+
+impl Trajectory {
+    /// Time spent inside the patch.
+    pub fn duration(&self) -> f64 {
+        self.points.last().map_or(0.0, |l| l.t) - self.points.first().map_or(0.0, |f| f.t)
+    }
+}
+
+/// Everything that moves or stands in one patch.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct PatchMotion {
+    pub standers: Vec<DVec2>,
+    pub trajectories: Vec<Trajectory>,
+}
+
+const MAGIC: &[u8; 8] = b"CRWDTRAJ";
+
+/// Encodes per-patch motion (in patch order) as the trajectories side file: magic, patch count,
+/// then per patch: stander count and (x, y) pairs, trajectory count and per trajectory entry,
+/// exit, point count and (x, y, t, kind) points. Little-endian u32 / f64 / u8.
+pub fn encode_motion(patches: &[PatchMotion]) -> Vec<u8> {
+    let mut out = Vec::new();
+    out.extend_from_slice(MAGIC);
+    let u32le = |out: &mut Vec<u8>, v: u32| out.extend_from_slice(&v.to_le_bytes());
+    let f64le = |out: &mut Vec<u8>, v: f64| out.extend_from_slice(&v.to_le_bytes());
+    u32le(&mut out, patches.len() as u32);
+    for p in patches {
+        u32le(&mut out, p.standers.len() as u32);
+        for s in &p.standers {
+            f64le(&mut out, s.x);
+            f64le(&mut out, s.y);
+        }
+        u32le(&mut out, p.trajectories.len() as u32);
+        for tr in &p.trajectories {
+            u32le(&mut out, tr.entry);
+            u32le(&mut out, tr.exit);
+            u32le(&mut out, tr.points.len() as u32);
+            for cp in &tr.points {
+                f64le(&mut out, cp.pos.x);
+                f64le(&mut out, cp.pos.y);
+                f64le(&mut out, cp.t);
+                out.push(cp.kind.code());
+            }
+        }
+    }
+    out
+}
+
+/// Decodes [`encode_motion`]'s bytes; `path` names the file in errors. Never trusts a count
+/// beyond the bytes that are there.
+pub fn decode_motion(path: &Path, bytes: &[u8]) -> Result<Vec<PatchMotion>> {
+    struct Reader<'a> {
+        bytes: &'a [u8],
+        at: usize,
+    }
+    impl Reader<'_> {
+        fn take(&mut self, n: usize) -> Option<&[u8]> {
+            let end = self.at.checked_add(n).filter(|&e| e <= self.bytes.len())?;
+            let s = &self.bytes[self.at..end];
+            self.at = end;
+            Some(s)
+        }
+        fn u32(&mut self) -> Option<u32> {
+            self.take(4)
+                .map(|b| u32::from_le_bytes(b.try_into().unwrap()))
+        }
+        fn f64(&mut self) -> Option<f64> {
+            self.take(8)
+                .map(|b| f64::from_le_bytes(b.try_into().unwrap()))
+        }
+        fn count(&mut self, min_item_bytes: usize) -> Option<usize> {
+            let n = self.u32()? as usize;
+            (n.saturating_mul(min_item_bytes) <= self.bytes.len() - self.at).then_some(n)
+        }
+    }
+    let bad = |at: usize| {
+        Error::stage_file(
+            path,
+            format!("is not a trajectories file: damaged near byte {at}"),
+        )
+    };
+    let mut r = Reader { bytes, at: 0 };
+    if r.take(8) != Some(MAGIC.as_slice()) {
+        return Err(bad(0));
+    }
+    let mut patches = Vec::new();
+    let n = r.count(8).ok_or_else(|| bad(r.at))?;
+    for _ in 0..n {
+        let mut motion = PatchMotion::default();
+        let ns = r.count(16).ok_or_else(|| bad(r.at))?;
+        for _ in 0..ns {
+            let (x, y) = (r.f64(), r.f64());
+            motion.standers.push(DVec2::new(
+                x.ok_or_else(|| bad(r.at))?,
+                y.ok_or_else(|| bad(r.at))?,
+            ));
+        }
+        let nt = r.count(12).ok_or_else(|| bad(r.at))?;
+        for _ in 0..nt {
+            let entry = r.u32().ok_or_else(|| bad(r.at))?;
+            let exit = r.u32().ok_or_else(|| bad(r.at))?;
+            let np = r.count(25).ok_or_else(|| bad(r.at))?;
+            let mut points = Vec::with_capacity(np);
+            for _ in 0..np {
+                let x = r.f64().ok_or_else(|| bad(r.at))?;
+                let y = r.f64().ok_or_else(|| bad(r.at))?;
+                let t = r.f64().ok_or_else(|| bad(r.at))?;
+                let kind = r
+                    .take(1)
+                    .and_then(|k| PointKind::from_code(k[0]))
+                    .ok_or_else(|| bad(r.at))?;
+                points.push(ControlPoint {
+                    pos: DVec2::new(x, y),
+                    t,
+                    kind,
+                });
+            }
+            motion.trajectories.push(Trajectory {
+                entry,
+                exit,
+                points,
+            });
+        }
+        patches.push(motion);
+    }
+    if r.at != bytes.len() {
+        return Err(bad(r.at));
+    }
+    Ok(patches)
+}
+
+/// Figures of a trajectories file.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct MotionSummary {
+    pub walkers_trajectories: u64,
+    pub standers: u64,
+    /// Trajectories that pause, that last more than one period, that turn at the centre.
+    pub pausing: u64,
+    pub multi_period: u64,
+    pub same_border: u64,
+    /// Walkers present at any time (sum of trajectory durations / period).
+    pub walkers_measured: f64,
+}
+
+/// `trajectories.ron` (stage 4's file, and the shape of stages 5 and 6's).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TrajectoriesFile {
+    pub header: Header,
+    pub period_s: f64,
+    pub radius_m: f64,
+    pub summary: MotionSummary,
+    /// Per patch motion, in patch order.
+    pub motion: SideFile,
+}
+
+impl TrajectoriesFile {
+    pub const STAGE: &'static str = "match";
+    pub const VERSION: u32 = 1;
+
+    pub fn load(path: &Path) -> Result<(TrajectoriesFile, Vec<PatchMotion>)> {
+        let file: TrajectoriesFile = crate::files::read_ron(path)?;
+        crate::files::expect_stage(path, &file.header, Self::STAGE, Self::VERSION)?;
+        let bytes = file.motion.read(path)?;
+        let motion = decode_motion(&path.with_file_name(&file.motion.file), &bytes)?;
+        Ok((file, motion))
+    }
+}

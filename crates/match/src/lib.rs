@@ -1,0 +1,227 @@
+//! Stage 4, match: patterns in, straight-line space-time trajectories and standers out
+//! (Ramirez et al. section 3.3, extended as in Crowd Art section 4.1).
+//!
+//! In every patch, entry and exit points are paired by Gale-Shapley ([`stable`]) on the score
+//! of [`score`]; each pair becomes a straight line in space-time ([`plan`]), split where it
+//! wraps around the period, with extra periods when the speed would be implausible, a pause when
+//! it would be too slow, and a turn towards the centre when both points are on one border.
+//! Standing characters are spread over the free part of the patch ([`standers`]).
+//!
+//! Stage 3 uses [`measure_patch`] to measure density and direction from the same matching.
+
+pub mod plan;
+pub mod score;
+pub mod stable;
+pub mod standers;
+
+use crowd_core::config::MatchSettings;
+use crowd_core::patterns::{Crossing, Measured, Side};
+use crowd_core::trajectories::{PatchMotion, Trajectory};
+use crowd_core::{PatchGraph, Rect, RequestedDirection};
+use glam::DVec2;
+
+/// An entry or exit point as one patch sees it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Endpoint {
+    /// Index of the crossing in the patterns.
+    pub crossing: u32,
+    /// Patch-local metres.
+    pub pos: DVec2,
+    /// Time in [0, period).
+    pub t: f64,
+    pub side: Side,
+}
+
+/// What the matching of one patch needs to know about it.
+#[derive(Debug, Clone)]
+pub struct PatchContext<'a> {
+    pub side_m: f64,
+    pub period_s: f64,
+    /// Preferred speed in this patch (fundamental diagram at its requested density).
+    pub comfort_speed: f64,
+    pub direction: Option<RequestedDirection>,
+    pub obstacles: &'a [Rect],
+    pub settings: &'a MatchSettings,
+}
+
+impl<'a> PatchContext<'a> {
+    pub fn new(
+        graph: &'a PatchGraph,
+        patch: usize,
+        settings: &'a MatchSettings,
+        period_s: f64,
+    ) -> Self {
+        let p = &graph.patches[patch];
+        PatchContext {
+            side_m: graph.world.patch_side_m,
+            period_s,
+            comfort_speed: score::comfort_speed(
+                settings.comfort_speed,
+                p.walker_density + p.stander_density,
+            ),
+            direction: p.direction,
+            obstacles: &p.obstacles,
+            settings,
+        }
+    }
+}
+
+/// For every patch, the indices of the crossings that enter it and that leave it.
+pub struct Incidence {
+    pub entries: Vec<Vec<u32>>,
+    pub exits: Vec<Vec<u32>>,
+}
+
+impl Incidence {
+    pub fn new(graph: &PatchGraph, crossings: &[Crossing]) -> Incidence {
+        let n = graph.patches.len();
+        let mut inc = Incidence {
+            entries: vec![Vec::new(); n],
+            exits: vec![Vec::new(); n],
+        };
+        for (k, c) in crossings.iter().enumerate() {
+            let (from, to) = c.ends(graph);
+            inc.exits[from.patch.0 as usize].push(k as u32);
+            inc.entries[to.patch.0 as usize].push(k as u32);
+        }
+        inc
+    }
+}
+
+/// The endpoints of a patch, seen from inside it.
+pub fn endpoints(
+    graph: &PatchGraph,
+    crossings: &[Crossing],
+    ids: &[u32],
+    entering: bool,
+) -> Vec<Endpoint> {
+    ids.iter()
+        .map(|&k| {
+            let c = &crossings[k as usize];
+            let (from, to) = c.ends(graph);
+            let here = if entering { to } else { from };
+            Endpoint {
+                crossing: k,
+                pos: here.pos,
+                t: c.t,
+                side: here.side,
+            }
+        })
+        .collect()
+}
+
+/// Pairs the entries and exits of a patch: `pairs[i]` is the exit of entry `i`.
+/// Requires as many entries as exits (parity).
+pub fn match_points(entries: &[Endpoint], exits: &[Endpoint], ctx: &PatchContext) -> Vec<usize> {
+    assert_eq!(
+        entries.len(),
+        exits.len(),
+        "parity: as many entries as exits"
+    );
+    let n = entries.len();
+    let mut scores = Vec::with_capacity(n * n);
+    for e in entries {
+        for x in exits {
+            scores.push(score::score(e, x, ctx));
+        }
+    }
+    stable::gale_shapley(n, &scores)
+}
+
+/// Trajectories of a patch from its endpoints.
+pub fn trajectories(
+    entries: &[Endpoint],
+    exits: &[Endpoint],
+    ctx: &PatchContext,
+) -> Vec<Trajectory> {
+    let pairs = match_points(entries, exits, ctx);
+    entries
+        .iter()
+        .zip(pairs)
+        .map(|(e, o)| plan::plan(e, &exits[o], ctx))
+        .collect()
+}
+
+/// Density and direction of a patch from its matched lines (Crowd Art eq. 2 and 3).
+pub fn measure_patch(
+    entries: &[Endpoint],
+    exits: &[Endpoint],
+    standers: u32,
+    ctx: &PatchContext,
+) -> Measured {
+    let pairs = match_points(entries, exits, ctx);
+    let area = ctx.side_m * ctx.side_m;
+    let mut time = 0.0;
+    let mut direction = DVec2::ZERO;
+    for (e, &o) in entries.iter().zip(&pairs) {
+        let x = &exits[o];
+        let duration = plan::duration(e, x, ctx);
+        time += duration;
+        direction += duration * (x.pos - e.pos).normalize_or_zero();
+    }
+    Measured {
+        density: standers as f64 / area + time / (area * ctx.period_s),
+        direction: direction.try_normalize(),
+        standers,
+    }
+}
+
+/// Stage 4 over a whole scene: the graph, its patterns and the settings.
+pub struct Matcher<'a> {
+    pub graph: &'a PatchGraph,
+    pub crossings: &'a [Crossing],
+    pub incidence: Incidence,
+    pub settings: &'a MatchSettings,
+    pub period_s: f64,
+}
+
+impl<'a> Matcher<'a> {
+    pub fn new(
+        graph: &'a PatchGraph,
+        crossings: &'a [Crossing],
+        settings: &'a MatchSettings,
+        period_s: f64,
+    ) -> Matcher<'a> {
+        Matcher {
+            graph,
+            crossings,
+            incidence: Incidence::new(graph, crossings),
+            settings,
+            period_s,
+        }
+    }
+
+    pub fn context(&self, patch: usize) -> PatchContext<'a> {
+        PatchContext::new(self.graph, patch, self.settings, self.period_s)
+    }
+
+    /// The entries and exits of a patch.
+    pub fn endpoints(&self, patch: usize) -> (Vec<Endpoint>, Vec<Endpoint>) {
+        (
+            endpoints(
+                self.graph,
+                self.crossings,
+                &self.incidence.entries[patch],
+                true,
+            ),
+            endpoints(
+                self.graph,
+                self.crossings,
+                &self.incidence.exits[patch],
+                false,
+            ),
+        )
+    }
+
+    /// Everything that moves and stands in one patch; standers are placed with a seed of
+    /// their own per patch, so a patch's motion does not depend on the others.
+    pub fn motion(&self, patch: usize, standers: u32, seed: u64) -> PatchMotion {
+        let ctx = self.context(patch);
+        let (entries, exits) = self.endpoints(patch);
+        let patch_seed = seed ^ (patch as u64 + 1).wrapping_mul(0x9E37_79B9_7F4A_7C15);
+        PatchMotion {
+            standers: standers::place(standers, &ctx, self.graph.radius_m, patch_seed),
+            trajectories: trajectories(&entries, &exits, &ctx),
+        }
+    }
+}

@@ -1,0 +1,222 @@
+//! Straight space-time lines between matched points (Ramirez et al. section 3.3, last step).
+
+use crate::score::wrapped_dt;
+use crate::{Endpoint, PatchContext};
+use crowd_core::trajectories::{ControlPoint, PointKind, Trajectory};
+use glam::DVec2;
+
+/// Where a walker that enters and leaves by the same border turns: towards the centre, at
+/// `turn_depth` of the side, nearer or farther if an obstacle is there.
+pub fn turn_point(entry: &Endpoint, exit: &Endpoint, ctx: &PatchContext) -> Option<DVec2> {
+    if entry.side != exit.side {
+        return None;
+    }
+    let mid = (entry.pos + exit.pos) / 2.0;
+    let depth = ctx.settings.turn_depth * ctx.side_m;
+    let free = |p: DVec2| {
+        !ctx.obstacles.iter().any(|r| {
+            p.x >= r.min.x - 0.3
+                && p.x <= r.max.x + 0.3
+                && p.y >= r.min.y - 0.3
+                && p.y <= r.max.y + 0.3
+        })
+    };
+    let candidates = [1.0, 0.6, 1.4, 0.35];
+    let inward = entry.side.inward();
+    candidates
+        .iter()
+        .map(|k| mid + inward * depth * k)
+        .find(|&p| free(p))
+        .or(Some(mid + inward * depth))
+}
+
+/// Length of the path from `entry` to `exit` (through the turn point, if any).
+pub fn path_length(entry: &Endpoint, exit: &Endpoint, ctx: &PatchContext) -> f64 {
+    match turn_point(entry, exit, ctx) {
+        Some(c) => entry.pos.distance(c) + c.distance(exit.pos),
+        None => entry.pos.distance(exit.pos),
+    }
+}
+
+/// Whole periods a walker must add so that it never walks faster than `max_speed`.
+fn extra_periods(length: f64, dt: f64, ctx: &PatchContext) -> u32 {
+    let needed = length / ctx.settings.max_speed;
+    if needed <= dt {
+        0
+    } else {
+        ((needed - dt) / ctx.period_s).ceil() as u32
+    }
+}
+
+/// Time the walker of this pair spends inside the patch.
+pub fn duration(entry: &Endpoint, exit: &Endpoint, ctx: &PatchContext) -> f64 {
+    let length = path_length(entry, exit, ctx);
+    let dt = wrapped_dt(entry.t, exit.t, ctx.period_s);
+    dt + extra_periods(length, dt, ctx) as f64 * ctx.period_s
+}
+
+/// The straight-line trajectory of a matched pair: constant speed along the path; a pause in
+/// the middle (at the turn point, if any) when that speed would be below `min_speed`, walking
+/// at the comfort speed otherwise; split points where it passes a multiple of the period.
+pub fn plan(entry: &Endpoint, exit: &Endpoint, ctx: &PatchContext) -> Trajectory {
+    let turn = turn_point(entry, exit, ctx);
+    let length = path_length(entry, exit, ctx);
+    let total = duration(entry, exit, ctx);
+    let mut path = vec![(entry.pos, PointKind::Entry)];
+    if let Some(c) = turn {
+        path.push((c, PointKind::Turn));
+    }
+    path.push((exit.pos, PointKind::Exit));
+
+    let pausing = length / total < ctx.settings.min_speed;
+    let speed = if pausing {
+        ctx.comfort_speed.max(ctx.settings.min_speed)
+    } else {
+        length / total
+    };
+    if pausing && turn.is_none() {
+        let mid = (entry.pos + exit.pos) / 2.0;
+        path.insert(1, (mid, PointKind::Pause));
+    }
+    let pause_at = if pausing { Some(1) } else { None };
+
+    let mut points = Vec::with_capacity(path.len() + 3);
+    let mut t = entry.t;
+    let mut previous = entry.pos;
+    for (i, &(pos, kind)) in path.iter().enumerate() {
+        t += previous.distance(pos) / speed;
+        previous = pos;
+        if Some(i) == pause_at {
+            let pause = total - length / speed;
+            points.push(ControlPoint {
+                pos,
+                t,
+                kind: PointKind::Pause,
+            });
+            t += pause;
+            points.push(ControlPoint {
+                pos,
+                t,
+                kind: PointKind::Pause,
+            });
+        } else {
+            points.push(ControlPoint { pos, t, kind });
+        }
+    }
+    // The exit is reached exactly `total` after the entry, whatever the rounding on the way.
+    let last = points.len() - 1;
+    points[last].t = entry.t + total;
+    Trajectory {
+        entry: entry.crossing,
+        exit: exit.crossing,
+        points: split_at_periods(points, ctx.period_s),
+    }
+}
+
+/// Inserts a split point wherever the trajectory passes a multiple of the period.
+fn split_at_periods(points: Vec<ControlPoint>, period: f64) -> Vec<ControlPoint> {
+    let mut out = Vec::with_capacity(points.len() + 2);
+    for pair in points.windows(2) {
+        let (a, b) = (pair[0], pair[1]);
+        out.push(a);
+        let mut k = (a.t / period).floor() + 1.0;
+        while k * period < b.t - 1e-9 {
+            let at = k * period;
+            if at > a.t + 1e-9 {
+                let f = (at - a.t) / (b.t - a.t);
+                out.push(ControlPoint {
+                    pos: a.pos.lerp(b.pos, f),
+                    t: at,
+                    kind: PointKind::Split,
+                });
+            }
+            k += 1.0;
+        }
+    }
+    out.extend(points.last().copied());
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crowd_core::config::MatchSettings;
+    use crowd_core::patterns::Side;
+
+    fn ctx(settings: &MatchSettings) -> PatchContext<'_> {
+        PatchContext {
+            side_m: 8.0,
+            period_s: 20.0,
+            comfort_speed: 1.33,
+            direction: None,
+            obstacles: &[],
+            settings,
+        }
+    }
+
+    fn point(x: f64, y: f64, t: f64, side: Side) -> Endpoint {
+        Endpoint {
+            crossing: 0,
+            pos: DVec2::new(x, y),
+            t,
+            side,
+        }
+    }
+
+    #[test]
+    fn a_line_that_wraps_the_period_is_split_at_it() {
+        let s = MatchSettings::default();
+        let tr = plan(
+            &point(0.0, 4.0, 17.0, Side::West),
+            &point(8.0, 4.0, 3.0, Side::East),
+            &ctx(&s),
+        );
+        let kinds: Vec<_> = tr.points.iter().map(|p| p.kind).collect();
+        assert_eq!(kinds, [PointKind::Entry, PointKind::Split, PointKind::Exit]);
+        assert_eq!(tr.points[1].t, 20.0);
+        assert!((tr.points[1].pos.x - 8.0 * 3.0 / 6.0).abs() < 1e-9);
+        assert_eq!(tr.points[2].t, 23.0);
+    }
+
+    #[test]
+    fn an_implausibly_fast_pair_stays_an_extra_period() {
+        let s = MatchSettings::default();
+        // 8 m in 1 s: 8 m/s. With one more period: 8 m in 21 s, too slow, so it pauses.
+        let tr = plan(
+            &point(0.0, 4.0, 5.0, Side::West),
+            &point(8.0, 4.0, 6.0, Side::East),
+            &ctx(&s),
+        );
+        assert!((tr.duration() - 21.0).abs() < 1e-9);
+        let pauses: Vec<_> = tr
+            .points
+            .iter()
+            .filter(|p| p.kind == PointKind::Pause)
+            .collect();
+        assert_eq!(pauses.len(), 2);
+        assert_eq!(pauses[0].pos, pauses[1].pos);
+        for w in tr.points.windows(2) {
+            let v = w[0].pos.distance(w[1].pos) / (w[1].t - w[0].t);
+            assert!(
+                v <= s.max_speed + 1e-9 && (v == 0.0 || v >= s.min_speed - 1e-9),
+                "{v}"
+            );
+        }
+    }
+
+    #[test]
+    fn a_pair_on_one_border_turns_towards_the_centre() {
+        let s = MatchSettings::default();
+        let tr = plan(
+            &point(0.0, 2.0, 1.0, Side::West),
+            &point(0.0, 6.0, 9.0, Side::West),
+            &ctx(&s),
+        );
+        let turn = tr
+            .points
+            .iter()
+            .find(|p| p.kind == PointKind::Turn)
+            .expect("a turn");
+        assert!(turn.pos.x > 2.0 && (turn.pos.y - 4.0).abs() < 1e-9);
+    }
+}
