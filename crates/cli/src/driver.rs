@@ -14,6 +14,8 @@ use anyhow::Result;
 use crowd_core::config::PipelineFile;
 use crowd_core::files::{self, Header};
 use crowd_core::maps::MergeFile;
+use crowd_core::patterns::{Crossing, Patterns};
+use crowd_core::trajectories::TrajectoriesFile;
 use crowd_core::{Error, Hash, MergedMaps, PatchGraph};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -21,6 +23,8 @@ use std::time::Instant;
 
 pub const MERGE_FILE: &str = "merge.ron";
 pub const GRAPH_FILE: &str = "graph.ron";
+pub const PATTERNS_FILE: &str = "patterns.ron";
+pub const TRAJECTORIES_FILE: &str = "trajectories.ron";
 /// Wall time of the last run of each stage. Not compared between builds: it is the one output
 /// that is not deterministic.
 pub const TIMINGS_FILE: &str = "timings.ron";
@@ -93,6 +97,7 @@ pub fn build(pipeline_path: &Path, options: &BuildOptions, ui: &Ui) -> Result<Ve
     let hash = crowd_graph::input_hash(&merge_bytes, &crowd_graph::inputs(&pipeline));
     let fresh =
         !options.force && is_current(&graph_path, PatchGraph::STAGE, PatchGraph::VERSION, hash);
+    let mut built_graph: Option<(Vec<u8>, PatchGraph)> = None;
     outcomes.push(stage(
         ui,
         "graph",
@@ -106,9 +111,84 @@ pub fn build(pipeline_path: &Path, options: &BuildOptions, ui: &Ui) -> Result<Ve
                 None => MergeFile::load(&merge_path)?.1,
             };
             let graph = crowd_graph::build(&pipeline, &merge_path, &merge_bytes, &maps, &bar)?;
-            pending
-                .0
-                .push((graph_path.clone(), files::to_ron(&graph).into_bytes()));
+            let bytes = files::to_ron(&graph).into_bytes();
+            built_graph = Some((bytes.clone(), graph));
+            pending.0.push((graph_path.clone(), bytes));
+            Ok(())
+        },
+    )?);
+    let (graph_bytes, graph) = match built_graph {
+        Some(built) => built,
+        None => {
+            let bytes =
+                std::fs::read(&graph_path).map_err(|e| Error::io(&graph_path, "read", e))?;
+            (bytes, PatchGraph::load(&graph_path)?)
+        }
+    };
+
+    // Stage 3: optimize.
+    let patterns_path = out.join(PATTERNS_FILE);
+    let inputs = crowd_optimize::inputs(&pipeline);
+    let hash = crowd_optimize::input_hash(&graph_bytes, &inputs);
+    let fresh = !options.force
+        && is_current(&patterns_path, Patterns::STAGE, Patterns::VERSION, hash)
+        && Patterns::load(&patterns_path).is_ok();
+    let mut built_patterns: Option<(Vec<u8>, Patterns, Vec<Crossing>)> = None;
+    outcomes.push(stage(
+        ui,
+        "optimize",
+        &patterns_path,
+        fresh,
+        &mut timings,
+        || {
+            let bar = ui.stage_bar("optimize");
+            let s = &inputs;
+            let outcome = crowd_optimize::optimize(
+                &graph,
+                &s.settings,
+                &s.matching,
+                s.period_s,
+                s.seed,
+                &bar,
+            );
+            let (patterns, writes) = crowd_optimize::encode(&patterns_path, &outcome, s, hash);
+            let ron = writes.last().expect("the RON file").1.clone();
+            built_patterns = Some((ron, patterns, outcome.crossings));
+            pending.0.extend(writes);
+            Ok(())
+        },
+    )?);
+    let (patterns_bytes, patterns, crossings) = match built_patterns {
+        Some(built) => built,
+        None => {
+            let bytes =
+                std::fs::read(&patterns_path).map_err(|e| Error::io(&patterns_path, "read", e))?;
+            let (p, c) = Patterns::load(&patterns_path)?;
+            (bytes, p, c)
+        }
+    };
+
+    // Stage 4: match.
+    let trajectories_path = out.join(TRAJECTORIES_FILE);
+    let inputs = crowd_match::inputs(&pipeline);
+    let hash = crowd_match::input_hash(&graph_bytes, &patterns_bytes, &inputs);
+    let (stage4, version4) = (TrajectoriesFile::STAGE, TrajectoriesFile::VERSION);
+    let fresh = !options.force
+        && is_current(&trajectories_path, stage4, version4, hash)
+        && TrajectoriesFile::load(&trajectories_path).is_ok();
+    outcomes.push(stage(
+        ui,
+        "match",
+        &trajectories_path,
+        fresh,
+        &mut timings,
+        || {
+            let bar = ui.stage_bar("match");
+            let motion =
+                crowd_match::match_all(&graph, &crossings, &patterns.measured, &inputs, &bar);
+            let (_, writes) =
+                crowd_match::encode(&trajectories_path, &motion, &graph, &inputs, hash);
+            pending.0.extend(writes);
             Ok(())
         },
     )?);

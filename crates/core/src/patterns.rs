@@ -4,7 +4,8 @@
 //! neighbour, so mirror patterns cannot disagree. Parity (as many entries as exits in every
 //! patch) is checked by [`Patterns::parity`].
 
-use crate::files::Header;
+use crate::error::{Error, Result};
+use crate::files::{Header, SideFile};
 use crate::patch_graph::{Border, BorderAxis, PatchGraph, PatchId};
 use glam::DVec2;
 use serde::{Deserialize, Serialize};
@@ -133,6 +134,27 @@ pub struct SceneError {
     pub e: f64,
 }
 
+/// Density of a patch against its number of entry points, measured on random patches of the
+/// scene's size and period (Crowd Art Figure 4): density = slope x entries + intercept.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Regression {
+    pub slope: f64,
+    pub intercept: f64,
+    /// Coefficient of determination of the fit.
+    pub r2: f64,
+    pub samples: u32,
+}
+
+/// The figures of one optimisation step.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct IterationFigures {
+    pub iteration: u32,
+    pub e_rho: f64,
+    pub e_d: f64,
+    pub e: f64,
+    pub crossings: u64,
+}
+
 /// `patterns.ron`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -144,31 +166,89 @@ pub struct Patterns {
     /// Optimisation steps run, and whether the error settled before the cap.
     pub iterations: u32,
     pub converged: bool,
+    /// The figures of the result (the best step).
     pub error: SceneError,
+    pub regression: Regression,
+    /// Figures of every step, step 0 being the start.
+    pub log: Vec<IterationFigures>,
     /// Per patch, in [`PatchGraph::patches`] order.
     pub measured: Vec<Measured>,
-    /// Sorted by border, then time.
-    pub crossings: Vec<Crossing>,
+    /// The crossings (sorted by border, then time) in a binary side file.
+    pub crossings: SideFile,
 }
 
 impl Patterns {
     pub const STAGE: &'static str = "optimize";
     pub const VERSION: u32 = 1;
 
-    /// Entries minus exits of every patch; all zero when parity holds.
-    pub fn parity(&self, graph: &PatchGraph) -> Vec<i64> {
-        let mut balance = vec![0i64; graph.patches.len()];
-        for c in &self.crossings {
-            let (from, to) = c.ends(graph);
-            balance[from.patch.0 as usize] -= 1;
-            balance[to.patch.0 as usize] += 1;
-        }
-        balance
-    }
-
-    pub fn load(path: &std::path::Path) -> crate::Result<Patterns> {
+    /// Reads `patterns.ron` and its crossings.
+    pub fn load(path: &std::path::Path) -> Result<(Patterns, Vec<Crossing>)> {
         let p: Patterns = crate::files::read_ron(path)?;
         crate::files::expect_stage(path, &p.header, Self::STAGE, Self::VERSION)?;
-        Ok(p)
+        let bytes = p.crossings.read(path)?;
+        let crossings = decode_crossings(&path.with_file_name(&p.crossings.file), &bytes)?;
+        Ok((p, crossings))
     }
+}
+
+/// Entries minus exits of every patch; all zero when parity holds.
+pub fn parity(graph: &PatchGraph, crossings: &[Crossing]) -> Vec<i64> {
+    let mut balance = vec![0i64; graph.patches.len()];
+    for c in crossings {
+        let (from, to) = c.ends(graph);
+        balance[from.patch.0 as usize] -= 1;
+        balance[to.patch.0 as usize] += 1;
+    }
+    balance
+}
+
+const MAGIC: &[u8; 8] = b"CRWDXING";
+const RECORD: usize = 4 + 1 + 4 * 8;
+
+/// The crossings side file: magic, count (u32 LE), then per crossing border (u32), way (u8: 0
+/// a to b, 1 b to a), s, t, velocity x, velocity y (f64), all little-endian.
+pub fn encode_crossings(crossings: &[Crossing]) -> Vec<u8> {
+    let mut out = Vec::with_capacity(12 + crossings.len() * RECORD);
+    out.extend_from_slice(MAGIC);
+    out.extend_from_slice(&(crossings.len() as u32).to_le_bytes());
+    for c in crossings {
+        out.extend_from_slice(&c.border.to_le_bytes());
+        out.push(match c.way {
+            Way::AToB => 0,
+            Way::BToA => 1,
+        });
+        for v in [c.s, c.t, c.velocity.x, c.velocity.y] {
+            out.extend_from_slice(&v.to_le_bytes());
+        }
+    }
+    out
+}
+
+pub fn decode_crossings(path: &std::path::Path, bytes: &[u8]) -> Result<Vec<Crossing>> {
+    let bad = |what: String| Error::stage_file(path, format!("is not a crossings file: {what}"));
+    if bytes.len() < 12 || &bytes[..8] != MAGIC {
+        return Err(bad("wrong magic".into()));
+    }
+    let n = u32::from_le_bytes(bytes[8..12].try_into().unwrap()) as usize;
+    if bytes.len() != 12 + n * RECORD {
+        return Err(bad(format!("{} bytes for {n} crossings", bytes.len())));
+    }
+    bytes[12..]
+        .chunks_exact(RECORD)
+        .map(|r| {
+            let f = |k: usize| f64::from_le_bytes(r[5 + 8 * k..13 + 8 * k].try_into().unwrap());
+            let way = match r[4] {
+                0 => Way::AToB,
+                1 => Way::BToA,
+                w => return Err(bad(format!("way {w}"))),
+            };
+            Ok(Crossing {
+                border: u32::from_le_bytes(r[..4].try_into().unwrap()),
+                way,
+                s: f(0),
+                t: f(1),
+                velocity: DVec2::new(f(2), f(3)),
+            })
+        })
+        .collect()
 }

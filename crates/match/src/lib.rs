@@ -225,3 +225,107 @@ impl<'a> Matcher<'a> {
         }
     }
 }
+
+/// What stage 4 reads of a pipeline besides the graph and the patterns.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Inputs {
+    pub period_s: f64,
+    pub seed: u64,
+    pub settings: MatchSettings,
+}
+
+pub fn inputs(pipeline: &crowd_core::config::PipelineFile) -> Inputs {
+    let p = &pipeline.pipeline;
+    Inputs {
+        period_s: p.period_s,
+        seed: p.seed,
+        settings: p.matching.clone(),
+    }
+}
+
+/// The hash of stage 4's inputs: the graph and patterns files' bytes and the settings.
+pub fn input_hash(graph_bytes: &[u8], patterns_bytes: &[u8], inputs: &Inputs) -> crowd_core::Hash {
+    use crowd_core::trajectories::TrajectoriesFile;
+    crowd_core::Hasher::new(TrajectoriesFile::STAGE, TrajectoriesFile::VERSION)
+        .part(
+            "graph file",
+            crowd_core::Hash::of(graph_bytes).to_string().as_bytes(),
+        )
+        .part(
+            "patterns file",
+            crowd_core::Hash::of(patterns_bytes).to_string().as_bytes(),
+        )
+        .value("period", &inputs.period_s)
+        .value("seed", &inputs.seed)
+        .value("settings", &inputs.settings)
+        .finish()
+}
+
+/// Every patch's motion, in patch order (in parallel; the same bytes on any thread count).
+pub fn match_all(
+    graph: &PatchGraph,
+    crossings: &[Crossing],
+    measured: &[Measured],
+    inputs: &Inputs,
+    progress: &dyn crowd_core::Progress,
+) -> Vec<PatchMotion> {
+    use rayon::prelude::*;
+    let matcher = Matcher::new(graph, crossings, &inputs.settings, inputs.period_s);
+    progress.begin("match", graph.patches.len() as u64);
+    (0..graph.patches.len())
+        .into_par_iter()
+        .map(|p| {
+            let m = matcher.motion(p, measured[p].standers, inputs.seed);
+            progress.advance(1);
+            m
+        })
+        .collect()
+}
+
+/// Stage 4's files, encoded: the motion side file, then `trajectories.ron`.
+pub fn encode(
+    out: &std::path::Path,
+    motion: &[PatchMotion],
+    graph: &PatchGraph,
+    inputs: &Inputs,
+    hash: crowd_core::Hash,
+) -> (
+    crowd_core::trajectories::TrajectoriesFile,
+    Vec<(std::path::PathBuf, Vec<u8>)>,
+) {
+    use crowd_core::files::{Header, SideFile};
+    use crowd_core::trajectories::{MotionSummary, PointKind, TrajectoriesFile, encode_motion};
+    let bytes = encode_motion(motion);
+    let side = out.with_extension("bin");
+    let all = motion.iter().flat_map(|m| &m.trajectories);
+    let count = |f: &dyn Fn(&Trajectory) -> bool| all.clone().filter(|t| f(t)).count() as u64;
+    let summary = MotionSummary {
+        walkers_trajectories: all.clone().count() as u64,
+        standers: motion.iter().map(|m| m.standers.len() as u64).sum(),
+        pausing: count(&|t| t.points.iter().any(|p| p.kind == PointKind::Pause)),
+        multi_period: count(&|t| t.duration() > inputs.period_s + 1e-9),
+        same_border: count(&|t| t.points.iter().any(|p| p.kind == PointKind::Turn)),
+        walkers_measured: all.clone().map(|t| t.duration()).sum::<f64>() / inputs.period_s,
+    };
+    let file = TrajectoriesFile {
+        header: Header {
+            stage: TrajectoriesFile::STAGE.to_string(),
+            version: TrajectoriesFile::VERSION,
+            input_hash: hash,
+        },
+        period_s: inputs.period_s,
+        radius_m: graph.radius_m,
+        summary,
+        motion: SideFile {
+            file: side
+                .file_name()
+                .expect("a file")
+                .to_string_lossy()
+                .into_owned(),
+            bytes: bytes.len() as u64,
+            hash: crowd_core::Hash::of(&bytes),
+        },
+    };
+    let ron = crowd_core::files::to_ron(&file).into_bytes();
+    (file, vec![(side, bytes), (out.to_path_buf(), ron)])
+}

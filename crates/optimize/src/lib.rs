@@ -1,0 +1,381 @@
+//! Stage 3, optimize: [`PatchGraph`] in, [`Patterns`] out (Crowd Art Algorithm 1).
+//!
+//! Entry and exit points ("crossings") live on the open intervals of shared borders. The start
+//! gives every border as many crossings each way as the density regression ([`regression`])
+//! asks for its two patches. Then each step of the loop measures every changed patch with the
+//! stage-4 matching, computes the signed error e(u) (eq. 7), finds its local maxima and minima,
+//! groups nearby optima of a component, finds minimum-cost circular paths through each group
+//! (petgraph A*) and removes (maxima) or adds (minima) one crossing per step of the path, so
+//! parity always holds. The loop keeps the best state and stops when E has not improved by
+//! more than `tolerance` in `patience` steps (converged) or at `max_iterations` (not).
+
+pub mod mutate;
+pub mod regression;
+pub mod search;
+pub mod spacing;
+pub mod state;
+
+use crowd_core::config::{MatchSettings, OptimizeSettings};
+use crowd_core::patterns::{Crossing, IterationFigures, Measured, Regression, SceneError};
+use crowd_core::{PatchGraph, Progress};
+use glam::DVec2;
+use mutate::Step;
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use rayon::prelude::*;
+use search::{Costs, Mode, Net};
+use state::State;
+
+/// Everything stage 3 decides.
+pub struct Outcome {
+    /// Sorted by border, then time.
+    pub crossings: Vec<Crossing>,
+    pub measured: Vec<Measured>,
+    pub error: SceneError,
+    pub regression: Regression,
+    pub log: Vec<IterationFigures>,
+    pub iterations: u32,
+    pub converged: bool,
+}
+
+/// E_rho, E_d and E (Crowd Art eq. 4-6) of measured patches.
+pub fn scene_error(
+    graph: &PatchGraph,
+    requested: &[f64],
+    measured: &[Measured],
+    rho_max: f64,
+) -> SceneError {
+    let n = measured.len().max(1) as f64;
+    let squares: f64 = requested
+        .iter()
+        .zip(measured)
+        .map(|(r, m)| (r - m.density).powi(2))
+        .sum();
+    let e_rho = (squares / n).sqrt() / rho_max;
+    let (mut sum, mut count) = (0.0, 0usize);
+    for (p, m) in graph.patches.iter().zip(measured) {
+        if let Some(d) = p.direction {
+            sum += 1.0 - d.dir.dot(m.direction.unwrap_or(DVec2::ZERO));
+            count += 1;
+        }
+    }
+    let e_d = if count > 0 { sum / count as f64 } else { 0.0 };
+    SceneError {
+        e_rho,
+        e_d,
+        e: e_rho + e_d,
+    }
+}
+
+/// Standing characters per patch: the requested stander densities rounded so that they add up
+/// to exactly the requested number (rounding the running total, patch by patch).
+pub fn stander_counts(graph: &PatchGraph) -> Vec<u32> {
+    let area = graph.patch_area();
+    let mut total = 0.0;
+    let mut placed = 0i64;
+    graph
+        .patches
+        .iter()
+        .map(|p| {
+            total += p.stander_density * area;
+            let n = total.round() as i64 - placed;
+            placed += n;
+            n.max(0) as u32
+        })
+        .collect()
+}
+
+/// Runs the optimisation. Deterministic for a seed, whatever the thread count.
+pub fn optimize(
+    graph: &PatchGraph,
+    settings: &OptimizeSettings,
+    matching: &MatchSettings,
+    period_s: f64,
+    seed: u64,
+    progress: &dyn Progress,
+) -> Outcome {
+    let side = graph.world.patch_side_m;
+    let regression = regression::fit(side, period_s, matching, 60, seed);
+    let mut state = State::new(graph, matching, period_s, stander_counts(graph));
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    start(&mut state, &regression, settings.rho_max, &mut rng);
+    let net = Net::new(&state);
+    let rho_max = settings.rho_max;
+
+    let figures = |state: &State, iteration: u32| {
+        let e = scene_error(graph, &state.requested, &state.measured, rho_max);
+        IterationFigures {
+            iteration,
+            e_rho: e.e_rho,
+            e_d: e.e_d,
+            e: e.e,
+            crossings: state.crossing_count() as u64,
+        }
+    };
+    let mut log = vec![figures(&state, 0)];
+    let mut best = (log[0].e, state.crossings.clone(), 0u32);
+    let mut converged = false;
+    let mut iterations = 0;
+    progress.begin("optimize", settings.max_iterations as u64);
+    for iteration in 1..=settings.max_iterations {
+        iterations = iteration;
+        step(&mut state, &net, &regression, settings, iteration, seed);
+        let f = figures(&state, iteration);
+        log.push(f);
+        progress.advance(1);
+        if f.e < best.0 - settings.tolerance {
+            best = (f.e, state.crossings.clone(), iteration);
+        } else if f.e < best.0 {
+            best.0 = f.e;
+            best.1 = state.crossings.clone();
+        }
+        if iteration - best.2 >= settings.patience {
+            converged = true;
+            break;
+        }
+    }
+    state.crossings = best.1;
+    state.remeasure_all();
+    let error = scene_error(graph, &state.requested, &state.measured, rho_max);
+    let mut crossings: Vec<Crossing> = state.crossings.into_iter().flatten().collect();
+    crossings.sort_by(|a, b| a.border.cmp(&b.border).then(a.t.total_cmp(&b.t)));
+    Outcome {
+        crossings,
+        measured: state.measured,
+        error,
+        regression,
+        log,
+        iterations,
+        converged,
+    }
+}
+
+/// Entry pairs per patch that the regression predicts for a density (at most rho_max).
+fn pairs_for(density: f64, regression: &Regression, rho_max: f64) -> f64 {
+    ((density.min(rho_max) - regression.intercept) / regression.slope).max(0.0)
+}
+
+/// The start: on every open border, as many crossings each way as the two patches need on
+/// average per border (balanced, so parity holds), then nothing above rho_max.
+fn start(state: &mut State, regression: &Regression, rho_max: f64, rng: &mut ChaCha8Rng) {
+    let area = state.graph.patch_area();
+    let need: Vec<f64> = (0..state.links.len())
+        .map(|p| {
+            let walkers = state.requested[p] - state.standers[p] as f64 / area;
+            pairs_for(walkers, regression, rho_max) / state.links[p].len().max(1) as f64
+        })
+        .collect();
+    for (k, b) in state.graph.borders.iter().enumerate() {
+        if b.open.is_empty() {
+            continue;
+        }
+        let pairs = ((need[b.a.0 as usize] + need[b.b.0 as usize]) / 2.0).round() as u32;
+        mutate::add_pairs(state, k, pairs, rng);
+    }
+    state.remeasure_all();
+    enforce_rho_max(state, rho_max);
+}
+
+/// Removes balanced pairs of crossings from any patch above rho_max.
+fn enforce_rho_max(state: &mut State, rho_max: f64) {
+    for p in 0..state.links.len() {
+        let mut guard = 0;
+        while state.measured[p].density > rho_max && guard < 1000 {
+            guard += 1;
+            let Some(link) = state.links[p]
+                .iter()
+                .copied()
+                .filter(|l| {
+                    let list = &state.crossings[l.border];
+                    list.iter().any(|c| c.way == l.way) && list.iter().any(|c| c.way != l.way)
+                })
+                .max_by_key(|l| state.crossings[l.border].len())
+            else {
+                break;
+            };
+            let there = [
+                Step {
+                    from: p,
+                    to: link.to,
+                    border: link.border,
+                    way: link.way,
+                },
+                Step {
+                    from: link.to,
+                    to: p,
+                    border: link.border,
+                    way: spacing::reverse(link.way),
+                },
+            ];
+            mutate::remove_cycle(state, &there);
+            state.remeasure(&[p, link.to]);
+        }
+    }
+}
+
+/// One step of Algorithm 1 over every component.
+fn step(
+    state: &mut State,
+    net: &Net,
+    regression: &Regression,
+    settings: &OptimizeSettings,
+    iteration: u32,
+    seed: u64,
+) {
+    let rho_max = settings.rho_max;
+    let errors = search::signed_errors(state, rho_max, regression.slope);
+    let quantum = regression.slope / rho_max;
+    let costs = Costs {
+        errors: &errors,
+        room: regression.slope,
+        rho_max,
+        quantum,
+        direction_gain: 6.0,
+    };
+    // Every component gets its own budget of paths per step.
+    let mut sizes = vec![0usize; state.graph.components.len()];
+    for p in &state.graph.patches {
+        sizes[p.component as usize] += 1;
+    }
+    let budget = |group: &[usize]| sizes[state.graph.patches[group[0]].component as usize] / 40 + 1;
+    let choose = |mode: Mode| -> Vec<Vec<usize>> {
+        let optima = search::optima(state, &errors, mode, quantum / 2.0);
+        let mut used = vec![0usize; sizes.len()];
+        search::groups(state, &optima, 6, 4)
+            .into_iter()
+            .filter(|g| {
+                let c = state.graph.patches[g[0]].component as usize;
+                used[c] += 1;
+                used[c] <= budget(g)
+            })
+            .collect()
+    };
+    let (maxima, minima) = (choose(Mode::Remove), choose(Mode::Add));
+    // Paths are found in parallel on this step's snapshot, then applied in order.
+    let find = |groups: &[Vec<usize>], mode: Mode| -> Vec<Option<Vec<Step>>> {
+        groups
+            .par_iter()
+            .map(|g| search::cycle(state, net, &costs, mode, g))
+            .collect()
+    };
+    let (removals, additions) = (find(&maxima, Mode::Remove), find(&minima, Mode::Add));
+    let mut rng =
+        ChaCha8Rng::seed_from_u64(seed ^ (iteration as u64).wrapping_mul(0xA076_1D64_78BD_642F));
+    let mut dirty = Vec::new();
+    for cycle in removals.into_iter().flatten() {
+        if mutate::can_remove(state, &cycle) {
+            mutate::remove_cycle(state, &cycle);
+            dirty.extend(cycle.iter().map(|s| s.to));
+        }
+    }
+    for cycle in additions.into_iter().flatten() {
+        let before: Vec<usize> = cycle
+            .iter()
+            .map(|s| state.crossings[s.border].len())
+            .collect();
+        if mutate::add_cycle(state, &cycle, &mut rng) {
+            let touched: Vec<usize> = cycle.iter().map(|s| s.to).collect();
+            state.remeasure(&touched);
+            if touched.iter().any(|&p| state.measured[p].density > rho_max) {
+                // Never above rho_max: take the cycle back.
+                for (s, n) in cycle.iter().zip(before) {
+                    state.crossings[s.border].truncate(n);
+                }
+                state.remeasure(&touched);
+            }
+        }
+    }
+    dirty.sort_unstable();
+    dirty.dedup();
+    state.remeasure(&dirty);
+}
+
+/// What stage 3 reads of a pipeline besides the graph.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct Inputs {
+    pub period_s: f64,
+    pub seed: u64,
+    pub settings: OptimizeSettings,
+    pub matching: MatchSettings,
+}
+
+pub fn inputs(pipeline: &crowd_core::config::PipelineFile) -> Inputs {
+    let p = &pipeline.pipeline;
+    Inputs {
+        period_s: p.period_s,
+        seed: p.seed,
+        settings: p.optimize.clone(),
+        matching: p.matching.clone(),
+    }
+}
+
+/// The hash of stage 3's inputs: the graph file's bytes and the settings.
+pub fn input_hash(graph_file_bytes: &[u8], inputs: &Inputs) -> crowd_core::Hash {
+    crowd_core::Hasher::new(
+        crowd_core::patterns::Patterns::STAGE,
+        crowd_core::patterns::Patterns::VERSION,
+    )
+    .part(
+        "graph file",
+        crowd_core::Hash::of(graph_file_bytes)
+            .to_string()
+            .as_bytes(),
+    )
+    .value("inputs", inputs)
+    .finish()
+}
+
+/// Stage 3's files, encoded: the crossings side file, `patterns.ron`, and the per-step figures
+/// as CSV (`optimize.csv`), all beside `out`.
+pub fn encode(
+    out: &std::path::Path,
+    outcome: &Outcome,
+    inputs: &Inputs,
+    hash: crowd_core::Hash,
+) -> (
+    crowd_core::patterns::Patterns,
+    Vec<(std::path::PathBuf, Vec<u8>)>,
+) {
+    use crowd_core::files::{Header, SideFile};
+    let bytes = crowd_core::patterns::encode_crossings(&outcome.crossings);
+    let side = out.with_extension("bin");
+    let patterns = crowd_core::patterns::Patterns {
+        header: Header {
+            stage: crowd_core::patterns::Patterns::STAGE.to_string(),
+            version: crowd_core::patterns::Patterns::VERSION,
+            input_hash: hash,
+        },
+        period_s: inputs.period_s,
+        rho_max: inputs.settings.rho_max,
+        seed: inputs.seed,
+        iterations: outcome.iterations,
+        converged: outcome.converged,
+        error: outcome.error,
+        regression: outcome.regression,
+        log: outcome.log.clone(),
+        measured: outcome.measured.clone(),
+        crossings: SideFile {
+            file: side
+                .file_name()
+                .expect("a file")
+                .to_string_lossy()
+                .into_owned(),
+            bytes: bytes.len() as u64,
+            hash: crowd_core::Hash::of(&bytes),
+        },
+    };
+    let mut csv = String::from("iteration,E_rho,E_d,E,crossings\n");
+    for f in &outcome.log {
+        csv += &format!(
+            "{},{:.6},{:.6},{:.6},{}\n",
+            f.iteration, f.e_rho, f.e_d, f.e, f.crossings
+        );
+    }
+    let ron = crowd_core::files::to_ron(&patterns).into_bytes();
+    let writes = vec![
+        (side, bytes),
+        (out.with_file_name("optimize.csv"), csv.into_bytes()),
+        (out.to_path_buf(), ron),
+    ];
+    (patterns, writes)
+}

@@ -1,0 +1,252 @@
+//! Finding where the error is and the circular paths that fix it (Crowd Art Alg. 1, lines
+//! 5-11 and 16-18; section 4.2).
+
+use crate::mutate::Step;
+use crate::state::State;
+use crowd_core::patterns::Way;
+use glam::DVec2;
+use petgraph::algo::astar;
+use petgraph::graph::{DiGraph, NodeIndex};
+use petgraph::visit::EdgeRef;
+
+/// Signed error of every patch, in units of rho_max (eq. 7):
+/// e = e_rho + sgn(e_rho) e_d, with e_d = |1 - d_r . d_c| / 2 where a direction is requested.
+pub fn signed_errors(state: &State, rho_max: f64, room: f64) -> Vec<f64> {
+    state
+        .graph
+        .patches
+        .iter()
+        .zip(&state.measured)
+        .zip(&state.requested)
+        .map(|((p, m), &requested)| {
+            let e_rho = (m.density - requested) / rho_max;
+            let e_d = p.direction.map_or(0.0, |d| {
+                let measured = m.direction.unwrap_or(DVec2::ZERO);
+                (1.0 - d.dir.dot(measured)).abs() / 2.0 * d.weight.min(1.0)
+            });
+            // A patch with too little density but the wrong direction needs aligned walkers
+            // added; one that cannot take more (rho_max) needs the misaligned ones removed.
+            let full = m.density + room > rho_max;
+            let sign = if e_rho > 0.0 || full { 1.0 } else { -1.0 };
+            e_rho + sign * e_d
+        })
+        .collect()
+}
+
+/// Whether we look for too much (maxima, remove) or too little (minima, add).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Mode {
+    Remove,
+    Add,
+}
+
+/// Local optima of the signed error beyond `threshold`, worst first.
+pub fn optima(state: &State, errors: &[f64], mode: Mode, threshold: f64) -> Vec<usize> {
+    let key = |u: usize| match mode {
+        Mode::Remove => errors[u],
+        Mode::Add => -errors[u],
+    };
+    let mut found: Vec<usize> = (0..errors.len())
+        .filter(|&u| key(u) > threshold)
+        .filter(|&u| {
+            state.links[u]
+                .iter()
+                .all(|l| key(u) > key(l.to) || (key(u) == key(l.to) && u < l.to))
+        })
+        .collect();
+    found.sort_by(|&a, &b| key(b).total_cmp(&key(a)).then(a.cmp(&b)));
+    found
+}
+
+/// Groups optima of one component that lie near each other (up to `size` per group, within
+/// `radius` cells), worst first.
+pub fn groups(state: &State, optima: &[usize], radius: u32, size: usize) -> Vec<Vec<usize>> {
+    let cell = |u: usize| state.graph.patches[u].cell;
+    let component = |u: usize| state.graph.patches[u].component;
+    let mut taken = vec![false; optima.len()];
+    let mut out = Vec::new();
+    for i in 0..optima.len() {
+        if taken[i] {
+            continue;
+        }
+        taken[i] = true;
+        let mut group = vec![optima[i]];
+        let mut near: Vec<(u32, usize)> = (i + 1..optima.len())
+            .filter(|&j| !taken[j] && component(optima[j]) == component(optima[i]))
+            .map(|j| {
+                let (a, b) = (cell(optima[i]), cell(optima[j]));
+                (a.col.abs_diff(b.col) + a.row.abs_diff(b.row), j)
+            })
+            .filter(|&(d, _)| d <= radius)
+            .collect();
+        near.sort();
+        for &(_, j) in near.iter().take(size - 1) {
+            taken[j] = true;
+            group.push(optima[j]);
+        }
+        out.push(group);
+    }
+    out
+}
+
+/// The patch graph as petgraph sees it: a node per patch, an edge per way through an open
+/// border.
+pub struct Net {
+    pub graph: DiGraph<(), (usize, Way)>,
+}
+
+impl Net {
+    pub fn new(state: &State) -> Net {
+        let mut graph = DiGraph::with_capacity(state.links.len(), 2 * state.graph.borders.len());
+        for _ in 0..state.links.len() {
+            graph.add_node(());
+        }
+        for (u, links) in state.links.iter().enumerate() {
+            for l in links {
+                graph.add_edge(NodeIndex::new(u), NodeIndex::new(l.to), (l.border, l.way));
+            }
+        }
+        Net { graph }
+    }
+}
+
+/// Weights of the path costs.
+pub struct Costs<'e> {
+    pub errors: &'e [f64],
+    /// Density one more entry-exit pair adds, and the most a patch may hold.
+    pub room: f64,
+    pub rho_max: f64,
+    /// Signed error of one entry-exit pair, in units of rho_max.
+    pub quantum: f64,
+    pub direction_gain: f64,
+}
+
+const BLOCKED: f64 = 1e9;
+
+impl Costs<'_> {
+    /// Cost of a step from `u` to `v` through `border`: 1 per patch, more where the step makes
+    /// a patch's error worse (crossing into the other sign), more against requested directions.
+    fn step(&self, state: &State, mode: Mode, u: usize, v: usize, border: usize, way: Way) -> f64 {
+        let e = self.errors[v];
+        let worse = match mode {
+            Mode::Add => e.max(0.0),
+            Mode::Remove => (-e).max(0.0),
+        };
+        let step = state.normal(border, way);
+        let against: f64 = [u, v]
+            .iter()
+            .filter_map(|&x| state.graph.patches[x].direction)
+            .map(|d| {
+                let cos = d.dir.dot(step);
+                let w = d.weight.min(1.0);
+                match mode {
+                    Mode::Add => w * (1.0 - cos) / 2.0,
+                    Mode::Remove => w * (1.0 + cos) / 2.0,
+                }
+            })
+            .sum();
+        let mut cost = 1.0 + worse / self.quantum + self.direction_gain * against;
+        if mode == Mode::Remove && !state.crossings[border].iter().any(|c| c.way == way) {
+            cost = BLOCKED;
+        }
+        if mode == Mode::Add && state.measured[v].density + self.room > self.rho_max {
+            cost = BLOCKED;
+        }
+        cost
+    }
+}
+
+/// The cheapest path from `from` to `to` (not using the edge `forbid`, if given).
+pub fn path(
+    state: &State,
+    net: &Net,
+    costs: &Costs,
+    mode: Mode,
+    from: usize,
+    to: usize,
+    forbid: Option<(usize, usize)>,
+) -> Option<Vec<Step>> {
+    let cell = |u: usize| state.graph.patches[u].cell;
+    let goal = cell(to);
+    let (cost, nodes) = astar(
+        &net.graph,
+        NodeIndex::new(from),
+        |n| n.index() == to,
+        |e| {
+            let (u, v) = (e.source().index(), e.target().index());
+            if forbid == Some((u, v)) {
+                return BLOCKED;
+            }
+            let (border, way) = *e.weight();
+            costs.step(state, mode, u, v, border, way)
+        },
+        |n| {
+            let c = cell(n.index());
+            (c.col.abs_diff(goal.col) + c.row.abs_diff(goal.row)) as f64
+        },
+    )?;
+    if cost >= BLOCKED {
+        return None;
+    }
+    Some(
+        nodes
+            .windows(2)
+            .map(|w| {
+                let (u, v) = (w[0].index(), w[1].index());
+                let link = state.links[u]
+                    .iter()
+                    .find(|l| l.to == v)
+                    .expect("an edge of the net");
+                Step {
+                    from: u,
+                    to: v,
+                    border: link.border,
+                    way: link.way,
+                }
+            })
+            .collect(),
+    )
+}
+
+/// A circular path through the optima of a group: O1 -> O2 -> ... -> Ok -> O1. A lone optimum
+/// leaves towards the neighbour its requested direction (or its error) favours most and comes
+/// back another way if it can, the way back through that neighbour otherwise.
+pub fn cycle(
+    state: &State,
+    net: &Net,
+    costs: &Costs,
+    mode: Mode,
+    group: &[usize],
+) -> Option<Vec<Step>> {
+    if group.len() >= 2 {
+        let mut steps = Vec::new();
+        for (i, &a) in group.iter().enumerate() {
+            let b = group[(i + 1) % group.len()];
+            steps.extend(path(state, net, costs, mode, a, b, None)?);
+        }
+        return Some(steps);
+    }
+    let o = group[0];
+    let first = state.links[o]
+        .iter()
+        .map(|l| (costs.step(state, mode, o, l.to, l.border, l.way), l))
+        .filter(|(c, _)| *c < BLOCKED)
+        .min_by(|a, b| a.0.total_cmp(&b.0).then(a.1.to.cmp(&b.1.to)))?
+        .1;
+    let out = crate::mutate::Step {
+        from: o,
+        to: first.to,
+        border: first.border,
+        way: first.way,
+    };
+    let back = if state.graph.patches[o].direction.is_some() {
+        path(state, net, costs, mode, first.to, o, Some((first.to, o)))
+            .filter(|p| p.len() <= 400)
+            .or_else(|| path(state, net, costs, mode, first.to, o, None))
+    } else {
+        path(state, net, costs, mode, first.to, o, None)
+    }?;
+    let mut steps = vec![out];
+    steps.extend(back);
+    Some(steps)
+}

@@ -1,0 +1,95 @@
+//! Where a new crossing may go: on an open interval, clear of the patch corners, and far enough
+//! in space or time from the other crossings of its border that the two characters never come
+//! closer than the sum of their radii near the border.
+
+use crowd_core::patterns::{Crossing, Way};
+use crowd_core::{Interval, PatchGraph};
+
+pub struct Spacing {
+    /// Per border, the stretches where a crossing may be (open intervals shrunk by a radius
+    /// and a margin, and kept clear of the corners).
+    pub usable: Vec<Vec<Interval>>,
+    /// Closest distance between two characters near a border: 2r + margin.
+    pub gap: f64,
+    /// Depth inside the patch within which two characters crossing a border in opposite ways
+    /// must not meet; deeper, the collide stage can still bend their paths.
+    pub meet_depth: f64,
+}
+
+impl Spacing {
+    pub fn new(graph: &PatchGraph) -> Spacing {
+        let r = graph.radius_m;
+        let side = graph.world.patch_side_m;
+        let edge = r + 0.1;
+        let corner = r + 0.4;
+        let usable = graph
+            .borders
+            .iter()
+            .map(|b| {
+                b.open
+                    .iter()
+                    .map(|i| Interval {
+                        start: (i.start + edge).max(corner),
+                        end: (i.end - edge).min(side - corner),
+                    })
+                    .filter(|i| i.len() > 0.0)
+                    .collect()
+            })
+            .collect();
+        Spacing {
+            usable,
+            gap: 2.0 * r + 0.1,
+            meet_depth: 1.5,
+        }
+    }
+
+    /// The nearest usable position to `s` on `border`.
+    pub fn clamp(&self, border: usize, s: f64) -> Option<f64> {
+        self.usable[border]
+            .iter()
+            .map(|i| s.clamp(i.start, i.end))
+            .min_by(|a, b| (a - s).abs().total_cmp(&(b - s).abs()))
+    }
+
+    /// Whether two crossings of one border keep their characters apart near it.
+    pub fn compatible(&self, a: &Crossing, b: &Crossing, period: f64) -> bool {
+        if (a.s - b.s).abs() >= self.gap {
+            return true;
+        }
+        let dt = (a.t - b.t).abs().rem_euclid(period);
+        let dt = dt.min(period - dt);
+        let speed = a.velocity.length().min(b.velocity.length());
+        if a.way == b.way {
+            speed * dt >= self.gap
+        } else {
+            speed * dt / 2.0 >= self.meet_depth
+        }
+    }
+
+    /// Whether `c` fits among `others`.
+    pub fn fits(&self, c: &Crossing, others: &[Crossing], period: f64) -> bool {
+        others.iter().all(|o| self.compatible(c, o, period))
+    }
+}
+
+/// Whether every crossing of every border keeps its spacing (for tests and reports).
+pub fn all_spaced(spacing: &Spacing, crossings: &[Vec<Crossing>], period: f64) -> bool {
+    crossings.iter().enumerate().all(|(b, list)| {
+        list.iter().enumerate().all(|(i, c)| {
+            spacing.usable[b]
+                .iter()
+                .any(|u| c.s >= u.start - 1e-9 && c.s <= u.end + 1e-9)
+                && list[i + 1..]
+                    .iter()
+                    .all(|o| spacing.compatible(c, o, period))
+        })
+    })
+}
+
+/// Mirror of a way.
+pub fn reverse(way: Way) -> Way {
+    match way {
+        Way::AToB => Way::BToA,
+        Way::BToA => Way::AToB,
+    }
+}

@@ -1,0 +1,168 @@
+//! The optimiser's state: crossings per border, and each patch's measured density and
+//! direction, kept up to date patch by patch.
+
+use crate::spacing::Spacing;
+use crowd_core::config::MatchSettings;
+use crowd_core::patterns::{Crossing, Measured, Way};
+use crowd_core::{BorderAxis, PatchGraph};
+use crowd_match::{Endpoint, PatchContext};
+use glam::DVec2;
+use rayon::prelude::*;
+
+/// A way out of a patch: through `border`, towards patch `to`, crossing `way`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Link {
+    pub to: usize,
+    pub border: usize,
+    pub way: Way,
+}
+
+pub struct State<'a> {
+    pub graph: &'a PatchGraph,
+    pub settings: &'a MatchSettings,
+    pub period_s: f64,
+    pub spacing: Spacing,
+    /// Per patch, its neighbours through borders with an open interval.
+    pub links: Vec<Vec<Link>>,
+    /// Per border, its crossings.
+    pub crossings: Vec<Vec<Crossing>>,
+    /// Standing characters per patch (fixed: they follow the static density).
+    pub standers: Vec<u32>,
+    pub measured: Vec<Measured>,
+    /// Requested total density per patch (walkers + standers), characters per m2.
+    pub requested: Vec<f64>,
+}
+
+impl<'a> State<'a> {
+    pub fn new(
+        graph: &'a PatchGraph,
+        settings: &'a MatchSettings,
+        period_s: f64,
+        standers: Vec<u32>,
+    ) -> State<'a> {
+        let n = graph.patches.len();
+        let mut links = vec![Vec::new(); n];
+        for (k, b) in graph.borders.iter().enumerate() {
+            if b.open.is_empty() {
+                continue;
+            }
+            let (a, c) = (b.a.0 as usize, b.b.0 as usize);
+            links[a].push(Link {
+                to: c,
+                border: k,
+                way: Way::AToB,
+            });
+            links[c].push(Link {
+                to: a,
+                border: k,
+                way: Way::BToA,
+            });
+        }
+        let area = graph.patch_area();
+        let requested = graph
+            .patches
+            .iter()
+            .zip(&standers)
+            .map(|(p, &s)| p.walker_density + s as f64 / area)
+            .collect();
+        let mut state = State {
+            graph,
+            settings,
+            period_s,
+            spacing: Spacing::new(graph),
+            links,
+            crossings: vec![Vec::new(); graph.borders.len()],
+            measured: vec![
+                Measured {
+                    density: 0.0,
+                    direction: None,
+                    standers: 0
+                };
+                n
+            ],
+            standers,
+            requested,
+        };
+        state.remeasure_all();
+        state
+    }
+
+    pub fn context(&self, patch: usize) -> PatchContext<'a> {
+        PatchContext::new(self.graph, patch, self.settings, self.period_s)
+    }
+
+    /// Entries and exits of a patch, from the crossings of its borders.
+    pub fn endpoints(&self, patch: usize) -> (Vec<Endpoint>, Vec<Endpoint>) {
+        let (mut entries, mut exits) = (Vec::new(), Vec::new());
+        let side = self.graph.world.patch_side_m;
+        for link in &self.links[patch] {
+            let border = &self.graph.borders[link.border];
+            for c in &self.crossings[link.border] {
+                let (a, b) = crowd_core::patterns::border_point(border, side, c.s);
+                let here = if link.way == Way::AToB { a } else { b };
+                let e = Endpoint {
+                    crossing: 0,
+                    pos: here.pos,
+                    t: c.t,
+                    side: here.side,
+                };
+                if c.way == link.way {
+                    exits.push(e);
+                } else {
+                    entries.push(e);
+                }
+            }
+        }
+        (entries, exits)
+    }
+
+    pub fn measure(&self, patch: usize) -> Measured {
+        let (entries, exits) = self.endpoints(patch);
+        crowd_match::measure_patch(&entries, &exits, self.standers[patch], &self.context(patch))
+    }
+
+    pub fn remeasure(&mut self, patches: &[usize]) {
+        let fresh: Vec<Measured> = patches.par_iter().map(|&p| self.measure(p)).collect();
+        for (&p, m) in patches.iter().zip(fresh) {
+            self.measured[p] = m;
+        }
+    }
+
+    pub fn remeasure_all(&mut self) {
+        let all: Vec<usize> = (0..self.graph.patches.len()).collect();
+        self.remeasure(&all);
+    }
+
+    /// Unit vector across a border in the way of the crossing.
+    pub fn normal(&self, border: usize, way: Way) -> DVec2 {
+        let n = match self.graph.borders[border].axis {
+            BorderAxis::Vertical => DVec2::X,
+            BorderAxis::Horizontal => DVec2::Y,
+        };
+        if way == Way::AToB { n } else { -n }
+    }
+
+    /// The velocity of a new crossing: across the border at the comfort speed of the two
+    /// patches, leaning along the border where their requested directions do.
+    pub fn crossing_velocity(&self, border: usize, way: Way) -> DVec2 {
+        let b = &self.graph.borders[border];
+        let (pa, pb) = (
+            &self.graph.patches[b.a.0 as usize],
+            &self.graph.patches[b.b.0 as usize],
+        );
+        let density = (pa.walker_density + pb.walker_density) / 2.0;
+        let speed = crowd_match::score::comfort_speed(self.settings.comfort_speed, density);
+        let n = self.normal(border, way);
+        let tangent = n.perp();
+        let lean: f64 = [pa, pb]
+            .iter()
+            .filter_map(|p| p.direction)
+            .map(|d| d.weight.min(1.0) * d.dir.dot(tangent) / 2.0)
+            .sum();
+        (n + tangent * lean.clamp(-0.6, 0.6)).normalize() * speed
+    }
+
+    pub fn crossing_count(&self) -> usize {
+        self.crossings.iter().map(Vec::len).sum()
+    }
+}
