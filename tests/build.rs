@@ -78,34 +78,38 @@ fn a_second_build_reruns_nothing_and_an_edited_layer_reruns_merge_and_graph() {
 #[test]
 fn one_and_two_threads_write_identical_files() {
     let dir = tempfile::tempdir().unwrap();
-    for name in ["city", "painting"] {
+    for (name, until, files) in [
+        ("city", "match", 8),
+        ("ring", "match", 8),
+        ("painting", "graph", 3),
+    ] {
         let pipeline = scene_pipeline(name);
         let (a, b) = (
             dir.path().join(format!("{name}-1")),
             dir.path().join(format!("{name}-2")),
         );
-        crowd_ok(&[
-            "--threads",
-            "1",
-            "build",
-            "-q",
-            "--pipeline",
-            s(&pipeline),
-            "--output",
-            s(&a),
-        ]);
-        crowd_ok(&[
-            "--threads",
-            "2",
-            "build",
-            "-q",
-            "--pipeline",
-            s(&pipeline),
-            "--output",
-            s(&b),
-        ]);
+        for (threads, out) in [("1", &a), ("2", &b)] {
+            let p = s(&pipeline);
+            crowd_ok(&[
+                "--threads",
+                threads,
+                "build",
+                "-q",
+                "--pipeline",
+                p,
+                "--output",
+                s(out),
+                "--until",
+                until,
+            ]);
+        }
         let (sa, sb) = (snapshot(&a), snapshot(&b));
-        assert_eq!(sa.len(), 3, "merge.ron, merge.bin and graph.ron");
+        assert_eq!(
+            sa.len(),
+            files,
+            "{name}: {:?}",
+            sa.iter().map(|f| &f.0).collect::<Vec<_>>()
+        );
         assert!(sa == sb, "{name}: 1 and 2 threads differ");
     }
 }
@@ -142,7 +146,7 @@ fn sixteen_bit_layers_merge_like_their_eight_bit_originals() {
 
 #[test]
 fn report_prints_the_figures_as_json() {
-    let (_dir, out) = build_shared_scene("city");
+    let (_dir, out) = build_shared_scene("city", "match");
     let json: serde_json::Value =
         serde_json::from_slice(&crowd_ok(&["report", s(&out), "--json"]).stdout).unwrap();
     assert_eq!(json["walkers_requested"], 5000);

@@ -5,7 +5,7 @@ use crowd_core::PatchGraph;
 use glam::DVec2;
 
 fn build_scene(name: &str) -> (tempfile::TempDir, PatchGraph) {
-    let (dir, out) = build_shared_scene(name);
+    let (dir, out) = build_shared_scene(name, "graph");
     let graph = PatchGraph::load(&out.join("graph.ron")).unwrap();
     (dir, graph)
 }
@@ -143,7 +143,7 @@ fn center_flow_asks_for_east_exactly_where_its_alpha_paints_a_direction() {
 #[test]
 fn graph_pictures_render() {
     for name in ["city", "ring"] {
-        let (dir, out) = build_shared_scene(name);
+        let (dir, out) = build_shared_scene(name, "graph");
         for stage in ["merge", "graph"] {
             let png = dir.path().join(format!("{stage}.png"));
             crowd_ok(&[

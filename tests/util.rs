@@ -38,18 +38,22 @@ pub fn scene_pipeline(name: &str) -> PathBuf {
     root().join("assets/pipelines").join(format!("{name}.ron"))
 }
 
-/// Builds a shared scene into a new temporary folder; returns it and the build folder in it.
-pub fn build_shared_scene(name: &str) -> (tempfile::TempDir, PathBuf) {
+/// Builds a shared scene up to `until` (a stage name) into a new temporary folder; returns it
+/// and the build folder in it.
+pub fn build_shared_scene(name: &str, until: &str) -> (tempfile::TempDir, PathBuf) {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("out");
     let pipeline = scene_pipeline(name);
+    let (p, o) = (s(&pipeline), s(&out));
     crowd_ok(&[
         "build",
         "-q",
         "--pipeline",
-        s(&pipeline),
+        p,
         "--output",
-        s(&out),
+        o,
+        "--until",
+        until,
     ]);
     (dir, out)
 }

@@ -36,6 +36,9 @@ pub enum Command {
         /// Write the stage files here instead of the pipeline's `output` folder.
         #[arg(long, short, value_name = "DIR")]
         output: Option<PathBuf>,
+        /// Stop after this stage.
+        #[arg(long, value_enum, value_name = "STAGE")]
+        until: Option<driver::Stage>,
     },
     /// Stage 1: merge the painted layers into grids.
     Merge {
@@ -85,8 +88,14 @@ pub fn run(cli: Cli) -> Result<()> {
             pipeline,
             force,
             output,
+            until,
         } => {
-            driver::build(&pipeline, &BuildOptions { force, output }, &ui)?;
+            let options = BuildOptions {
+                force,
+                output,
+                until,
+            };
+            driver::build(&pipeline, &options, &ui)?;
         }
         Command::Merge { pipeline, output } => {
             let p = PipelineFile::load(&pipeline)?;

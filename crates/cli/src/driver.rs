@@ -33,8 +33,19 @@ pub const TIMINGS_FILE: &str = "timings.ron";
 pub struct BuildOptions {
     /// Rebuild every stage.
     pub force: bool,
+    /// Stop after this stage.
+    pub until: Option<Stage>,
     /// Build folder instead of the pipeline's `output`.
     pub output: Option<PathBuf>,
+}
+
+/// The stages, in build order.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, clap::ValueEnum)]
+pub enum Stage {
+    Merge,
+    Graph,
+    Optimize,
+    Match,
 }
 
 /// What happened to one stage in a build.
@@ -88,6 +99,10 @@ pub fn build(pipeline_path: &Path, options: &BuildOptions, ui: &Ui) -> Result<Ve
         },
     )?);
 
+    if options.until == Some(Stage::Merge) {
+        return finish(&out, pending, &timings, outcomes);
+    }
+
     // Stage 2: graph.
     let graph_path = out.join(GRAPH_FILE);
     let merge_bytes = match &merged {
@@ -117,6 +132,9 @@ pub fn build(pipeline_path: &Path, options: &BuildOptions, ui: &Ui) -> Result<Ve
             Ok(())
         },
     )?);
+    if options.until == Some(Stage::Graph) {
+        return finish(&out, pending, &timings, outcomes);
+    }
     let (graph_bytes, graph) = match built_graph {
         Some(built) => built,
         None => {
@@ -158,6 +176,9 @@ pub fn build(pipeline_path: &Path, options: &BuildOptions, ui: &Ui) -> Result<Ve
             Ok(())
         },
     )?);
+    if options.until == Some(Stage::Optimize) {
+        return finish(&out, pending, &timings, outcomes);
+    }
     let (patterns_bytes, patterns, crossings) = match built_patterns {
         Some(built) => built,
         None => {
@@ -193,10 +214,20 @@ pub fn build(pipeline_path: &Path, options: &BuildOptions, ui: &Ui) -> Result<Ve
         },
     )?);
 
+    finish(&out, pending, &timings, outcomes)
+}
+
+/// Writes the stage files of a build that succeeded, then the timings.
+fn finish(
+    out: &Path,
+    pending: Pending,
+    timings: &BTreeMap<String, f64>,
+    outcomes: Vec<StageOutcome>,
+) -> Result<Vec<StageOutcome>> {
     for (path, bytes) in &pending.0 {
         files::write_atomic(path, bytes)?;
     }
-    files::write_atomic(&out.join(TIMINGS_FILE), files::to_ron(&timings).as_bytes())?;
+    files::write_atomic(&out.join(TIMINGS_FILE), files::to_ron(timings).as_bytes())?;
     Ok(outcomes)
 }
 
