@@ -148,7 +148,7 @@ impl Default for OptimizeSettings {
             rho_max: 0.35,
             max_iterations: 400,
             tolerance: 1e-4,
-            patience: 25,
+            patience: 40,
         }
     }
 }

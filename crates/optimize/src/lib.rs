@@ -26,6 +26,12 @@ use rayon::prelude::*;
 use search::{Costs, Mode, Net};
 use state::State;
 
+/// Paths per step: one per this many patches of a component, plus one (the paper: 400).
+const PATCHES_PER_PATH: usize = 100;
+/// Optima within this many cells (Manhattan) may share a group, up to this many per group.
+const GROUP_RADIUS: u32 = 4;
+const GROUP_SIZE: usize = 3;
+
 /// Everything stage 3 decides.
 pub struct Outcome {
     /// Sorted by border, then time.
@@ -237,11 +243,13 @@ fn step(
     for p in &state.graph.patches {
         sizes[p.component as usize] += 1;
     }
-    let budget = |group: &[usize]| sizes[state.graph.patches[group[0]].component as usize] / 40 + 1;
+    let budget = |group: &[usize]| {
+        sizes[state.graph.patches[group[0]].component as usize] / PATCHES_PER_PATH + 1
+    };
     let choose = |mode: Mode| -> Vec<Vec<usize>> {
         let optima = search::optima(state, &errors, mode, quantum / 2.0);
         let mut used = vec![0usize; sizes.len()];
-        search::groups(state, &optima, 6, 4)
+        search::groups(state, &optima, GROUP_RADIUS, GROUP_SIZE)
             .into_iter()
             .filter(|g| {
                 let c = state.graph.patches[g[0]].component as usize;
@@ -262,6 +270,24 @@ fn step(
     let mut rng =
         ChaCha8Rng::seed_from_u64(seed ^ (iteration as u64).wrapping_mul(0xA076_1D64_78BD_642F));
     let mut dirty = Vec::new();
+    let debug = std::env::var("CROWD_DEBUG").is_ok();
+    if debug {
+        let lens = |v: &Vec<Option<Vec<Step>>>| {
+            let found: Vec<usize> = v.iter().flatten().map(|c| c.len()).collect();
+            (
+                v.len(),
+                found.len(),
+                found.iter().sum::<usize>() as f64 / found.len().max(1) as f64,
+            )
+        };
+        eprintln!(
+            "it {iteration}: maxima groups {} remove {:?} minima groups {} add {:?}",
+            maxima.len(),
+            lens(&removals),
+            minima.len(),
+            lens(&additions)
+        );
+    }
     for cycle in removals.into_iter().flatten() {
         if mutate::can_remove(state, &cycle) {
             mutate::remove_cycle(state, &cycle);
@@ -283,6 +309,44 @@ fn step(
                 }
                 state.remeasure(&touched);
             }
+        }
+    }
+    dirty.sort_unstable();
+    dirty.dedup();
+    state.remeasure(&dirty);
+    turn_around(state, net, &costs, &sizes);
+}
+
+/// Density-neutral direction fixing: in the directed patches whose direction is furthest off,
+/// turn around a cycle of existing crossings that runs against the requested directions.
+fn turn_around(state: &mut State, net: &Net, costs: &Costs, sizes: &[usize]) {
+    let off = |p: usize| {
+        let d = state.graph.patches[p].direction.expect("directed");
+        let m = state.measured[p].direction.unwrap_or(DVec2::ZERO);
+        (1.0 - d.dir.dot(m)) * d.weight.min(1.0)
+    };
+    let mut directed: Vec<usize> = (0..state.links.len())
+        .filter(|&p| state.graph.patches[p].direction.is_some() && off(p) > 0.05)
+        .collect();
+    directed.sort_by(|&a, &b| off(b).total_cmp(&off(a)).then(a.cmp(&b)));
+    let mut used = vec![0usize; sizes.len()];
+    let starts: Vec<Step> = directed
+        .iter()
+        .filter(|&&p| {
+            let c = state.graph.patches[p].component as usize;
+            used[c] += 1;
+            used[c] <= sizes[c] / PATCHES_PER_PATH + 1
+        })
+        .filter_map(|&p| search::most_misaligned(state, p))
+        .collect();
+    let cycles: Vec<Option<Vec<Step>>> = starts
+        .par_iter()
+        .map(|&first| search::reversal_cycle(state, net, costs, first))
+        .collect();
+    let mut dirty = Vec::new();
+    for cycle in cycles.into_iter().flatten() {
+        if mutate::reverse_cycle(state, &cycle) {
+            dirty.extend(cycle.iter().map(|s| s.to));
         }
     }
     dirty.sort_unstable();

@@ -146,3 +146,48 @@ pub fn add_pairs(state: &mut State, border: usize, pairs: u32, rng: &mut ChaCha8
     }
     placed
 }
+
+/// Turns one crossing of every step around, if every turned crossing still keeps its spacing;
+/// otherwise changes nothing and returns false. Times are mirrored about the first crossing's,
+/// so a walker threaded along the cycle is threaded the other way after the turn (its
+/// crossings come a walk apart in the new order, not a period minus a walk).
+pub fn reverse_cycle(state: &mut State, cycle: &[Step]) -> bool {
+    let period = state.period_s;
+    let mut done: Vec<(usize, usize, Crossing)> = Vec::new();
+    let mut mirror: Option<f64> = None;
+    for step in cycle {
+        let list = &state.crossings[step.border];
+        let Some(i) = list.iter().position(|c| c.way == step.way) else {
+            undo(state, &done);
+            return false;
+        };
+        let old = list[i];
+        let way = reverse(old.way);
+        let about = *mirror.get_or_insert(old.t);
+        let turned = Crossing {
+            way,
+            t: (2.0 * about - old.t).rem_euclid(period),
+            velocity: state.crossing_velocity(step.border, way),
+            ..old
+        };
+        let others: Vec<Crossing> = list
+            .iter()
+            .enumerate()
+            .filter(|(j, _)| *j != i)
+            .map(|(_, c)| *c)
+            .collect();
+        if !state.spacing.fits(&turned, &others, period) {
+            undo(state, &done);
+            return false;
+        }
+        state.crossings[step.border][i] = turned;
+        done.push((step.border, i, old));
+    }
+    true
+}
+
+fn undo(state: &mut State, done: &[(usize, usize, Crossing)]) {
+    for &(b, i, old) in done.iter().rev() {
+        state.crossings[b][i] = old;
+    }
+}

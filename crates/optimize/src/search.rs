@@ -38,12 +38,14 @@ pub fn signed_errors(state: &State, rho_max: f64, room: f64) -> Vec<f64> {
 pub enum Mode {
     Remove,
     Add,
+    /// Through existing crossings, to turn them around (density stays, direction changes).
+    Reverse,
 }
 
 /// Local optima of the signed error beyond `threshold`, worst first.
 pub fn optima(state: &State, errors: &[f64], mode: Mode, threshold: f64) -> Vec<usize> {
     let key = |u: usize| match mode {
-        Mode::Remove => errors[u],
+        Mode::Remove | Mode::Reverse => errors[u],
         Mode::Add => -errors[u],
     };
     let mut found: Vec<usize> = (0..errors.len())
@@ -122,16 +124,22 @@ pub struct Costs<'e> {
 }
 
 const BLOCKED: f64 = 1e9;
+/// The cheapest step; A*'s estimate is the Manhattan distance times this, so it stays admissible.
+const MIN_STEP: f64 = 0.2;
 
 impl Costs<'_> {
     /// Cost of a step from `u` to `v` through `border`: 1 per patch, more where the step makes
     /// a patch's error worse (crossing into the other sign), more against requested directions.
     fn step(&self, state: &State, mode: Mode, u: usize, v: usize, border: usize, way: Way) -> f64 {
-        let e = self.errors[v];
-        let worse = match mode {
-            Mode::Add => e.max(0.0),
-            Mode::Remove => (-e).max(0.0),
-        };
+        // Cheaper through patches whose error has the sign this path fixes, dearer through
+        // the others ("following patches with high same-sign errors", section 4.2).
+        let e = self.errors[v] / self.quantum;
+        let base = match mode {
+            Mode::Add => 1.0 + e,
+            Mode::Remove => 1.0 - e,
+            Mode::Reverse => 1.0,
+        }
+        .max(MIN_STEP);
         let step = state.normal(border, way);
         let against: f64 = [u, v]
             .iter()
@@ -141,15 +149,16 @@ impl Costs<'_> {
                 let w = d.weight.min(1.0);
                 match mode {
                     Mode::Add => w * (1.0 - cos) / 2.0,
-                    Mode::Remove => w * (1.0 + cos) / 2.0,
+                    Mode::Remove | Mode::Reverse => w * (1.0 + cos) / 2.0,
                 }
             })
             .sum();
-        let mut cost = 1.0 + worse / self.quantum + self.direction_gain * against;
-        if mode == Mode::Remove && !state.crossings[border].iter().any(|c| c.way == way) {
+        let mut cost = base + self.direction_gain * against;
+        let exists = || state.crossings[border].iter().any(|c| c.way == way);
+        if matches!(mode, Mode::Remove | Mode::Reverse) && !exists() {
             cost = BLOCKED;
         }
-        if mode == Mode::Add && state.measured[v].density + self.room > self.rho_max {
+        if matches!(mode, Mode::Add) && state.measured[v].density + self.room > self.rho_max {
             cost = BLOCKED;
         }
         cost
@@ -182,7 +191,7 @@ pub fn path(
         },
         |n| {
             let c = cell(n.index());
-            (c.col.abs_diff(goal.col) + c.row.abs_diff(goal.row)) as f64
+            (c.col.abs_diff(goal.col) + c.row.abs_diff(goal.row)) as f64 * MIN_STEP
         },
     )?;
     if cost >= BLOCKED {
@@ -249,4 +258,66 @@ pub fn cycle(
     let mut steps = vec![out];
     steps.extend(back);
     Some(steps)
+}
+
+/// Alignment gained by turning a crossing of way `way` on `border` around: positive when it
+/// ran against the requested directions of its two patches.
+pub fn reversal_gain(state: &State, from: usize, to: usize, border: usize, way: Way) -> f64 {
+    let step = state.normal(border, way);
+    [from, to]
+        .iter()
+        .filter_map(|&x| state.graph.patches[x].direction)
+        .map(|d| -2.0 * d.weight.min(1.0) * d.dir.dot(step))
+        .sum()
+}
+
+/// For a directed patch, the crossing through it that runs most against its direction, as the
+/// step it makes, if any does.
+pub fn most_misaligned(state: &State, patch: usize) -> Option<Step> {
+    let d = state.graph.patches[patch].direction?;
+    let mut best: Option<(f64, Step)> = None;
+    for l in &state.links[patch] {
+        for c in &state.crossings[l.border] {
+            let (from, to) = if c.way == l.way {
+                (patch, l.to)
+            } else {
+                (l.to, patch)
+            };
+            let cos = d.dir.dot(state.normal(l.border, c.way));
+            if cos < -0.3 && best.is_none_or(|(b, _)| cos < b) {
+                best = Some((
+                    cos,
+                    Step {
+                        from,
+                        to,
+                        border: l.border,
+                        way: c.way,
+                    },
+                ));
+            }
+        }
+    }
+    best.map(|(_, s)| s)
+}
+
+/// A cycle of existing crossings through `first` whose reversal turns the flow towards the
+/// requested directions: `first`, then the cheapest way back through existing crossings (never
+/// straight back over the same border).
+pub fn reversal_cycle(state: &State, net: &Net, costs: &Costs, first: Step) -> Option<Vec<Step>> {
+    let back = path(
+        state,
+        net,
+        costs,
+        Mode::Reverse,
+        first.to,
+        first.from,
+        Some((first.to, first.from)),
+    )?;
+    let mut cycle = vec![first];
+    cycle.extend(back);
+    let gain: f64 = cycle
+        .iter()
+        .map(|s| reversal_gain(state, s.from, s.to, s.border, s.way))
+        .sum();
+    (gain > 0.0).then_some(cycle)
 }
