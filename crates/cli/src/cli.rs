@@ -61,11 +61,15 @@ pub enum Command {
     },
     /// A readable summary of any stage file.
     Inspect { file: PathBuf },
-    /// A picture of a stage file (merged maps, patch graph) as PNG.
+    /// A picture of a stage file as PNG: merged maps, patch graph, error map and convergence,
+    /// one patch's patterns and lines.
     Render {
         file: PathBuf,
         #[arg(long, short, value_name = "OUT.png")]
         output: PathBuf,
+        /// For trajectories: the patch to draw (default: the busiest).
+        #[arg(long, value_name = "ID")]
+        patch: Option<u32>,
     },
     /// The figures of a build folder (`--json` for one JSON object).
     Report {
@@ -119,8 +123,12 @@ pub fn run(cli: Cli) -> Result<()> {
             ui.say(format!("graph: wrote {}", out.display()));
         }
         Command::Inspect { file } => print!("{}", crate::inspect::inspect(&file)?),
-        Command::Render { file, output } => {
-            let legend = crate::inspect::render(&file, &output)?;
+        Command::Render {
+            file,
+            output,
+            patch,
+        } => {
+            let legend = crate::inspect::render(&file, &output, patch)?;
             ui.say(format!("wrote {}: {legend}", output.display()));
         }
         Command::Report { dir, json } => {

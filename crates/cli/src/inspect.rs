@@ -1,9 +1,12 @@
 //! `crowd inspect` and `crowd render`: any stage file, told apart by its header.
 
+use crate::driver::{GRAPH_FILE, PATTERNS_FILE};
 use anyhow::{Result, bail};
 use crowd_core::files;
 use crowd_core::maps::MergeFile;
 use crowd_core::patch_graph::BorderAxis;
+use crowd_core::patterns::{Crossing, Patterns};
+use crowd_core::trajectories::TrajectoriesFile;
 use crowd_core::{MergedMaps, PatchGraph};
 use std::fmt::Write;
 use std::path::Path;
@@ -17,6 +20,11 @@ pub fn inspect(path: &Path) -> Result<String> {
             Ok(inspect_merge(&file, &maps))
         }
         PatchGraph::STAGE => Ok(inspect_graph(&PatchGraph::load(path)?)),
+        Patterns::STAGE => {
+            let (patterns, crossings) = Patterns::load(path)?;
+            Ok(inspect_patterns(&patterns, &crossings))
+        }
+        TrajectoriesFile::STAGE => Ok(inspect_trajectories(&TrajectoriesFile::load(path)?.0)),
         other => bail!(
             "{}: `crowd inspect` does not know `{other}` files",
             path.display()
@@ -24,10 +32,40 @@ pub fn inspect(path: &Path) -> Result<String> {
     }
 }
 
-/// Renders a stage file to `out` and returns the legend of the picture.
-pub fn render(path: &Path, out: &Path) -> Result<&'static str> {
+/// Renders a stage file to `out` and returns the legend of the picture. Files of later
+/// stages read the earlier stage files beside them (`graph.ron`, `patterns.ron`).
+pub fn render(path: &Path, out: &Path, patch: Option<u32>) -> Result<&'static str> {
     let header = files::read_header(path)?;
+    let beside = |name: &str| path.with_file_name(name);
     let (image, legend) = match header.stage.as_str() {
+        Patterns::STAGE => {
+            let graph = PatchGraph::load(&beside(GRAPH_FILE))?;
+            let (patterns, _) = Patterns::load(path)?;
+            (
+                crowd_render::render_patterns(&graph, &patterns),
+                crowd_render::PATTERNS_LEGEND,
+            )
+        }
+        TrajectoriesFile::STAGE => {
+            let graph = PatchGraph::load(&beside(GRAPH_FILE))?;
+            let (patterns, crossings) = Patterns::load(&beside(PATTERNS_FILE))?;
+            let (_, motion) = TrajectoriesFile::load(path)?;
+            let busiest = (0..motion.len())
+                .max_by_key(|&p| (motion[p].trajectories.len(), std::cmp::Reverse(p)));
+            let Some(p) = patch.map(|p| p as usize).or(busiest) else {
+                bail!("{}: holds no patch", path.display());
+            };
+            if p >= motion.len() {
+                bail!(
+                    "--patch {p}: {} holds patches 0 to {}",
+                    path.display(),
+                    motion.len() - 1
+                );
+            }
+            let image =
+                crowd_render::render_patch(&graph, &crossings, &motion[p], p, patterns.period_s);
+            (image, crowd_render::PATCH_LEGEND)
+        }
         MergeFile::STAGE => {
             let (_, maps) = MergeFile::load(path)?;
             (crowd_render::render_maps(&maps), crowd_render::MAPS_LEGEND)
@@ -207,5 +245,87 @@ fn inspect_graph(g: &PatchGraph) -> String {
     if by_size.len() > 5 {
         let _ = writeln!(s, "  ... and {} smaller", by_size.len() - 5);
     }
+    s
+}
+
+fn inspect_patterns(p: &Patterns, crossings: &[Crossing]) -> String {
+    let mut s = String::new();
+    let h = &p.header;
+    let _ = writeln!(s, "stage file: {} (format version {})", h.stage, h.version);
+    let _ = writeln!(s, "built from: {}", h.input_hash);
+    let e = &p.error;
+    let _ = writeln!(
+        s,
+        "error:      E = {:.4} (E_rho {:.4}, E_d {:.4}); E_rho can go no lower than {:.4} under rho_max {}",
+        e.e, e.e_rho, e.e_d, p.e_rho_floor, p.rho_max
+    );
+    let _ = writeln!(
+        s,
+        "iterations: {} ({})",
+        p.iterations,
+        if p.converged {
+            "converged: no better E in the last steps"
+        } else {
+            "stopped at the cap"
+        }
+    );
+    let r = &p.regression;
+    let _ = writeln!(
+        s,
+        "regression: density = {:.5} x entries + {:.5} (r2 {:.3}, {} random patches)",
+        r.slope, r.intercept, r.r2, r.samples
+    );
+    let _ = writeln!(s, "crossings:  {} on {} borders", crossings.len(), {
+        let mut b: Vec<u32> = crossings.iter().map(|c| c.border).collect();
+        b.dedup();
+        b.len()
+    });
+    let area_walkers: f64 = p.measured.iter().map(|m| m.density).sum();
+    let standers: u32 = p.measured.iter().map(|m| m.standers).sum();
+    let _ = writeln!(
+        s,
+        "measured:   mean density {:.4} per m2 over {} patches, {standers} standers",
+        area_walkers / p.measured.len().max(1) as f64,
+        p.measured.len()
+    );
+    let _ = writeln!(s, "worst patches (where the error stays):");
+    for w in &p.worst {
+        let d = w
+            .direction_error
+            .map(|d| format!(", direction off by {d:.2}"))
+            .unwrap_or_default();
+        let _ = writeln!(
+            s,
+            "  #{:<6} cell ({:>3}, {:>3}): requested {:.4}, measured {:.4}{d}",
+            w.patch.0, w.cell.col, w.cell.row, w.requested, w.measured
+        );
+    }
+    s
+}
+
+fn inspect_trajectories(t: &TrajectoriesFile) -> String {
+    let mut s = String::new();
+    let h = &t.header;
+    let _ = writeln!(s, "stage file: {} (format version {})", h.stage, h.version);
+    let _ = writeln!(s, "built from: {}", h.input_hash);
+    let m = &t.summary;
+    let _ = writeln!(
+        s,
+        "walkers:    {} trajectories, {:.1} walkers present at any time",
+        m.walkers_trajectories, m.walkers_measured
+    );
+    let _ = writeln!(
+        s,
+        "            {} pause, {} stay more than one period, {} enter and leave by one border",
+        m.pausing, m.multi_period, m.same_border
+    );
+    let _ = writeln!(s, "standers:   {}", m.standers);
+    let _ = writeln!(
+        s,
+        "motion:     {} ({} bytes, {})",
+        t.motion.file,
+        t.motion.bytes,
+        t.motion.hash.short()
+    );
     s
 }

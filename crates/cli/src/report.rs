@@ -1,8 +1,11 @@
 //! `crowd report`: the figures a build folder holds so far, as text or one JSON object.
 
-use crate::driver::{GRAPH_FILE, MERGE_FILE, read_timings};
+use crate::driver::{GRAPH_FILE, MERGE_FILE, PATTERNS_FILE, TRAJECTORIES_FILE, read_timings};
 use anyhow::{Result, bail};
 use crowd_core::PatchGraph;
+use crowd_core::files;
+use crowd_core::patterns::Patterns;
+use crowd_core::trajectories::TrajectoriesFile;
 use serde_json::{Map, Value, json};
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -10,6 +13,8 @@ use std::path::Path;
 /// Figures gathered from the stage files of a build folder.
 pub struct Report {
     pub graph: Option<PatchGraph>,
+    pub patterns: Option<Patterns>,
+    pub trajectories: Option<TrajectoriesFile>,
     pub stage_seconds: BTreeMap<String, f64>,
 }
 
@@ -28,8 +33,22 @@ impl Report {
         } else {
             None
         };
+        let patterns_path = dir.join(PATTERNS_FILE);
+        let patterns = if patterns_path.exists() {
+            Some(files::read_ron::<Patterns>(&patterns_path)?)
+        } else {
+            None
+        };
+        let trajectories_path = dir.join(TRAJECTORIES_FILE);
+        let trajectories = if trajectories_path.exists() {
+            Some(files::read_ron::<TrajectoriesFile>(&trajectories_path)?)
+        } else {
+            None
+        };
         Ok(Report {
             graph,
+            patterns,
+            trajectories,
             stage_seconds: read_timings(dir),
         })
     }
@@ -58,6 +77,22 @@ impl Report {
                 "closed_borders".into(),
                 json!(g.borders.iter().filter(|b| b.open.is_empty()).count()),
             );
+        }
+        if let Some(p) = &self.patterns {
+            out.insert("E_rho".into(), json!(p.error.e_rho));
+            out.insert("E_d".into(), json!(p.error.e_d));
+            out.insert("E".into(), json!(p.error.e));
+            out.insert("E_rho_floor".into(), json!(p.e_rho_floor));
+            out.insert("iterations".into(), json!(p.iterations));
+            out.insert("converged".into(), json!(p.converged));
+            out.insert(
+                "standers".into(),
+                json!(p.measured.iter().map(|m| m.standers as u64).sum::<u64>()),
+            );
+        }
+        if let Some(t) = &self.trajectories {
+            out.insert("walkers_measured".into(), json!(t.summary.walkers_measured));
+            out.insert("trajectories".into(), json!(t.summary.walkers_trajectories));
         }
         out.insert("stage_seconds".into(), json!(self.stage_seconds));
         Value::Object(out)

@@ -145,6 +145,18 @@ pub struct Regression {
     pub samples: u32,
 }
 
+/// A patch's remaining error.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct PatchError {
+    pub patch: PatchId,
+    pub cell: crate::patch_graph::Cell,
+    /// Requested and measured density, characters per m2.
+    pub requested: f64,
+    pub measured: f64,
+    /// 1 - requested . measured direction, where a direction is requested.
+    pub direction_error: Option<f64>,
+}
+
 /// The figures of one optimisation step.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct IterationFigures {
@@ -168,6 +180,11 @@ pub struct Patterns {
     pub converged: bool,
     /// The figures of the result (the best step).
     pub error: SceneError,
+    /// The least E_rho any result can reach: patches painted denser than rho_max keep at
+    /// least the excess as error.
+    pub e_rho_floor: f64,
+    /// Where the error stays: the patches with the largest signed error, worst first.
+    pub worst: Vec<PatchError>,
     pub regression: Regression,
     /// Figures of every step, step 0 being the start.
     pub log: Vec<IterationFigures>,

@@ -16,7 +16,9 @@ pub mod spacing;
 pub mod state;
 
 use crowd_core::config::{MatchSettings, OptimizeSettings};
-use crowd_core::patterns::{Crossing, IterationFigures, Measured, Regression, SceneError};
+use crowd_core::patterns::{
+    Crossing, IterationFigures, Measured, PatchError, Regression, SceneError,
+};
 use crowd_core::{PatchGraph, Progress};
 use glam::DVec2;
 use mutate::Step;
@@ -38,6 +40,8 @@ pub struct Outcome {
     pub crossings: Vec<Crossing>,
     pub measured: Vec<Measured>,
     pub error: SceneError,
+    pub e_rho_floor: f64,
+    pub worst: Vec<PatchError>,
     pub regression: Regression,
     pub log: Vec<IterationFigures>,
     pub iterations: u32,
@@ -71,6 +75,38 @@ pub fn scene_error(
         e_d,
         e: e_rho + e_d,
     }
+}
+
+/// The `count` patches whose error is largest (density error in units of rho_max plus
+/// direction error), worst first.
+pub fn worst_patches(
+    graph: &PatchGraph,
+    requested: &[f64],
+    measured: &[Measured],
+    rho_max: f64,
+    count: usize,
+) -> Vec<PatchError> {
+    let mut all: Vec<(f64, PatchError)> = graph
+        .patches
+        .iter()
+        .zip(requested.iter().zip(measured))
+        .map(|(p, (&r, m))| {
+            let direction_error = p
+                .direction
+                .map(|d| 1.0 - d.dir.dot(m.direction.unwrap_or(DVec2::ZERO)));
+            let size = (r - m.density).abs() / rho_max + direction_error.unwrap_or(0.0);
+            let e = PatchError {
+                patch: p.id,
+                cell: p.cell,
+                requested: r,
+                measured: m.density,
+                direction_error,
+            };
+            (size, e)
+        })
+        .collect();
+    all.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.patch.cmp(&b.1.patch)));
+    all.into_iter().take(count).map(|(_, e)| e).collect()
 }
 
 /// Standing characters per patch: the requested stander densities rounded so that they add up
@@ -143,12 +179,22 @@ pub fn optimize(
     state.crossings = best.1;
     state.remeasure_all();
     let error = scene_error(graph, &state.requested, &state.measured, rho_max);
+    let n = state.requested.len().max(1) as f64;
+    let excess: f64 = state
+        .requested
+        .iter()
+        .map(|r| (r - rho_max).max(0.0).powi(2))
+        .sum();
+    let e_rho_floor = (excess / n).sqrt() / rho_max;
+    let worst = worst_patches(graph, &state.requested, &state.measured, rho_max, 10);
     let mut crossings: Vec<Crossing> = state.crossings.into_iter().flatten().collect();
     crossings.sort_by(|a, b| a.border.cmp(&b.border).then(a.t.total_cmp(&b.t)));
     Outcome {
         crossings,
         measured: state.measured,
         error,
+        e_rho_floor,
+        worst,
         regression,
         log,
         iterations,
@@ -270,24 +316,6 @@ fn step(
     let mut rng =
         ChaCha8Rng::seed_from_u64(seed ^ (iteration as u64).wrapping_mul(0xA076_1D64_78BD_642F));
     let mut dirty = Vec::new();
-    let debug = std::env::var("CROWD_DEBUG").is_ok();
-    if debug {
-        let lens = |v: &Vec<Option<Vec<Step>>>| {
-            let found: Vec<usize> = v.iter().flatten().map(|c| c.len()).collect();
-            (
-                v.len(),
-                found.len(),
-                found.iter().sum::<usize>() as f64 / found.len().max(1) as f64,
-            )
-        };
-        eprintln!(
-            "it {iteration}: maxima groups {} remove {:?} minima groups {} add {:?}",
-            maxima.len(),
-            lens(&removals),
-            minima.len(),
-            lens(&additions)
-        );
-    }
     for cycle in removals.into_iter().flatten() {
         if mutate::can_remove(state, &cycle) {
             mutate::remove_cycle(state, &cycle);
@@ -415,6 +443,8 @@ pub fn encode(
         iterations: outcome.iterations,
         converged: outcome.converged,
         error: outcome.error,
+        e_rho_floor: outcome.e_rho_floor,
+        worst: outcome.worst.clone(),
         regression: outcome.regression,
         log: outcome.log.clone(),
         measured: outcome.measured.clone(),

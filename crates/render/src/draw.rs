@@ -116,3 +116,54 @@ pub fn heading_colour(flow: Vec2, weight: f32) -> Rgb<u8> {
     let c = |u: f32| (u * v * 255.0).round() as u8;
     Rgb([c(r), c(g), c(b)])
 }
+
+impl Canvas {
+    /// A filled disc, or a ring when `filled` is false.
+    pub fn disc(&mut self, centre: (f64, f64), radius: i32, colour: Rgb<u8>, filled: bool) {
+        let c = (centre.0.round() as i32, centre.1.round() as i32);
+        if filled {
+            imageproc::drawing::draw_filled_circle_mut(&mut self.0, c, radius, colour);
+        } else {
+            imageproc::drawing::draw_hollow_circle_mut(&mut self.0, c, radius, colour);
+            imageproc::drawing::draw_hollow_circle_mut(&mut self.0, c, radius - 1, colour);
+        }
+    }
+
+    /// Paints another picture at (x, y).
+    pub fn paste(&mut self, other: &RgbImage, x: u32, y: u32) {
+        image::imageops::overlay(&mut self.0, other, x as i64, y as i64);
+    }
+}
+
+/// A diverging scale for signed errors: blue (negative) through green (0) to red (positive).
+pub fn diverging(t: f32) -> Rgb<u8> {
+    let t = if t.is_finite() {
+        t.clamp(-1.0, 1.0)
+    } else {
+        0.0
+    };
+    let green = [60.0, 170.0, 90.0];
+    let end = if t < 0.0 {
+        [40.0, 60.0, 200.0]
+    } else {
+        [215.0, 40.0, 40.0]
+    };
+    let f = t.abs();
+    let mix = |k: usize| (green[k] * (1.0 - f) + end[k] * f).round() as u8;
+    Rgb([mix(0), mix(1), mix(2)])
+}
+
+/// A hue for the `i`-th of many lines, easy to tell from its neighbours.
+pub fn line_colour(i: usize) -> Rgb<u8> {
+    const PALETTE: [[u8; 3]; 8] = [
+        [31, 119, 180],
+        [255, 127, 14],
+        [44, 160, 44],
+        [214, 39, 40],
+        [148, 103, 189],
+        [140, 86, 75],
+        [227, 119, 194],
+        [23, 190, 207],
+    ];
+    Rgb(PALETTE[i % PALETTE.len()])
+}

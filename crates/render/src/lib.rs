@@ -2,6 +2,9 @@
 //! line saves it. [`legend`] texts say what the colours mean, since the pictures carry no text.
 
 mod draw;
+mod optimize;
+
+pub use optimize::{PATCH_LEGEND, PATTERNS_LEGEND, render_patch, render_patterns};
 
 use crowd_core::patch_graph::{BorderAxis, Cell};
 use crowd_core::{MergedMaps, PatchGraph};

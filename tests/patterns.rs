@@ -1,0 +1,169 @@
+//! What stages 3 and 4 must show: mirror patterns, parity, spacing, rho_max, exact boundary
+//! points, and the painted directions.
+
+use crate::util::*;
+use crowd_core::PatchGraph;
+use crowd_core::patterns::{Crossing, Patterns, parity};
+use crowd_core::trajectories::{PointKind, TrajectoriesFile};
+use glam::DVec2;
+use std::path::Path;
+
+struct Built {
+    _dir: tempfile::TempDir,
+    graph: PatchGraph,
+    patterns: Patterns,
+    crossings: Vec<Crossing>,
+    out: std::path::PathBuf,
+}
+
+fn build(name: &str) -> Built {
+    let (dir, out) = build_shared_scene(name, "match");
+    load(dir, &out)
+}
+
+fn load(dir: tempfile::TempDir, out: &Path) -> Built {
+    let graph = PatchGraph::load(&out.join("graph.ron")).unwrap();
+    let (patterns, crossings) = Patterns::load(&out.join("patterns.ron")).unwrap();
+    Built {
+        _dir: dir,
+        graph,
+        patterns,
+        crossings,
+        out: out.to_path_buf(),
+    }
+}
+
+#[test]
+fn every_exit_is_the_entry_of_the_neighbour_and_parity_holds() {
+    for name in ["city", "ring"] {
+        let b = build(name);
+        for c in &b.crossings {
+            let (from, to) = c.ends(&b.graph);
+            assert_ne!(from.patch, to.patch);
+            let world = |p: crowd_core::patterns::BorderPoint| {
+                b.graph.world_from_patch(b.graph.patch(p.patch).cell) + p.pos
+            };
+            assert!(
+                (world(from) - world(to)).length() < 1e-9,
+                "{name}: mirror points differ"
+            );
+            // The crossing lies on an open interval of its border.
+            let border = &b.graph.borders[c.border as usize];
+            assert!(border.open.iter().any(|i| c.s > i.start && c.s < i.end));
+            assert!(c.t >= 0.0 && c.t < b.patterns.period_s);
+        }
+        assert!(
+            parity(&b.graph, &b.crossings).iter().all(|&x| x == 0),
+            "{name}: parity"
+        );
+    }
+}
+
+#[test]
+fn crossings_keep_their_spacing_and_no_patch_exceeds_rho_max() {
+    for name in ["city", "lanes"] {
+        let b = build(name);
+        let spacing = crowd_optimize::spacing::Spacing::new(&b.graph);
+        let mut per_border = vec![Vec::new(); b.graph.borders.len()];
+        for c in &b.crossings {
+            per_border[c.border as usize].push(*c);
+        }
+        assert!(
+            crowd_optimize::spacing::all_spaced(&spacing, &per_border, b.patterns.period_s),
+            "{name}"
+        );
+        for (p, m) in b.graph.patches.iter().zip(&b.patterns.measured) {
+            assert!(
+                m.density <= b.patterns.rho_max + 1e-9,
+                "{name}: patch {:?} holds {}",
+                p.cell,
+                m.density
+            );
+        }
+    }
+}
+
+#[test]
+fn trajectories_pass_their_boundary_points_exactly() {
+    let b = build("city");
+    let (file, motion) = TrajectoriesFile::load(&b.out.join("trajectories.ron")).unwrap();
+    let period = file.period_s;
+    let mut count = 0;
+    for (p, m) in motion.iter().enumerate() {
+        assert_eq!(m.standers.len() as u32, b.patterns.measured[p].standers);
+        for tr in &m.trajectories {
+            let (first, last) = (tr.points[0], *tr.points.last().unwrap());
+            assert_eq!((first.kind, last.kind), (PointKind::Entry, PointKind::Exit));
+            let entry = b.crossings[tr.entry as usize];
+            let exit = b.crossings[tr.exit as usize];
+            let (_, into) = entry.ends(&b.graph);
+            let (out_of, _) = exit.ends(&b.graph);
+            assert_eq!((into.patch.0 as usize, out_of.patch.0 as usize), (p, p));
+            assert_eq!(first.pos, into.pos);
+            assert_eq!(first.t, entry.t);
+            assert!((last.pos - out_of.pos).length() < 1e-12);
+            assert!(
+                ((last.t - exit.t) / period - ((last.t - exit.t) / period).round()).abs() < 1e-9
+            );
+            for w in tr.points.windows(2) {
+                assert!(w[1].t >= w[0].t, "time never runs backwards");
+            }
+            count += 1;
+        }
+    }
+    assert_eq!(count as u64, file.summary.walkers_trajectories);
+    assert!(count > 1000);
+}
+
+#[test]
+fn ring_walkers_go_counter_clockwise() {
+    let b = build("ring");
+    let centre = b.graph.world.size_m / 2.0;
+    let (mut ccw, mut directed) = (0, 0);
+    for (p, m) in b.graph.patches.iter().zip(&b.patterns.measured) {
+        if p.direction.is_none() {
+            continue;
+        }
+        directed += 1;
+        let middle =
+            b.graph.world_from_patch(p.cell) + DVec2::splat(b.graph.world.patch_side_m / 2.0);
+        let radial = (middle - centre).normalize();
+        if m.direction.is_some_and(|d| radial.perp_dot(d) > 0.0) {
+            ccw += 1;
+        }
+    }
+    assert!(
+        ccw * 10 >= directed * 9,
+        "{ccw} of {directed} ring patches measured counter-clockwise"
+    );
+}
+
+#[test]
+fn a_contradictory_painting_ends_with_a_compromise_and_says_where() {
+    // Dense on the west, nearly empty on the east, and a flow asking everyone to walk east.
+    let dir = tempfile::tempdir().unwrap();
+    let density =
+        image::GrayImage::from_fn(64, 32, |x, _| image::Luma([if x < 32 { 255 } else { 3 }]));
+    let flow = image::RgbaImage::from_pixel(64, 32, image::Rgba([255, 128, 128, 255]));
+    density.save(dir.path().join("density.png")).unwrap();
+    flow.save(dir.path().join("flow.png")).unwrap();
+    let pipeline = write_pipeline(
+        dir.path(),
+        &[
+            ("Density", &dir.path().join("density.png")),
+            ("Flow", &dir.path().join("flow.png")),
+        ],
+        "",
+    );
+    crowd_ok(&["build", "-q", "--pipeline", s(&pipeline)]);
+    let out = dir.path().join("out");
+    let b = load(dir, &out);
+    assert!(b.patterns.error.e.is_finite());
+    assert!(!b.patterns.worst.is_empty());
+    let text =
+        String::from_utf8(crowd_ok(&["inspect", s(&out.join("patterns.ron"))]).stdout).unwrap();
+    assert!(
+        text.contains("worst patches (where the error stays)"),
+        "{text}"
+    );
+}
