@@ -357,14 +357,9 @@ fn turn_around(state: &mut State, net: &Net, costs: &Costs, sizes: &[usize]) {
         .filter(|&p| state.graph.patches[p].direction.is_some() && off(p) > 0.05)
         .collect();
     directed.sort_by(|&a, &b| off(b).total_cmp(&off(a)).then(a.cmp(&b)));
-    let mut used = vec![0usize; sizes.len()];
+    let _ = sizes;
     let starts: Vec<Step> = directed
         .iter()
-        .filter(|&&p| {
-            let c = state.graph.patches[p].component as usize;
-            used[c] += 1;
-            used[c] <= sizes[c] / PATCHES_PER_PATH + 1
-        })
         .filter_map(|&p| search::most_misaligned(state, p))
         .collect();
     let cycles: Vec<Option<Vec<Step>>> = starts

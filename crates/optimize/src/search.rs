@@ -284,7 +284,7 @@ pub fn most_misaligned(state: &State, patch: usize) -> Option<Step> {
                 (l.to, patch)
             };
             let cos = d.dir.dot(state.normal(l.border, c.way));
-            if cos < -0.3 && best.is_none_or(|(b, _)| cos < b) {
+            if cos < -0.1 && best.is_none_or(|(b, _)| cos < b) {
                 best = Some((
                     cos,
                     Step {
