@@ -147,8 +147,8 @@ impl Default for OptimizeSettings {
         OptimizeSettings {
             rho_max: 0.35,
             max_iterations: 400,
-            tolerance: 1e-4,
-            patience: 40,
+            tolerance: 5e-4,
+            patience: 30,
         }
     }
 }

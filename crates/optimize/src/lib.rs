@@ -11,6 +11,7 @@
 
 pub mod mutate;
 pub mod regression;
+pub mod retime;
 pub mod search;
 pub mod spacing;
 pub mod state;
@@ -33,6 +34,10 @@ const PATCHES_PER_PATH: usize = 100;
 /// Optima within this many cells (Manhattan) may share a group, up to this many per group.
 const GROUP_RADIUS: u32 = 4;
 const GROUP_SIZE: usize = 3;
+/// Steps between re-timings of the walkers' loops (see [`retime`]).
+const RETIME_EVERY: u32 = 20;
+/// Re-timing changes durations, so density: the last one leaves the loop time to settle.
+const RETIME_UNTIL: u32 = 60;
 
 /// Everything stage 3 decides.
 pub struct Outcome {
@@ -141,6 +146,7 @@ pub fn optimize(
     let mut state = State::new(graph, matching, period_s, stander_counts(graph));
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     start(&mut state, &regression, settings.rho_max, &mut rng);
+    retime::retime(&mut state);
     let net = Net::new(&state);
     let rho_max = settings.rho_max;
 
@@ -161,6 +167,9 @@ pub fn optimize(
     progress.begin("optimize", settings.max_iterations as u64);
     for iteration in 1..=settings.max_iterations {
         iterations = iteration;
+        if iteration % RETIME_EVERY == 0 && iteration <= RETIME_UNTIL {
+            retime::retime(&mut state);
+        }
         step(&mut state, &net, &regression, settings, iteration, seed);
         let f = figures(&state, iteration);
         log.push(f);

@@ -10,7 +10,8 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 /// Fits density = slope x entries + intercept over random patches with 1 to `max_entries`
-/// entries (and as many exits) placed at random on the four sides, at random times.
+/// entries (and as many exits) placed at random on the four sides, each exit a comfortable
+/// walk after an entry.
 pub fn fit(
     side_m: f64,
     period_s: f64,
@@ -47,8 +48,18 @@ pub fn fit(
     let mut samples = Vec::new();
     for n in 1..=max_entries {
         for _ in 0..4 {
+            // Walkers threaded as the optimiser threads them: each exit a comfortable walk
+            // after its entry (see `retime`).
             let entries: Vec<_> = (0..n).map(|_| random_point(&mut rng)).collect();
-            let exits: Vec<_> = (0..n).map(|_| random_point(&mut rng)).collect();
+            let exits: Vec<_> = entries
+                .iter()
+                .map(|e| {
+                    let mut x = random_point(&mut rng);
+                    x.t =
+                        (e.t + e.pos.distance(x.pos) / settings.comfort_speed).rem_euclid(period_s);
+                    x
+                })
+                .collect();
             let m = crowd_match::measure_patch(&entries, &exits, 0, &ctx);
             samples.push((n as f64, m.density));
         }

@@ -9,6 +9,18 @@ use crowd_match::{Endpoint, PatchContext};
 use glam::DVec2;
 use rayon::prelude::*;
 
+/// Names a crossing by its border and its place in the border's list, for the endpoints of a
+/// patch (a border holds far fewer than 4096 crossings: spacing allows a few hundred).
+pub fn key(border: usize, index: usize) -> u32 {
+    debug_assert!(index < 1 << 12);
+    ((border as u32) << 12) | index as u32
+}
+
+/// The border and index a [`key`] names.
+pub fn unkey(key: u32) -> (usize, usize) {
+    ((key >> 12) as usize, (key & 0xfff) as usize)
+}
+
 /// A way out of a patch: through `border`, towards patch `to`, crossing `way`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Link {
@@ -97,11 +109,11 @@ impl<'a> State<'a> {
         let side = self.graph.world.patch_side_m;
         for link in &self.links[patch] {
             let border = &self.graph.borders[link.border];
-            for c in &self.crossings[link.border] {
+            for (i, c) in self.crossings[link.border].iter().enumerate() {
                 let (a, b) = crowd_core::patterns::border_point(border, side, c.s);
                 let here = if link.way == Way::AToB { a } else { b };
                 let e = Endpoint {
-                    crossing: 0,
+                    crossing: key(link.border, i),
                     pos: here.pos,
                     t: c.t,
                     side: here.side,
