@@ -147,6 +147,7 @@ pub fn optimize(
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     start(&mut state, &regression, settings.rho_max, &mut rng);
     retime::retime(&mut state);
+    enforce_rho_max(&mut state, settings.rho_max);
     let net = Net::new(&state);
     let rho_max = settings.rho_max;
 
@@ -169,6 +170,7 @@ pub fn optimize(
         iterations = iteration;
         if iteration % RETIME_EVERY == 0 && iteration <= RETIME_UNTIL {
             retime::retime(&mut state);
+            enforce_rho_max(&mut state, rho_max);
         }
         step(&mut state, &net, &regression, settings, iteration, seed);
         let f = figures(&state, iteration);
@@ -187,6 +189,7 @@ pub fn optimize(
     }
     state.crossings = best.1;
     state.remeasure_all();
+    enforce_rho_max(&mut state, rho_max);
     let error = scene_error(graph, &state.requested, &state.measured, rho_max);
     let n = state.requested.len().max(1) as f64;
     let excess: f64 = state
@@ -237,41 +240,75 @@ fn start(state: &mut State, regression: &Regression, rho_max: f64, rng: &mut Cha
     enforce_rho_max(state, rho_max);
 }
 
-/// Removes balanced pairs of crossings from any patch above rho_max.
+/// Takes crossings out of every patch above rho_max until it is not: a cycle of existing
+/// crossings through the patch at a time (the shortest one), so parity holds.
 fn enforce_rho_max(state: &mut State, rho_max: f64) {
     for p in 0..state.links.len() {
-        let mut guard = 0;
-        while state.measured[p].density > rho_max && guard < 1000 {
-            guard += 1;
-            let Some(link) = state.links[p]
-                .iter()
-                .copied()
-                .filter(|l| {
-                    let list = &state.crossings[l.border];
-                    list.iter().any(|c| c.way == l.way) && list.iter().any(|c| c.way != l.way)
-                })
-                .max_by_key(|l| state.crossings[l.border].len())
-            else {
+        while state.measured[p].density > rho_max {
+            let Some(cycle) = cycle_through(state, p) else {
                 break;
             };
-            let there = [
-                Step {
-                    from: p,
-                    to: link.to,
-                    border: link.border,
-                    way: link.way,
-                },
-                Step {
-                    from: link.to,
-                    to: p,
-                    border: link.border,
-                    way: spacing::reverse(link.way),
-                },
-            ];
-            mutate::remove_cycle(state, &there);
-            state.remeasure(&[p, link.to]);
+            mutate::remove_cycle(state, &cycle);
+            let mut touched: Vec<usize> = cycle.iter().map(|s| s.to).collect();
+            touched.sort_unstable();
+            touched.dedup();
+            state.remeasure(&touched);
         }
     }
+}
+
+/// The shortest cycle of existing crossings through patch `p` (breadth-first), if `p` has
+/// any exit. One exists whenever `p` has an exit, since parity holds everywhere.
+fn cycle_through(state: &State, p: usize) -> Option<Vec<Step>> {
+    use std::collections::{HashMap, VecDeque};
+    let exits = |u: usize| {
+        state.links[u]
+            .iter()
+            .filter(move |l| state.crossings[l.border].iter().any(|c| c.way == l.way))
+    };
+    let mut came_from: HashMap<usize, Step> = HashMap::new();
+    let mut queue = VecDeque::new();
+    for l in exits(p) {
+        let step = Step {
+            from: p,
+            to: l.to,
+            border: l.border,
+            way: l.way,
+        };
+        if l.to == p {
+            return Some(vec![step]);
+        }
+        if let std::collections::hash_map::Entry::Vacant(e) = came_from.entry(l.to) {
+            e.insert(step);
+            queue.push_back(l.to);
+        }
+    }
+    while let Some(u) = queue.pop_front() {
+        for l in exits(u) {
+            let step = Step {
+                from: u,
+                to: l.to,
+                border: l.border,
+                way: l.way,
+            };
+            if l.to == p {
+                let mut steps = vec![step];
+                let mut at = u;
+                while at != p {
+                    let back = came_from[&at];
+                    steps.push(back);
+                    at = back.from;
+                }
+                steps.reverse();
+                return Some(steps);
+            }
+            if let std::collections::hash_map::Entry::Vacant(e) = came_from.entry(l.to) {
+                e.insert(step);
+                queue.push_back(l.to);
+            }
+        }
+    }
+    None
 }
 
 /// One step of Algorithm 1 over every component.
@@ -352,6 +389,8 @@ fn step(
     dirty.dedup();
     state.remeasure(&dirty);
     turn_around(state, net, &costs, &sizes);
+    // Re-matching after removals and turns can lengthen a patch's pairs: never above rho_max.
+    enforce_rho_max(state, rho_max);
 }
 
 /// Density-neutral direction fixing: in the directed patches whose direction is furthest off,
@@ -477,3 +516,6 @@ pub fn encode(
     ];
     (patterns, writes)
 }
+
+#[cfg(test)]
+mod tests;

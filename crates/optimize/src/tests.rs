@@ -1,0 +1,80 @@
+//! Properties of the optimiser on small synthetic scenes, for any seed.
+
+use super::*;
+use crowd_core::config::GraphSettings;
+use crowd_core::patterns::parity;
+use crowd_core::{Grid, Hash, MergedMaps};
+use glam::Vec2;
+use proptest::prelude::*;
+
+/// A 48 m x 32 m scene of 8 m patches: a dense blob, a wall with a door, an eastward flow on
+/// the top row.
+fn scene(walkers: u64) -> PatchGraph {
+    let (w, h) = (48, 32);
+    let mut maps = MergedMaps {
+        meters_per_pixel: 1.0,
+        walkers: Grid::filled(w, h, 0.2),
+        standers: Grid::filled(w, h, 0.0),
+        flow: Grid::filled(w, h, Vec2::ZERO),
+        flow_weight: Grid::filled(w, h, 0.0),
+        blocked: Grid::filled(w, h, false),
+    };
+    for y in 0..h {
+        for x in 0..w {
+            let i = (y * w + x) as usize;
+            if (8..20).contains(&x) && (12..24).contains(&y) {
+                maps.walkers.as_mut_slice()[i] = 1.0;
+            }
+            if x == 24 && !(14..18).contains(&y) {
+                maps.blocked.as_mut_slice()[i] = true;
+                maps.walkers.as_mut_slice()[i] = 0.0;
+            }
+            if y < 8 {
+                maps.flow.as_mut_slice()[i] = Vec2::X;
+                maps.flow_weight.as_mut_slice()[i] = 1.0;
+            }
+        }
+    }
+    let inputs = crowd_graph::GraphInputs {
+        walkers,
+        standers: 0,
+        patch_side_m: 8.0,
+        radius_m: 0.3,
+        settings: GraphSettings::default(),
+    };
+    crowd_graph::build_graph(&maps, &inputs, Hash::of(b"t"), &()).unwrap()
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(6))]
+
+    /// Whatever the seed: parity in every patch, spacing on every border, nothing above rho_max,
+    /// and a better E than at the start.
+    #[test]
+    fn any_seed_keeps_the_patch_constraints(seed in any::<u64>(), walkers in 100u64..500) {
+        let graph = scene(walkers);
+        let settings = OptimizeSettings { max_iterations: 60, ..OptimizeSettings::default() };
+        let matching = MatchSettings::default();
+        let out = optimize(&graph, &settings, &matching, 20.0, seed, &());
+        prop_assert!(parity(&graph, &out.crossings).iter().all(|&b| b == 0));
+        let spacing = spacing::Spacing::new(&graph);
+        let mut per_border = vec![Vec::new(); graph.borders.len()];
+        for c in &out.crossings {
+            per_border[c.border as usize].push(*c);
+        }
+        prop_assert!(spacing::all_spaced(&spacing, &per_border, 20.0));
+        prop_assert!(out.measured.iter().all(|m| m.density <= settings.rho_max + 1e-9));
+        prop_assert!(out.error.e <= out.log[0].e + 1e-12);
+    }
+}
+
+#[test]
+fn the_same_seed_gives_the_same_crossings() {
+    let graph = scene(300);
+    let settings = OptimizeSettings {
+        max_iterations: 30,
+        ..OptimizeSettings::default()
+    };
+    let run = || optimize(&graph, &settings, &MatchSettings::default(), 20.0, 7, &()).crossings;
+    assert_eq!(run(), run());
+}
