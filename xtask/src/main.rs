@@ -19,6 +19,9 @@ tasks:
       stages whose output is up to date are skipped
   bench [criterion args]
       run the benchmarks (figures go to BENCHMARKS.md by hand)
+  scenes
+      build every pipeline of assets/pipelines/ from scratch (release) and print the
+      Table 1 figures of each as markdown
 ";
 
 fn main() -> ExitCode {
@@ -30,7 +33,7 @@ fn main() -> ExitCode {
         .parent()
         .expect("xtask lives in the workspace")
         .to_path_buf();
-    let mut command = Command::new(cargo);
+    let mut command = Command::new(&cargo);
     let manifest = root.join("Cargo.toml");
     match task.as_deref() {
         Some("build-crowd") => {
@@ -51,6 +54,7 @@ fn main() -> ExitCode {
             command.args(["--package", "crowd", "--bench", "pipeline", "--"]);
             command.args(&rest);
         }
+        Some("scenes") => return scenes(&cargo, &root),
         Some("help" | "--help" | "-h") => {
             print!("{HELP}");
             return ExitCode::SUCCESS;
@@ -67,5 +71,65 @@ fn main() -> ExitCode {
             eprintln!("cannot run cargo: {e}");
             ExitCode::FAILURE
         }
+    }
+}
+
+/// Builds every scene pipeline with `--force` and prints the table of their figures.
+fn scenes(cargo: &str, root: &std::path::Path) -> ExitCode {
+    let status = Command::new(cargo)
+        .args([
+            "build",
+            "--release",
+            "--quiet",
+            "--bin",
+            "crowd",
+            "--manifest-path",
+        ])
+        .arg(root.join("Cargo.toml"))
+        .status();
+    if !status.is_ok_and(|s| s.success()) {
+        eprintln!("cannot build crowd");
+        return ExitCode::FAILURE;
+    }
+    let crowd = root.join("target/release/crowd");
+    let mut pipelines: Vec<PathBuf> = match std::fs::read_dir(root.join("assets/pipelines")) {
+        Ok(dir) => dir.filter_map(|e| e.ok().map(|e| e.path())).collect(),
+        Err(e) => {
+            eprintln!("assets/pipelines: {e}");
+            return ExitCode::FAILURE;
+        }
+    };
+    pipelines.sort();
+    let mut dirs = Vec::new();
+    for p in &pipelines {
+        let name = p
+            .file_stem()
+            .unwrap_or_default()
+            .to_string_lossy()
+            .into_owned();
+        let out = root.join("build").join(&name);
+        eprintln!("building {name}");
+        let ok = Command::new(&crowd)
+            .args(["build", "--force", "--quiet", "--pipeline"])
+            .arg(p)
+            .arg("--output")
+            .arg(&out)
+            .status()
+            .is_ok_and(|s| s.success());
+        if !ok {
+            eprintln!("{name}: build failed");
+            return ExitCode::FAILURE;
+        }
+        dirs.push(out);
+    }
+    let ok = Command::new(&crowd)
+        .args(["report", "--table"])
+        .args(&dirs)
+        .status()
+        .is_ok_and(|s| s.success());
+    if ok {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::FAILURE
     }
 }

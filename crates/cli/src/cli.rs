@@ -73,9 +73,14 @@ pub enum Command {
     },
     /// The figures of a build folder (`--json` for one JSON object).
     Report {
-        dir: PathBuf,
-        #[arg(long)]
+        /// Build folders (one for text and JSON; several for `--table`).
+        #[arg(required = true)]
+        dirs: Vec<PathBuf>,
+        #[arg(long, conflicts_with = "table")]
         json: bool,
+        /// One markdown row per build folder, in the shape of Crowd Art's Table 1.
+        #[arg(long)]
+        table: bool,
     },
 }
 
@@ -131,8 +136,18 @@ pub fn run(cli: Cli) -> Result<()> {
             let legend = crate::inspect::render(&file, &output, patch)?;
             ui.say(format!("wrote {}: {legend}", output.display()));
         }
-        Command::Report { dir, json } => {
-            let report = crate::report::Report::gather(&dir)?;
+        Command::Report { dirs, json, table } => {
+            if table {
+                println!("{}", crate::report::TABLE_HEADER);
+                for dir in &dirs {
+                    println!("{}", crate::report::Report::gather(dir)?.table_row(dir));
+                }
+                return Ok(());
+            }
+            let [dir] = dirs.as_slice() else {
+                anyhow::bail!("give one build folder, or `--table` for several");
+            };
+            let report = crate::report::Report::gather(dir)?;
             if json {
                 println!("{}", serde_json::to_string_pretty(&report.to_json())?);
             } else {

@@ -117,3 +117,41 @@ impl Report {
         s
     }
 }
+
+/// Columns of [`Report::table_row`].
+pub const TABLE_HEADER: &str = "| scene | patches | walkers requested | walkers measured | standers | \
+iterations | optimise (s) | match (s) | E_rho | E_d | E | E_rho floor |\n\
+| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |";
+
+impl Report {
+    /// One markdown row of figures (a dash where a stage has not run).
+    pub fn table_row(&self, dir: &Path) -> String {
+        let json = self.to_json();
+        let f = |key: &str, digits: usize| match json.get(key).and_then(Value::as_f64) {
+            Some(v) => format!("{v:.digits$}"),
+            None => "-".to_string(),
+        };
+        let seconds = |stage: &str| {
+            self.stage_seconds
+                .get(stage)
+                .map_or("-".to_string(), |s| format!("{s:.2}"))
+        };
+        let name = dir.file_name().map_or(dir.display().to_string(), |n| {
+            n.to_string_lossy().into_owned()
+        });
+        format!(
+            "| {name} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
+            f("patches", 0),
+            f("walkers_requested", 0),
+            f("walkers_measured", 0),
+            f("standers", 0),
+            f("iterations", 0),
+            seconds("optimize"),
+            seconds("match"),
+            f("E_rho", 4),
+            f("E_d", 4),
+            f("E", 4),
+            f("E_rho_floor", 4),
+        )
+    }
+}
