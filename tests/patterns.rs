@@ -167,3 +167,30 @@ fn a_contradictory_painting_ends_with_a_compromise_and_says_where() {
         "{text}"
     );
 }
+
+#[test]
+fn standers_stand_apart_inside_their_patch_and_clear_of_obstacles() {
+    let b = build("city");
+    let (file, motion) = TrajectoriesFile::load(&b.out.join("trajectories.ron")).unwrap();
+    let (r, side) = (file.radius_m, b.graph.world.patch_side_m);
+    let mut standers = 0;
+    for (p, m) in motion.iter().enumerate() {
+        for (i, s) in m.standers.iter().enumerate() {
+            assert!(s.x >= r && s.y >= r && s.x <= side - r && s.y <= side - r);
+            for o in &m.standers[i + 1..] {
+                assert!(
+                    s.distance(*o) >= 2.0 * r,
+                    "patch {p}: standers {s} and {o} overlap"
+                );
+            }
+            for rect in &b.graph.patches[p].obstacles {
+                assert!(
+                    (s.clamp(rect.min, rect.max) - *s).length() >= r,
+                    "patch {p}: {s} in an obstacle"
+                );
+            }
+            standers += 1;
+        }
+    }
+    assert_eq!(standers, 160);
+}
