@@ -29,8 +29,9 @@ pub fn add_cycle(state: &mut State, cycle: &[Step], rng: &mut ChaCha8Rng) -> boo
     let mut added: Vec<usize> = Vec::with_capacity(cycle.len());
     for step in cycle {
         let axis = state.graph.borders[step.border].axis;
-        let s_pref = match previous {
-            Some((a, s)) if a == axis => s,
+        let s_pref = match (downstream(state, step), previous) {
+            (Some(lean), _) => side / 2.0 + lean * (side / 2.0 - 1.0),
+            (None, Some((a, s))) if a == axis => s,
             _ => side / 2.0 + rng.random_range(-1.5..1.5),
         };
         let velocity = state.crossing_velocity(step.border, step.way);
@@ -50,6 +51,26 @@ pub fn add_cycle(state: &mut State, cycle: &[Step], rng: &mut ChaCha8Rng) -> boo
         }
     }
     true
+}
+
+/// Where along its border a crossing best serves the requested directions of its patches, in
+/// [-1, 1] from the middle, if either patch asks for one: an entry sits upstream in the patch it
+/// enters and an exit downstream in the patch it leaves, so that the straight lines between
+/// them run with the direction (a walker turning from a side street into a northward avenue
+/// comes in at the south end of the side and leaves at the north).
+fn downstream(state: &State, step: &Step) -> Option<f64> {
+    let tangent = state
+        .normal(step.border, crowd_core::patterns::Way::AToB)
+        .perp()
+        .abs();
+    let lean: Vec<f64> = [(step.from, 1.0), (step.to, -1.0)]
+        .iter()
+        .filter_map(|&(p, sign)| {
+            let d = state.graph.patches[p].direction?;
+            Some(sign * d.weight.min(1.0) * d.dir.dot(tangent))
+        })
+        .collect();
+    (!lean.is_empty()).then(|| (lean.iter().sum::<f64>() / lean.len() as f64).clamp(-1.0, 1.0))
 }
 
 /// A free place and time near (`s_pref`, `t_pref`) on `border`, if there is one.
