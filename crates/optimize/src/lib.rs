@@ -328,7 +328,7 @@ fn step(
         room: regression.slope,
         rho_max,
         quantum,
-        direction_gain: 6.0,
+        direction_gain: 30.0,
     };
     // Every component gets its own budget of paths per step.
     let mut sizes = vec![0usize; state.graph.components.len()];
