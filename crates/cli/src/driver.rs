@@ -25,6 +25,7 @@ pub const MERGE_FILE: &str = "merge.ron";
 pub const GRAPH_FILE: &str = "graph.ron";
 pub const PATTERNS_FILE: &str = "patterns.ron";
 pub const TRAJECTORIES_FILE: &str = "trajectories.ron";
+pub const COLLIDED_FILE: &str = "collided.ron";
 /// Wall time of the last run of each stage. Not compared between builds: it is the one output
 /// that is not deterministic.
 pub const TIMINGS_FILE: &str = "timings.ron";
@@ -46,6 +47,7 @@ pub enum Stage {
     Graph,
     Optimize,
     Match,
+    Collide,
 }
 
 /// What happened to one stage in a build.
@@ -197,22 +199,48 @@ pub fn build(pipeline_path: &Path, options: &BuildOptions, ui: &Ui) -> Result<Ve
     let fresh = !options.force
         && is_current(&trajectories_path, stage4, version4, hash)
         && TrajectoriesFile::load(&trajectories_path).is_ok();
-    outcomes.push(stage(
-        ui,
-        "match",
-        &trajectories_path,
-        fresh,
-        &mut timings,
-        || {
-            let bar = ui.stage_bar("match");
-            let motion =
-                crowd_match::match_all(&graph, &crossings, &patterns.measured, &inputs, &bar);
-            let (_, writes) =
-                crowd_match::encode(&trajectories_path, &motion, &graph, &inputs, hash);
-            pending.0.extend(writes);
-            Ok(())
-        },
-    )?);
+    let mut built_motion: Option<(Vec<u8>, Vec<crowd_core::trajectories::PatchMotion>)> = None;
+    outcomes.push(stage(ui, "match", &trajectories_path, fresh, &mut timings, || {
+        let bar = ui.stage_bar("match");
+        let motion = crowd_match::match_all(&graph, &crossings, &patterns.measured, &inputs, &bar);
+        let (_, writes) = crowd_match::encode(&trajectories_path, &motion, &graph, &inputs, hash);
+        built_motion = Some((writes.last().expect("the RON file").1.clone(), motion));
+        pending.0.extend(writes);
+        Ok(())
+    })?);
+    if options.until == Some(Stage::Match) {
+        return finish(&out, pending, &timings, outcomes);
+    }
+    let (trajectories_bytes, motion) = match built_motion {
+        Some(built) => built,
+        None => {
+            let bytes = std::fs::read(&trajectories_path)
+                .map_err(|e| Error::io(&trajectories_path, "read", e))?;
+            (bytes, TrajectoriesFile::load(&trajectories_path)?.1)
+        }
+    };
+
+    // Stage 5: collide.
+    let collided_path = out.join(COLLIDED_FILE);
+    let inputs = crowd_collide::Inputs {
+        period_s: pipeline.pipeline.period_s,
+        seed: pipeline.pipeline.seed,
+        max_iterations: pipeline.pipeline.collide.max_iterations,
+    };
+    let hash = crowd_collide::input_hash(&graph_bytes, &trajectories_bytes, &inputs);
+    let (stage5, version5) = (crowd_collide::STAGE, crowd_collide::VERSION);
+    let fresh = !options.force
+        && is_current(&collided_path, stage5, version5, hash)
+        && TrajectoriesFile::load_stage(&collided_path, stage5, version5).is_ok();
+    outcomes.push(stage(ui, "collide", &collided_path, fresh, &mut timings, || {
+        let bar = ui.stage_bar("collide");
+        let s = &inputs;
+        let (motion, reports) =
+            crowd_collide::collide(&graph, &motion, s.period_s, s.max_iterations, s.seed, &bar);
+        let (_, writes) = crowd_collide::encode(&collided_path, &motion, &reports, &graph, s, hash);
+        pending.0.extend(writes);
+        Ok(())
+    })?);
 
     finish(&out, pending, &timings, outcomes)
 }

@@ -36,6 +36,8 @@ pub struct Pipeline {
     pub optimize: OptimizeSettings,
     #[serde(default, rename = "match")]
     pub matching: MatchSettings,
+    #[serde(default)]
+    pub collide: CollideSettings,
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -179,6 +181,20 @@ impl Default for MatchSettings {
             direction_gain: 3.0,
             turn_depth: 0.3,
         }
+    }
+}
+
+/// Settings of stage 5.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct CollideSettings {
+    /// Pushes per patch at most before the patch is reported unconverged.
+    pub max_iterations: u32,
+}
+
+impl Default for CollideSettings {
+    fn default() -> Self {
+        CollideSettings { max_iterations: 20_000 }
     }
 }
 

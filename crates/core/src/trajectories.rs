@@ -20,6 +20,8 @@ pub enum PointKind {
     Pause,
     /// A turn towards the patch centre (entry and exit on the same border).
     Turn,
+    /// A bend that keeps the walker clear of others (added by the collide stage).
+    Bend,
 }
 
 impl PointKind {
@@ -203,6 +205,20 @@ pub struct MotionSummary {
     pub walkers_measured: f64,
 }
 
+/// Figures of per-patch motion.
+pub fn summarize(motion: &[PatchMotion], period_s: f64) -> MotionSummary {
+    let all = || motion.iter().flat_map(|m| &m.trajectories);
+    let count = |f: &dyn Fn(&Trajectory) -> bool| all().filter(|t| f(t)).count() as u64;
+    MotionSummary {
+        walkers_trajectories: all().count() as u64,
+        standers: motion.iter().map(|m| m.standers.len() as u64).sum(),
+        pausing: count(&|t| t.points.iter().any(|p| p.kind == PointKind::Pause)),
+        multi_period: count(&|t| t.duration() > period_s + 1e-9),
+        same_border: count(&|t| t.points.iter().any(|p| p.kind == PointKind::Turn)),
+        walkers_measured: all().map(|t| t.duration()).sum::<f64>() / period_s,
+    }
+}
+
 /// `trajectories.ron` (stage 4's file, and the shape of stages 5 and 6's).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -211,8 +227,22 @@ pub struct TrajectoriesFile {
     pub period_s: f64,
     pub radius_m: f64,
     pub summary: MotionSummary,
+    /// What the collide stage did (absent before it).
+    #[serde(default)]
+    pub collisions: Option<CollisionSummary>,
     /// Per patch motion, in patch order.
     pub motion: SideFile,
+}
+
+/// The collide stage's figures.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CollisionSummary {
+    /// Pushes applied, over all patches.
+    pub iterations: u64,
+    /// Smallest distance minus needed clearance over all patches (negative: a collision left).
+    pub min_margin_m: f64,
+    /// Patches that hit the iteration cap, with their worst margin.
+    pub unconverged: Vec<(u32, f64)>,
 }
 
 impl TrajectoriesFile {
@@ -220,8 +250,13 @@ impl TrajectoriesFile {
     pub const VERSION: u32 = 1;
 
     pub fn load(path: &Path) -> Result<(TrajectoriesFile, Vec<PatchMotion>)> {
+        Self::load_stage(path, Self::STAGE, Self::VERSION)
+    }
+
+    /// Reads a trajectories file written by `stage` (match, collide, smooth) at `version`.
+    pub fn load_stage(path: &Path, stage: &str, version: u32) -> Result<(TrajectoriesFile, Vec<PatchMotion>)> {
         let file: TrajectoriesFile = crate::files::read_ron(path)?;
-        crate::files::expect_stage(path, &file.header, Self::STAGE, Self::VERSION)?;
+        crate::files::expect_stage(path, &file.header, stage, version)?;
         let bytes = file.motion.read(path)?;
         let motion = decode_motion(&path.with_file_name(&file.motion.file), &bytes)?;
         Ok((file, motion))

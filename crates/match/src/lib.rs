@@ -294,19 +294,10 @@ pub fn encode(
     Vec<(std::path::PathBuf, Vec<u8>)>,
 ) {
     use crowd_core::files::{Header, SideFile};
-    use crowd_core::trajectories::{MotionSummary, PointKind, TrajectoriesFile, encode_motion};
+    use crowd_core::trajectories::{TrajectoriesFile, encode_motion};
     let bytes = encode_motion(motion);
     let side = out.with_extension("bin");
-    let all = motion.iter().flat_map(|m| &m.trajectories);
-    let count = |f: &dyn Fn(&Trajectory) -> bool| all.clone().filter(|t| f(t)).count() as u64;
-    let summary = MotionSummary {
-        walkers_trajectories: all.clone().count() as u64,
-        standers: motion.iter().map(|m| m.standers.len() as u64).sum(),
-        pausing: count(&|t| t.points.iter().any(|p| p.kind == PointKind::Pause)),
-        multi_period: count(&|t| t.duration() > inputs.period_s + 1e-9),
-        same_border: count(&|t| t.points.iter().any(|p| p.kind == PointKind::Turn)),
-        walkers_measured: all.clone().map(|t| t.duration()).sum::<f64>() / inputs.period_s,
-    };
+    let summary = crowd_core::trajectories::summarize(motion, inputs.period_s);
     let file = TrajectoriesFile {
         header: Header {
             stage: TrajectoriesFile::STAGE.to_string(),
@@ -316,6 +307,7 @@ pub fn encode(
         period_s: inputs.period_s,
         radius_m: graph.radius_m,
         summary,
+        collisions: None,
         motion: SideFile {
             file: side
                 .file_name()

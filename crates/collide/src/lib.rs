@@ -1,0 +1,123 @@
+//! Stage 5, collide: straight-line trajectories in, collision-free trajectories out (Ramirez et
+//! al. section 3.4, Algorithm 2).
+//!
+//! In every patch, while two characters come closer than the sum of their radii (walkers with
+//! each other, with their own copies a period later, with standers) or a walker comes closer
+//! than its radius to an obstacle, the closest pair is pushed apart at the moment of closest
+//! approach ([`repair`]). Distances are exact: the closest approach of two straight space-time
+//! segments is analytic ([`geometry`]). Boundary points cannot move ([`path::Anchor`]).
+
+pub mod geometry;
+pub mod path;
+pub mod repair;
+
+use crowd_core::trajectories::PatchMotion;
+use crowd_core::PatchGraph;
+use path::Path;
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use rayon::prelude::*;
+
+/// How one patch came out.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct PatchReport {
+    pub patch: u32,
+    pub iterations: u32,
+    pub converged: bool,
+    /// Smallest distance minus the clearance needed, over every pair (negative: a collision).
+    pub worst_margin_m: f64,
+}
+
+/// Removes collisions in every patch, in parallel; deterministic for a seed.
+pub fn collide(
+    graph: &PatchGraph,
+    motion: &[PatchMotion],
+    period_s: f64,
+    max_iterations: u32,
+    seed: u64,
+    progress: &dyn crowd_core::Progress,
+) -> (Vec<PatchMotion>, Vec<PatchReport>) {
+    progress.begin("collide", motion.len() as u64);
+    motion
+        .par_iter()
+        .enumerate()
+        .map(|(p, m)| {
+            let patch = repair::Patch {
+                side_m: graph.world.patch_side_m,
+                period_s,
+                radius_m: graph.radius_m,
+                obstacles: &graph.patches[p].obstacles,
+                standers: &m.standers,
+            };
+            let mut paths: Vec<Path> = m.trajectories.iter().map(Path::from_trajectory).collect();
+            let mut rng = ChaCha8Rng::seed_from_u64(seed ^ (p as u64 + 1).wrapping_mul(0xD1B5_4A32_D192_ED03));
+            let outcome = repair::remove_collisions(&mut paths, &patch, max_iterations, &mut rng);
+            progress.advance(1);
+            let report = PatchReport {
+                patch: p as u32,
+                iterations: outcome.iterations,
+                converged: outcome.worst.is_none(),
+                worst_margin_m: outcome.worst.map_or(0.0, |w| w.margin),
+            };
+            let motion = PatchMotion {
+                standers: m.standers.clone(),
+                trajectories: paths.iter().map(Path::to_trajectory).collect(),
+            };
+            (motion, report)
+        })
+        .unzip()
+}
+
+/// The stage name in `collided.ron`'s header.
+pub const STAGE: &str = "collide";
+pub const VERSION: u32 = 1;
+
+/// What stage 5 reads of a pipeline besides its input files.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct Inputs {
+    pub period_s: f64,
+    pub seed: u64,
+    pub max_iterations: u32,
+}
+
+/// The hash of stage 5's inputs: the graph and trajectories files' bytes and the settings.
+pub fn input_hash(graph_bytes: &[u8], trajectories_bytes: &[u8], inputs: &Inputs) -> crowd_core::Hash {
+    crowd_core::Hasher::new(STAGE, VERSION)
+        .part("graph file", crowd_core::Hash::of(graph_bytes).to_string().as_bytes())
+        .part("trajectories file", crowd_core::Hash::of(trajectories_bytes).to_string().as_bytes())
+        .value("inputs", inputs)
+        .finish()
+}
+
+/// Stage 5's files, encoded: the motion side file, then `collided.ron`.
+pub fn encode(
+    out: &std::path::Path,
+    motion: &[PatchMotion],
+    reports: &[PatchReport],
+    graph: &PatchGraph,
+    inputs: &Inputs,
+    hash: crowd_core::Hash,
+) -> (crowd_core::trajectories::TrajectoriesFile, Vec<(std::path::PathBuf, Vec<u8>)>) {
+    use crowd_core::files::{Header, SideFile};
+    use crowd_core::trajectories::{CollisionSummary, TrajectoriesFile, encode_motion, summarize};
+    let bytes = encode_motion(motion);
+    let side = out.with_extension("bin");
+    let file = TrajectoriesFile {
+        header: Header { stage: STAGE.to_string(), version: VERSION, input_hash: hash },
+        period_s: inputs.period_s,
+        radius_m: graph.radius_m,
+        summary: summarize(motion, inputs.period_s),
+        collisions: Some(CollisionSummary {
+            iterations: reports.iter().map(|r| r.iterations as u64).sum(),
+            min_margin_m: reports.iter().map(|r| r.worst_margin_m).fold(0.0, f64::min),
+            unconverged: reports.iter().filter(|r| !r.converged).map(|r| (r.patch, r.worst_margin_m)).collect(),
+        }),
+        motion: SideFile {
+            file: side.file_name().expect("a file").to_string_lossy().into_owned(),
+            bytes: bytes.len() as u64,
+            hash: crowd_core::Hash::of(&bytes),
+        },
+    };
+    let ron = crowd_core::files::to_ron(&file).into_bytes();
+    (file, vec![(side, bytes), (out.to_path_buf(), ron)])
+}

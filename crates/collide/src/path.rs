@@ -1,0 +1,130 @@
+//! A walker's path with boundary points that cannot move: the type has no way to move them.
+
+use crate::geometry::Segment;
+use crowd_core::trajectories::{ControlPoint, PointKind, Trajectory};
+use glam::DVec2;
+
+/// An entry or exit point, fixed by the patterns. Its fields are private and it has no
+/// method that changes it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Anchor {
+    pos: DVec2,
+    t: f64,
+}
+
+impl Anchor {
+    pub fn pos(&self) -> DVec2 {
+        self.pos
+    }
+
+    pub fn t(&self) -> f64 {
+        self.t
+    }
+}
+
+/// A control point between the anchors, free to move in space (its time stays).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Free {
+    pub pos: DVec2,
+    pub t: f64,
+    pub kind: PointKind,
+}
+
+/// A trajectory as stage 5 edits it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Path {
+    entry: Anchor,
+    exit: Anchor,
+    /// Sorted by time, strictly between the anchors' times.
+    pub free: Vec<Free>,
+    pub entry_crossing: u32,
+    pub exit_crossing: u32,
+}
+
+impl Path {
+    pub fn from_trajectory(tr: &Trajectory) -> Path {
+        let (first, last) = (tr.points[0], tr.points[tr.points.len() - 1]);
+        Path {
+            entry: Anchor { pos: first.pos, t: first.t },
+            exit: Anchor { pos: last.pos, t: last.t },
+            free: tr.points[1..tr.points.len() - 1]
+                .iter()
+                .map(|p| Free { pos: p.pos, t: p.t, kind: p.kind })
+                .collect(),
+            entry_crossing: tr.entry,
+            exit_crossing: tr.exit,
+        }
+    }
+
+    pub fn to_trajectory(&self) -> Trajectory {
+        let mut points = vec![ControlPoint { pos: self.entry.pos, t: self.entry.t, kind: PointKind::Entry }];
+        points.extend(self.free.iter().map(|f| ControlPoint { pos: f.pos, t: f.t, kind: f.kind }));
+        points.push(ControlPoint { pos: self.exit.pos, t: self.exit.t, kind: PointKind::Exit });
+        Trajectory { entry: self.entry_crossing, exit: self.exit_crossing, points }
+    }
+
+    pub fn entry(&self) -> Anchor {
+        self.entry
+    }
+
+    pub fn exit(&self) -> Anchor {
+        self.exit
+    }
+
+    /// The straight pieces of the path, in time order.
+    pub fn segments(&self) -> Vec<Segment> {
+        let mut points = Vec::with_capacity(self.free.len() + 2);
+        points.push((self.entry.pos, self.entry.t));
+        points.extend(self.free.iter().map(|f| (f.pos, f.t)));
+        points.push((self.exit.pos, self.exit.t));
+        points
+            .windows(2)
+            .map(|w| Segment { p0: w[0].0, t0: w[0].1, p1: w[1].0, t1: w[1].1 })
+            .collect()
+    }
+
+    pub fn span(&self) -> (f64, f64) {
+        (self.entry.t, self.exit.t)
+    }
+
+    pub fn position(&self, t: f64) -> DVec2 {
+        self.segments()
+            .iter()
+            .find(|s| t <= s.t1)
+            .or(self.segments().last())
+            .map_or(self.entry.pos, |s| s.at(t.clamp(s.t0, s.t1)))
+    }
+
+    /// Speed around time `t`.
+    pub fn speed(&self, t: f64) -> f64 {
+        self.segments()
+            .iter()
+            .find(|s| t <= s.t1)
+            .map_or(0.0, |s| s.velocity().length())
+    }
+
+    /// The free point at time `t`: an existing one within `window` seconds, or a new one on
+    /// the path. Near an anchor (anchors never move) the point is taken `window` away from it;
+    /// `None` only when the whole path is shorter than two windows.
+    pub fn free_point_at(&mut self, t: f64, window: f64) -> Option<&mut Free> {
+        let (t0, t1) = self.span();
+        if t1 - t0 <= 2.0 * window {
+            return None;
+        }
+        let t = t.clamp(t0 + window, t1 - window);
+        if let Some(i) = self
+            .free
+            .iter()
+            .enumerate()
+            .filter(|(_, f)| (f.t - t).abs() <= window && f.kind != PointKind::Pause)
+            .min_by(|a, b| (a.1.t - t).abs().total_cmp(&(b.1.t - t).abs()))
+            .map(|(i, _)| i)
+        {
+            return Some(&mut self.free[i]);
+        }
+        let pos = self.position(t);
+        let at = self.free.partition_point(|f| f.t < t);
+        self.free.insert(at, Free { pos, t, kind: PointKind::Bend });
+        Some(&mut self.free[at])
+    }
+}

@@ -1,0 +1,206 @@
+//! Ramirez et al. Algorithm 2 in one patch: while some pair is too close, push the closest
+//! pair apart at the moment they are closest.
+
+use crate::geometry::{self, Segment};
+use crate::path::Path;
+use crowd_core::Rect;
+use glam::DVec2;
+use rand::Rng;
+use rand_chacha::ChaCha8Rng;
+
+/// What a patch holds besides its walkers.
+pub struct Patch<'a> {
+    pub side_m: f64,
+    pub period_s: f64,
+    pub radius_m: f64,
+    pub obstacles: &'a [Rect],
+    pub standers: &'a [DVec2],
+}
+
+/// Who is too close to walker `a`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Other {
+    /// Walker `b` (maybe `a` itself one or more periods later), shifted by `shift` seconds.
+    Walker { b: usize, shift: f64 },
+    Stander(usize),
+    Obstacle(usize),
+}
+
+/// The closest encounter of walker `a`: how far, when (in `a`'s time), with whom.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Encounter {
+    /// Distance minus the clearance the pair needs: negative is a collision.
+    pub margin: f64,
+    pub distance: f64,
+    pub t: f64,
+    pub a: usize,
+    pub other: Other,
+}
+
+/// How the repair of a patch ended.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Outcome {
+    pub iterations: u32,
+    /// The worst encounter left (None: nobody is closer than they may be).
+    pub worst: Option<Encounter>,
+}
+
+/// The closest encounter of walkers `a` and `b` (or `a` with its own copies a period or more
+/// later when `a == b`), if they ever coexist.
+fn pair(paths: &[Path], segs: &[Vec<Segment>], a: usize, b: usize, patch: &Patch) -> Option<Encounter> {
+    let period = patch.period_s;
+    let (a0, a1) = paths[a].span();
+    let (b0, b1) = paths[b].span();
+    // Copies of b that overlap a in time: b shifted by k periods.
+    let kmin = ((a0 - b1) / period).ceil() as i64;
+    let kmax = ((a1 - b0) / period).floor() as i64;
+    let mut best: Option<(f64, f64, f64)> = None;
+    for k in kmin..=kmax {
+        if b == a && k <= 0 {
+            continue;
+        }
+        let shift = k as f64 * period;
+        for sa in &segs[a] {
+            for sb in &segs[b] {
+                let sb = sb.shifted(shift);
+                if sb.t1 < sa.t0 || sb.t0 > sa.t1 {
+                    continue;
+                }
+                if let Some((d, t)) = geometry::closest(sa, &sb)
+                    && best.is_none_or(|(bd, _, _)| d < bd)
+                {
+                    best = Some((d, t, shift));
+                }
+            }
+        }
+    }
+    best.map(|(d, t, shift)| Encounter {
+        margin: d - 2.0 * patch.radius_m,
+        distance: d,
+        t,
+        a,
+        other: Other::Walker { b, shift },
+    })
+}
+
+/// Every encounter of walker `a` with walkers `b >= a`, standers and obstacles.
+fn row(paths: &[Path], segs: &[Vec<Segment>], a: usize, patch: &Patch) -> Vec<Encounter> {
+    let r = patch.radius_m;
+    let mut out: Vec<Encounter> = (a..paths.len()).filter_map(|b| pair(paths, segs, a, b, patch)).collect();
+    for (s, &q) in patch.standers.iter().enumerate() {
+        let best = segs[a]
+            .iter()
+            .filter_map(|sa| geometry::closest(sa, &Segment::standing(q, sa.t0, sa.t1)))
+            .min_by(|x, y| x.0.total_cmp(&y.0));
+        if let Some((d, t)) = best {
+            out.push(Encounter { margin: d - 2.0 * r, distance: d, t, a, other: Other::Stander(s) });
+        }
+    }
+    for (o, rect) in patch.obstacles.iter().enumerate() {
+        let best = segs[a]
+            .iter()
+            .map(|sa| geometry::to_rect(sa, rect.min, rect.max))
+            .min_by(|x, y| x.0.total_cmp(&y.0));
+        if let Some((d, t, _)) = best {
+            out.push(Encounter { margin: d - r, distance: d, t, a, other: Other::Obstacle(o) });
+        }
+    }
+    out
+}
+
+/// Removes collisions from the walkers of one patch. Boundary points never move (the paths'
+/// anchors cannot); free points move within the patch and out of obstacles.
+pub fn remove_collisions(paths: &mut [Path], patch: &Patch, max_iterations: u32, rng: &mut ChaCha8Rng) -> Outcome {
+    let n = paths.len();
+    let mut segs: Vec<Vec<Segment>> = paths.iter().map(Path::segments).collect();
+    // Row a holds a's encounters with walkers b >= a, standers and obstacles.
+    let mut rows: Vec<Vec<Encounter>> = (0..n).map(|a| row(paths, &segs, a, patch)).collect();
+    let worst = |rows: &[Vec<Encounter>]| {
+        rows.iter()
+            .flatten()
+            .copied()
+            .min_by(|x, y| x.margin.total_cmp(&y.margin))
+    };
+    let mut iterations = 0;
+    loop {
+        let w = worst(&rows);
+        let Some(w) = w.filter(|w| w.margin < 0.0) else {
+            return Outcome { iterations, worst: w.filter(|w| w.margin < 0.0) };
+        };
+        if iterations >= max_iterations {
+            return Outcome { iterations, worst: Some(w) };
+        }
+        iterations += 1;
+        let touched = push_apart(paths, patch, &w, rng);
+        for &p in &touched {
+            segs[p] = paths[p].segments();
+        }
+        // Rows of the touched walkers, and their entries in the rows of the others.
+        for a in 0..n {
+            if touched.contains(&a) {
+                rows[a] = row(paths, &segs, a, patch);
+            } else {
+                for &b in touched.iter().filter(|&&b| b > a) {
+                    rows[a].retain(|e| !matches!(e.other, Other::Walker { b: x, .. } if x == b));
+                    rows[a].extend(pair(paths, &segs, a, b, patch));
+                }
+            }
+        }
+    }
+}
+
+/// Applies eq. 5-7 to the encounter: the two points at the moment of closest approach are
+/// pushed apart by the clearance they need, shared by speed (the faster walker moves less), a
+/// small random rotation against endless loops, and no push that would leave the patch or
+/// enter an obstacle. Returns the walkers whose paths changed.
+fn push_apart(paths: &mut [Path], patch: &Patch, e: &Encounter, rng: &mut ChaCha8Rng) -> Vec<usize> {
+    let r = patch.radius_m;
+    let window = 0.25;
+    let pa = paths[e.a].position(e.t);
+    let (q, need, other_walker) = match e.other {
+        Other::Walker { b, shift } => (paths[b].position(e.t - shift), 2.0 * r, Some((b, e.t - shift))),
+        Other::Stander(s) => (patch.standers[s], 2.0 * r, None),
+        Other::Obstacle(o) => {
+            let rect = patch.obstacles[o];
+            (pa.clamp(rect.min, rect.max), r, None)
+        }
+    };
+    let mut dir = (pa - q).normalize_or_zero();
+    if dir == DVec2::ZERO {
+        let angle = rng.random_range(0.0..std::f64::consts::TAU);
+        dir = DVec2::new(angle.cos(), angle.sin());
+    }
+    let (ua, ub) = match other_walker {
+        Some((b, tb)) => (paths[e.a].speed(e.t), paths[b].speed(tb)),
+        None => (0.0, 1.0),
+    };
+    let share_a = if ua + ub > 1e-9 { ub / (ua + ub) } else { 0.5 };
+    // Push by the missing clearance plus a little, at least a tenth of the clearance.
+    let push = ((need - e.distance) + 0.05).max(0.1 * need);
+    let mut touched = Vec::new();
+    let inside = |p: DVec2| {
+        p.x >= r && p.y >= r && p.x <= patch.side_m - r && p.y <= patch.side_m - r
+            && !patch.obstacles.iter().any(|o| (p.clamp(o.min, o.max) - p).length() < r)
+    };
+    let mut moves = vec![(e.a, e.t, dir, if other_walker.is_some() { share_a } else { 1.0 })];
+    if let Some((b, tb)) = other_walker {
+        moves.push((b, tb, -dir, 1.0 - share_a));
+    }
+    for (p, t, d, share) in moves {
+        let phi = rng.random_range(-0.5..0.5);
+        let force = DVec2::from_angle(phi).rotate(d) * push * share;
+        let Some(point) = paths[p].free_point_at(t, window) else { continue };
+        let target = point.pos + force;
+        if inside(target) {
+            point.pos = target;
+            touched.push(p);
+        } else {
+            // No push that leaves the patch or enters an obstacle (w = 0, eq. 6); the new
+            // point still gives later pushes something to move.
+            touched.push(p);
+        }
+    }
+    touched.sort_unstable();
+    touched.dedup();
+    touched
+}
