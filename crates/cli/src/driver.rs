@@ -200,14 +200,23 @@ pub fn build(pipeline_path: &Path, options: &BuildOptions, ui: &Ui) -> Result<Ve
         && is_current(&trajectories_path, stage4, version4, hash)
         && TrajectoriesFile::load(&trajectories_path).is_ok();
     let mut built_motion: Option<(Vec<u8>, Vec<crowd_core::trajectories::PatchMotion>)> = None;
-    outcomes.push(stage(ui, "match", &trajectories_path, fresh, &mut timings, || {
-        let bar = ui.stage_bar("match");
-        let motion = crowd_match::match_all(&graph, &crossings, &patterns.measured, &inputs, &bar);
-        let (_, writes) = crowd_match::encode(&trajectories_path, &motion, &graph, &inputs, hash);
-        built_motion = Some((writes.last().expect("the RON file").1.clone(), motion));
-        pending.0.extend(writes);
-        Ok(())
-    })?);
+    outcomes.push(stage(
+        ui,
+        "match",
+        &trajectories_path,
+        fresh,
+        &mut timings,
+        || {
+            let bar = ui.stage_bar("match");
+            let motion =
+                crowd_match::match_all(&graph, &crossings, &patterns.measured, &inputs, &bar);
+            let (_, writes) =
+                crowd_match::encode(&trajectories_path, &motion, &graph, &inputs, hash);
+            built_motion = Some((writes.last().expect("the RON file").1.clone(), motion));
+            pending.0.extend(writes);
+            Ok(())
+        },
+    )?);
     if options.until == Some(Stage::Match) {
         return finish(&out, pending, &timings, outcomes);
     }
@@ -232,15 +241,23 @@ pub fn build(pipeline_path: &Path, options: &BuildOptions, ui: &Ui) -> Result<Ve
     let fresh = !options.force
         && is_current(&collided_path, stage5, version5, hash)
         && TrajectoriesFile::load_stage(&collided_path, stage5, version5).is_ok();
-    outcomes.push(stage(ui, "collide", &collided_path, fresh, &mut timings, || {
-        let bar = ui.stage_bar("collide");
-        let s = &inputs;
-        let (motion, reports) =
-            crowd_collide::collide(&graph, &motion, s.period_s, s.max_iterations, s.seed, &bar);
-        let (_, writes) = crowd_collide::encode(&collided_path, &motion, &reports, &graph, s, hash);
-        pending.0.extend(writes);
-        Ok(())
-    })?);
+    outcomes.push(stage(
+        ui,
+        "collide",
+        &collided_path,
+        fresh,
+        &mut timings,
+        || {
+            let bar = ui.stage_bar("collide");
+            let s = &inputs;
+            let (motion, reports) =
+                crowd_collide::collide(&graph, &motion, s.period_s, s.max_iterations, s.seed, &bar);
+            let (_, writes) =
+                crowd_collide::encode(&collided_path, &motion, &reports, &graph, s, hash);
+            pending.0.extend(writes);
+            Ok(())
+        },
+    )?);
 
     finish(&out, pending, &timings, outcomes)
 }

@@ -11,8 +11,8 @@ pub mod geometry;
 pub mod path;
 pub mod repair;
 
-use crowd_core::trajectories::PatchMotion;
 use crowd_core::PatchGraph;
+use crowd_core::trajectories::PatchMotion;
 use path::Path;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -50,7 +50,9 @@ pub fn collide(
                 standers: &m.standers,
             };
             let mut paths: Vec<Path> = m.trajectories.iter().map(Path::from_trajectory).collect();
-            let mut rng = ChaCha8Rng::seed_from_u64(seed ^ (p as u64 + 1).wrapping_mul(0xD1B5_4A32_D192_ED03));
+            let mut rng = ChaCha8Rng::seed_from_u64(
+                seed ^ (p as u64 + 1).wrapping_mul(0xD1B5_4A32_D192_ED03),
+            );
             let outcome = repair::remove_collisions(&mut paths, &patch, max_iterations, &mut rng);
             progress.advance(1);
             let report = PatchReport {
@@ -81,10 +83,22 @@ pub struct Inputs {
 }
 
 /// The hash of stage 5's inputs: the graph and trajectories files' bytes and the settings.
-pub fn input_hash(graph_bytes: &[u8], trajectories_bytes: &[u8], inputs: &Inputs) -> crowd_core::Hash {
+pub fn input_hash(
+    graph_bytes: &[u8],
+    trajectories_bytes: &[u8],
+    inputs: &Inputs,
+) -> crowd_core::Hash {
     crowd_core::Hasher::new(STAGE, VERSION)
-        .part("graph file", crowd_core::Hash::of(graph_bytes).to_string().as_bytes())
-        .part("trajectories file", crowd_core::Hash::of(trajectories_bytes).to_string().as_bytes())
+        .part(
+            "graph file",
+            crowd_core::Hash::of(graph_bytes).to_string().as_bytes(),
+        )
+        .part(
+            "trajectories file",
+            crowd_core::Hash::of(trajectories_bytes)
+                .to_string()
+                .as_bytes(),
+        )
         .value("inputs", inputs)
         .finish()
 }
@@ -97,23 +111,38 @@ pub fn encode(
     graph: &PatchGraph,
     inputs: &Inputs,
     hash: crowd_core::Hash,
-) -> (crowd_core::trajectories::TrajectoriesFile, Vec<(std::path::PathBuf, Vec<u8>)>) {
+) -> (
+    crowd_core::trajectories::TrajectoriesFile,
+    Vec<(std::path::PathBuf, Vec<u8>)>,
+) {
     use crowd_core::files::{Header, SideFile};
     use crowd_core::trajectories::{CollisionSummary, TrajectoriesFile, encode_motion, summarize};
     let bytes = encode_motion(motion);
     let side = out.with_extension("bin");
     let file = TrajectoriesFile {
-        header: Header { stage: STAGE.to_string(), version: VERSION, input_hash: hash },
+        header: Header {
+            stage: STAGE.to_string(),
+            version: VERSION,
+            input_hash: hash,
+        },
         period_s: inputs.period_s,
         radius_m: graph.radius_m,
         summary: summarize(motion, inputs.period_s),
         collisions: Some(CollisionSummary {
             iterations: reports.iter().map(|r| r.iterations as u64).sum(),
             min_margin_m: reports.iter().map(|r| r.worst_margin_m).fold(0.0, f64::min),
-            unconverged: reports.iter().filter(|r| !r.converged).map(|r| (r.patch, r.worst_margin_m)).collect(),
+            unconverged: reports
+                .iter()
+                .filter(|r| !r.converged)
+                .map(|r| (r.patch, r.worst_margin_m))
+                .collect(),
         }),
         motion: SideFile {
-            file: side.file_name().expect("a file").to_string_lossy().into_owned(),
+            file: side
+                .file_name()
+                .expect("a file")
+                .to_string_lossy()
+                .into_owned(),
             bytes: bytes.len() as u64,
             hash: crowd_core::Hash::of(&bytes),
         },
@@ -121,3 +150,6 @@ pub fn encode(
     let ron = crowd_core::files::to_ron(&file).into_bytes();
     (file, vec![(side, bytes), (out.to_path_buf(), ron)])
 }
+
+#[cfg(test)]
+mod tests;

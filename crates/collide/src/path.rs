@@ -45,11 +45,21 @@ impl Path {
     pub fn from_trajectory(tr: &Trajectory) -> Path {
         let (first, last) = (tr.points[0], tr.points[tr.points.len() - 1]);
         Path {
-            entry: Anchor { pos: first.pos, t: first.t },
-            exit: Anchor { pos: last.pos, t: last.t },
+            entry: Anchor {
+                pos: first.pos,
+                t: first.t,
+            },
+            exit: Anchor {
+                pos: last.pos,
+                t: last.t,
+            },
             free: tr.points[1..tr.points.len() - 1]
                 .iter()
-                .map(|p| Free { pos: p.pos, t: p.t, kind: p.kind })
+                .map(|p| Free {
+                    pos: p.pos,
+                    t: p.t,
+                    kind: p.kind,
+                })
                 .collect(),
             entry_crossing: tr.entry,
             exit_crossing: tr.exit,
@@ -57,10 +67,26 @@ impl Path {
     }
 
     pub fn to_trajectory(&self) -> Trajectory {
-        let mut points = vec![ControlPoint { pos: self.entry.pos, t: self.entry.t, kind: PointKind::Entry }];
-        points.extend(self.free.iter().map(|f| ControlPoint { pos: f.pos, t: f.t, kind: f.kind }));
-        points.push(ControlPoint { pos: self.exit.pos, t: self.exit.t, kind: PointKind::Exit });
-        Trajectory { entry: self.entry_crossing, exit: self.exit_crossing, points }
+        let mut points = vec![ControlPoint {
+            pos: self.entry.pos,
+            t: self.entry.t,
+            kind: PointKind::Entry,
+        }];
+        points.extend(self.free.iter().map(|f| ControlPoint {
+            pos: f.pos,
+            t: f.t,
+            kind: f.kind,
+        }));
+        points.push(ControlPoint {
+            pos: self.exit.pos,
+            t: self.exit.t,
+            kind: PointKind::Exit,
+        });
+        Trajectory {
+            entry: self.entry_crossing,
+            exit: self.exit_crossing,
+            points,
+        }
     }
 
     pub fn entry(&self) -> Anchor {
@@ -79,7 +105,12 @@ impl Path {
         points.push((self.exit.pos, self.exit.t));
         points
             .windows(2)
-            .map(|w| Segment { p0: w[0].0, t0: w[0].1, p1: w[1].0, t1: w[1].1 })
+            .map(|w| Segment {
+                p0: w[0].0,
+                t0: w[0].1,
+                p1: w[1].0,
+                t1: w[1].1,
+            })
             .collect()
     }
 
@@ -103,6 +134,30 @@ impl Path {
             .map_or(0.0, |s| s.velocity().length())
     }
 
+    /// Whether the walker can be moved at time `t`: not within `window` of an anchor.
+    pub fn movable_at(&self, t: f64, window: f64) -> bool {
+        let (t0, t1) = self.span();
+        t - t0 >= window && t1 - t >= window
+    }
+
+    /// Moves the walker at time `t` by `force` (the free point at `t`, see
+    /// [`Path::free_point_at`]), if `allowed` accepts where it ends. Returns whether it moved.
+    pub fn push_at(
+        &mut self,
+        t: f64,
+        force: DVec2,
+        window: f64,
+        allowed: impl Fn(DVec2) -> bool,
+    ) -> bool {
+        match self.free_point_at(t, window) {
+            Some(point) if allowed(point.pos + force) => {
+                point.pos += force;
+                true
+            }
+            _ => false,
+        }
+    }
+
     /// The free point at time `t`: an existing one within `window` seconds, or a new one on
     /// the path. Near an anchor (anchors never move) the point is taken `window` away from it;
     /// `None` only when the whole path is shorter than two windows.
@@ -124,7 +179,14 @@ impl Path {
         }
         let pos = self.position(t);
         let at = self.free.partition_point(|f| f.t < t);
-        self.free.insert(at, Free { pos, t, kind: PointKind::Bend });
+        self.free.insert(
+            at,
+            Free {
+                pos,
+                t,
+                kind: PointKind::Bend,
+            },
+        );
         Some(&mut self.free[at])
     }
 }

@@ -21,7 +21,10 @@ pub struct Patch<'a> {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Other {
     /// Walker `b` (maybe `a` itself one or more periods later), shifted by `shift` seconds.
-    Walker { b: usize, shift: f64 },
+    Walker {
+        b: usize,
+        shift: f64,
+    },
     Stander(usize),
     Obstacle(usize),
 }
@@ -47,7 +50,13 @@ pub struct Outcome {
 
 /// The closest encounter of walkers `a` and `b` (or `a` with its own copies a period or more
 /// later when `a == b`), if they ever coexist.
-fn pair(paths: &[Path], segs: &[Vec<Segment>], a: usize, b: usize, patch: &Patch) -> Option<Encounter> {
+fn pair(
+    paths: &[Path],
+    segs: &[Vec<Segment>],
+    a: usize,
+    b: usize,
+    patch: &Patch,
+) -> Option<Encounter> {
     let period = patch.period_s;
     let (a0, a1) = paths[a].span();
     let (b0, b1) = paths[b].span();
@@ -86,14 +95,22 @@ fn pair(paths: &[Path], segs: &[Vec<Segment>], a: usize, b: usize, patch: &Patch
 /// Every encounter of walker `a` with walkers `b >= a`, standers and obstacles.
 fn row(paths: &[Path], segs: &[Vec<Segment>], a: usize, patch: &Patch) -> Vec<Encounter> {
     let r = patch.radius_m;
-    let mut out: Vec<Encounter> = (a..paths.len()).filter_map(|b| pair(paths, segs, a, b, patch)).collect();
+    let mut out: Vec<Encounter> = (a..paths.len())
+        .filter_map(|b| pair(paths, segs, a, b, patch))
+        .collect();
     for (s, &q) in patch.standers.iter().enumerate() {
         let best = segs[a]
             .iter()
             .filter_map(|sa| geometry::closest(sa, &Segment::standing(q, sa.t0, sa.t1)))
             .min_by(|x, y| x.0.total_cmp(&y.0));
         if let Some((d, t)) = best {
-            out.push(Encounter { margin: d - 2.0 * r, distance: d, t, a, other: Other::Stander(s) });
+            out.push(Encounter {
+                margin: d - 2.0 * r,
+                distance: d,
+                t,
+                a,
+                other: Other::Stander(s),
+            });
         }
     }
     for (o, rect) in patch.obstacles.iter().enumerate() {
@@ -102,7 +119,13 @@ fn row(paths: &[Path], segs: &[Vec<Segment>], a: usize, patch: &Patch) -> Vec<En
             .map(|sa| geometry::to_rect(sa, rect.min, rect.max))
             .min_by(|x, y| x.0.total_cmp(&y.0));
         if let Some((d, t, _)) = best {
-            out.push(Encounter { margin: d - r, distance: d, t, a, other: Other::Obstacle(o) });
+            out.push(Encounter {
+                margin: d - r,
+                distance: d,
+                t,
+                a,
+                other: Other::Obstacle(o),
+            });
         }
     }
     out
@@ -110,7 +133,12 @@ fn row(paths: &[Path], segs: &[Vec<Segment>], a: usize, patch: &Patch) -> Vec<En
 
 /// Removes collisions from the walkers of one patch. Boundary points never move (the paths'
 /// anchors cannot); free points move within the patch and out of obstacles.
-pub fn remove_collisions(paths: &mut [Path], patch: &Patch, max_iterations: u32, rng: &mut ChaCha8Rng) -> Outcome {
+pub fn remove_collisions(
+    paths: &mut [Path],
+    patch: &Patch,
+    max_iterations: u32,
+    rng: &mut ChaCha8Rng,
+) -> Outcome {
     let n = paths.len();
     let mut segs: Vec<Vec<Segment>> = paths.iter().map(Path::segments).collect();
     // Row a holds a's encounters with walkers b >= a, standers and obstacles.
@@ -125,10 +153,16 @@ pub fn remove_collisions(paths: &mut [Path], patch: &Patch, max_iterations: u32,
     loop {
         let w = worst(&rows);
         let Some(w) = w.filter(|w| w.margin < 0.0) else {
-            return Outcome { iterations, worst: w.filter(|w| w.margin < 0.0) };
+            return Outcome {
+                iterations,
+                worst: w.filter(|w| w.margin < 0.0),
+            };
         };
         if iterations >= max_iterations {
-            return Outcome { iterations, worst: Some(w) };
+            return Outcome {
+                iterations,
+                worst: Some(w),
+            };
         }
         iterations += 1;
         let touched = push_apart(paths, patch, &w, rng);
@@ -136,13 +170,13 @@ pub fn remove_collisions(paths: &mut [Path], patch: &Patch, max_iterations: u32,
             segs[p] = paths[p].segments();
         }
         // Rows of the touched walkers, and their entries in the rows of the others.
-        for a in 0..n {
+        for (a, encounters) in rows.iter_mut().enumerate() {
             if touched.contains(&a) {
-                rows[a] = row(paths, &segs, a, patch);
+                *encounters = row(paths, &segs, a, patch);
             } else {
                 for &b in touched.iter().filter(|&&b| b > a) {
-                    rows[a].retain(|e| !matches!(e.other, Other::Walker { b: x, .. } if x == b));
-                    rows[a].extend(pair(paths, &segs, a, b, patch));
+                    encounters.retain(|e| !matches!(e.other, Other::Walker { b: x, .. } if x == b));
+                    encounters.extend(pair(paths, &segs, a, b, patch));
                 }
             }
         }
@@ -153,16 +187,41 @@ pub fn remove_collisions(paths: &mut [Path], patch: &Patch, max_iterations: u32,
 /// pushed apart by the clearance they need, shared by speed (the faster walker moves less), a
 /// small random rotation against endless loops, and no push that would leave the patch or
 /// enter an obstacle. Returns the walkers whose paths changed.
-fn push_apart(paths: &mut [Path], patch: &Patch, e: &Encounter, rng: &mut ChaCha8Rng) -> Vec<usize> {
+fn push_apart(
+    paths: &mut [Path],
+    patch: &Patch,
+    e: &Encounter,
+    rng: &mut ChaCha8Rng,
+) -> Vec<usize> {
     let r = patch.radius_m;
     let window = 0.25;
     let pa = paths[e.a].position(e.t);
     let (q, need, other_walker) = match e.other {
-        Other::Walker { b, shift } => (paths[b].position(e.t - shift), 2.0 * r, Some((b, e.t - shift))),
+        Other::Walker { b, shift } => (
+            paths[b].position(e.t - shift),
+            2.0 * r,
+            Some((b, e.t - shift)),
+        ),
         Other::Stander(s) => (patch.standers[s], 2.0 * r, None),
         Other::Obstacle(o) => {
             let rect = patch.obstacles[o];
-            (pa.clamp(rect.min, rect.max), r, None)
+            let q = pa.clamp(rect.min, rect.max);
+            if q == pa {
+                // Inside the obstacle: out through the nearest edge.
+                let exits = [
+                    (pa.x - rect.min.x, DVec2::NEG_X),
+                    (rect.max.x - pa.x, DVec2::X),
+                    (pa.y - rect.min.y, DVec2::NEG_Y),
+                    (rect.max.y - pa.y, DVec2::Y),
+                ];
+                let (depth, out) = exits
+                    .into_iter()
+                    .min_by(|a, b| a.0.total_cmp(&b.0))
+                    .expect("four");
+                (pa - out * (depth + 1e-6), r + depth, None)
+            } else {
+                (q, r, None)
+            }
         }
     };
     let mut dir = (pa - q).normalize_or_zero();
@@ -174,31 +233,47 @@ fn push_apart(paths: &mut [Path], patch: &Patch, e: &Encounter, rng: &mut ChaCha
         Some((b, tb)) => (paths[e.a].speed(e.t), paths[b].speed(tb)),
         None => (0.0, 1.0),
     };
-    let share_a = if ua + ub > 1e-9 { ub / (ua + ub) } else { 0.5 };
-    // Push by the missing clearance plus a little, at least a tenth of the clearance.
-    let push = ((need - e.distance) + 0.05).max(0.1 * need);
-    let mut touched = Vec::new();
-    let inside = |p: DVec2| {
-        p.x >= r && p.y >= r && p.x <= patch.side_m - r && p.y <= patch.side_m - r
-            && !patch.obstacles.iter().any(|o| (p.clamp(o.min, o.max) - p).length() < r)
+    // Shares by speed (eq. 6); a walker held by its anchor at that moment cannot take any.
+    let a_free = paths[e.a].movable_at(e.t, window);
+    let b_free = other_walker.is_some_and(|(b, tb)| paths[b].movable_at(tb, window));
+    let share_a = match (other_walker.is_some(), a_free, b_free) {
+        (false, _, _) => 1.0,
+        (true, true, false) => 1.0,
+        (true, false, true) => 0.0,
+        _ if ua + ub > 1e-9 => ub / (ua + ub),
+        _ => 0.5,
     };
-    let mut moves = vec![(e.a, e.t, dir, if other_walker.is_some() { share_a } else { 1.0 })];
+    // Push by the missing clearance plus a little, at least a tenth of the clearance.
+    let missing = match e.other {
+        Other::Obstacle(_) => need - (pa - q).length().min(e.distance),
+        _ => need - e.distance,
+    };
+    let push = (missing + 0.05).max(0.1 * need);
+    let edge = 0.02;
+    let inside = |p: DVec2| {
+        p.x >= edge
+            && p.y >= edge
+            && p.x <= patch.side_m - edge
+            && p.y <= patch.side_m - edge
+            && !patch
+                .obstacles
+                .iter()
+                .any(|o| (p.clamp(o.min, o.max) - p).length() < r)
+    };
+    let mut moves = vec![(e.a, e.t, dir, share_a)];
     if let Some((b, tb)) = other_walker {
         moves.push((b, tb, -dir, 1.0 - share_a));
     }
+    let mut touched = Vec::new();
     for (p, t, d, share) in moves {
+        if share <= 0.0 {
+            continue;
+        }
         let phi = rng.random_range(-0.5..0.5);
         let force = DVec2::from_angle(phi).rotate(d) * push * share;
-        let Some(point) = paths[p].free_point_at(t, window) else { continue };
-        let target = point.pos + force;
-        if inside(target) {
-            point.pos = target;
-            touched.push(p);
-        } else {
-            // No push that leaves the patch or enters an obstacle (w = 0, eq. 6); the new
-            // point still gives later pushes something to move.
-            touched.push(p);
-        }
+        // Moved or not, a new free point may have been added: the row is recomputed.
+        paths[p].push_at(t, force, window, inside);
+        touched.push(p);
     }
     touched.sort_unstable();
     touched.dedup();

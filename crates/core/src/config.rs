@@ -194,7 +194,9 @@ pub struct CollideSettings {
 
 impl Default for CollideSettings {
     fn default() -> Self {
-        CollideSettings { max_iterations: 20_000 }
+        CollideSettings {
+            max_iterations: 4_000,
+        }
     }
 }
 

@@ -254,7 +254,11 @@ impl TrajectoriesFile {
     }
 
     /// Reads a trajectories file written by `stage` (match, collide, smooth) at `version`.
-    pub fn load_stage(path: &Path, stage: &str, version: u32) -> Result<(TrajectoriesFile, Vec<PatchMotion>)> {
+    pub fn load_stage(
+        path: &Path,
+        stage: &str,
+        version: u32,
+    ) -> Result<(TrajectoriesFile, Vec<PatchMotion>)> {
         let file: TrajectoriesFile = crate::files::read_ron(path)?;
         crate::files::expect_stage(path, &file.header, stage, version)?;
         let bytes = file.motion.read(path)?;

@@ -60,7 +60,7 @@ pub fn duration(entry: &Endpoint, exit: &Endpoint, ctx: &PatchContext) -> f64 {
 /// at the comfort speed otherwise; split points where it passes a multiple of the period.
 pub fn plan(entry: &Endpoint, exit: &Endpoint, ctx: &PatchContext) -> Trajectory {
     let turn = turn_point(entry, exit, ctx);
-    let length = path_length(entry, exit, ctx);
+    let mut length = path_length(entry, exit, ctx);
     let total = duration(entry, exit, ctx);
     let mut path = vec![(entry.pos, PointKind::Entry)];
     if let Some(c) = turn {
@@ -75,8 +75,15 @@ pub fn plan(entry: &Endpoint, exit: &Endpoint, ctx: &PatchContext) -> Trajectory
         length / total
     };
     if pausing && turn.is_none() {
+        // Pause off the border, a third of the way from the middle of the line to the centre
+        // of the patch, where it is less in the way of walkers crossing; on the line itself if
+        // that detour would not leave time to pause.
         let mid = (entry.pos + exit.pos) / 2.0;
-        path.insert(1, (mid, PointKind::Pause));
+        let spot = mid.lerp(DVec2::splat(ctx.side_m / 2.0), 1.0 / 3.0);
+        let detour = entry.pos.distance(spot) + spot.distance(exit.pos);
+        let spot = if detour / speed < total { spot } else { mid };
+        length = entry.pos.distance(spot) + spot.distance(exit.pos);
+        path.insert(1, (spot, PointKind::Pause));
     }
     let pause_at = if pausing { Some(1) } else { None };
 
