@@ -194,3 +194,33 @@ fn standers_stand_apart_inside_their_patch_and_clear_of_obstacles() {
     }
     assert_eq!(standers, 160);
 }
+
+#[test]
+fn the_collide_stage_never_moves_a_boundary_point() {
+    let (dir, out) = build_shared_scene("bands", "collide");
+    let (_, before) = TrajectoriesFile::load(&out.join("trajectories.ron")).unwrap();
+    let (file, after) = TrajectoriesFile::load_stage(
+        &out.join("collided.ron"),
+        crowd_collide::STAGE,
+        crowd_collide::VERSION,
+    )
+    .unwrap();
+    assert_eq!(before.len(), after.len());
+    for (b, a) in before.iter().zip(&after) {
+        assert_eq!(b.standers, a.standers);
+        assert_eq!(b.trajectories.len(), a.trajectories.len());
+        for (tb, ta) in b.trajectories.iter().zip(&a.trajectories) {
+            assert_eq!((tb.entry, tb.exit), (ta.entry, ta.exit));
+            assert_eq!(tb.points.first(), ta.points.first());
+            assert_eq!(tb.points.last(), ta.points.last());
+        }
+    }
+    let c = file.collisions.expect("collide figures");
+    assert!(
+        c.unconverged.len() * 10 < after.len(),
+        "{} of {} patches unconverged",
+        c.unconverged.len(),
+        after.len()
+    );
+    drop(dir);
+}

@@ -24,7 +24,9 @@ pub fn inspect(path: &Path) -> Result<String> {
             let (patterns, crossings) = Patterns::load(path)?;
             Ok(inspect_patterns(&patterns, &crossings))
         }
-        TrajectoriesFile::STAGE => Ok(inspect_trajectories(&TrajectoriesFile::load(path)?.0)),
+        stage @ (TrajectoriesFile::STAGE | crowd_collide::STAGE) => Ok(inspect_trajectories(
+            &TrajectoriesFile::load_stage(path, stage, header.version)?.0,
+        )),
         other => bail!(
             "{}: `crowd inspect` does not know `{other}` files",
             path.display()
@@ -46,10 +48,10 @@ pub fn render(path: &Path, out: &Path, patch: Option<u32>) -> Result<&'static st
                 crowd_render::PATTERNS_LEGEND,
             )
         }
-        TrajectoriesFile::STAGE => {
+        stage @ (TrajectoriesFile::STAGE | crowd_collide::STAGE) => {
             let graph = PatchGraph::load(&beside(GRAPH_FILE))?;
             let (patterns, crossings) = Patterns::load(&beside(PATTERNS_FILE))?;
-            let (_, motion) = TrajectoriesFile::load(path)?;
+            let (_, motion) = TrajectoriesFile::load_stage(path, stage, header.version)?;
             let busiest = (0..motion.len())
                 .max_by_key(|&p| (motion[p].trajectories.len(), std::cmp::Reverse(p)));
             let Some(p) = patch.map(|p| p as usize).or(busiest) else {
@@ -320,6 +322,18 @@ fn inspect_trajectories(t: &TrajectoriesFile) -> String {
         m.pausing, m.multi_period, m.same_border
     );
     let _ = writeln!(s, "standers:   {}", m.standers);
+    if let Some(c) = &t.collisions {
+        let _ = writeln!(
+            s,
+            "collisions: {} pushes; {} patches still hold a collision (worst margin {:.3} m)",
+            c.iterations,
+            c.unconverged.len(),
+            c.min_margin_m
+        );
+        for (p, margin) in c.unconverged.iter().take(10) {
+            let _ = writeln!(s, "  patch #{p}: {margin:.3} m closer than allowed");
+        }
+    }
     let _ = writeln!(
         s,
         "motion:     {} ({} bytes, {})",

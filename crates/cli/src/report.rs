@@ -1,6 +1,8 @@
 //! `crowd report`: the figures a build folder holds so far, as text or one JSON object.
 
-use crate::driver::{GRAPH_FILE, MERGE_FILE, PATTERNS_FILE, TRAJECTORIES_FILE, read_timings};
+use crate::driver::{
+    COLLIDED_FILE, GRAPH_FILE, MERGE_FILE, PATTERNS_FILE, TRAJECTORIES_FILE, read_timings,
+};
 use anyhow::{Result, bail};
 use crowd_core::PatchGraph;
 use crowd_core::files;
@@ -15,6 +17,7 @@ pub struct Report {
     pub graph: Option<PatchGraph>,
     pub patterns: Option<Patterns>,
     pub trajectories: Option<TrajectoriesFile>,
+    pub collided: Option<TrajectoriesFile>,
     pub stage_seconds: BTreeMap<String, f64>,
 }
 
@@ -45,10 +48,17 @@ impl Report {
         } else {
             None
         };
+        let collided_path = dir.join(COLLIDED_FILE);
+        let collided = if collided_path.exists() {
+            Some(files::read_ron::<TrajectoriesFile>(&collided_path)?)
+        } else {
+            None
+        };
         Ok(Report {
             graph,
             patterns,
             trajectories,
+            collided,
             stage_seconds: read_timings(dir),
         })
     }
@@ -93,6 +103,10 @@ impl Report {
         if let Some(t) = &self.trajectories {
             out.insert("walkers_measured".into(), json!(t.summary.walkers_measured));
             out.insert("trajectories".into(), json!(t.summary.walkers_trajectories));
+        }
+        if let Some(c) = self.collided.as_ref().and_then(|c| c.collisions.as_ref()) {
+            out.insert("unconverged_patches".into(), json!(c.unconverged.len()));
+            out.insert("collide_pushes".into(), json!(c.iterations));
         }
         out.insert("stage_seconds".into(), json!(self.stage_seconds));
         Value::Object(out)

@@ -25,15 +25,22 @@ pub enum PointKind {
 }
 
 impl PointKind {
+    /// Every kind, in code order.
+    pub const ALL: [PointKind; 6] = [
+        PointKind::Entry,
+        PointKind::Exit,
+        PointKind::Split,
+        PointKind::Pause,
+        PointKind::Turn,
+        PointKind::Bend,
+    ];
+
     fn code(self) -> u8 {
         self as u8
     }
 
     fn from_code(code: u8) -> Option<PointKind> {
-        use PointKind::*;
-        [Entry, Exit, Split, Pause, Turn]
-            .get(code as usize)
-            .copied()
+        Self::ALL.get(code as usize).copied()
     }
 
     /// Boundary points are fixed by the patterns and never move.
@@ -264,5 +271,42 @@ impl TrajectoriesFile {
         let bytes = file.motion.read(path)?;
         let motion = decode_motion(&path.with_file_name(&file.motion.file), &bytes)?;
         Ok((file, motion))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn motion_round_trips_through_its_side_file_with_every_point_kind() {
+        let points = PointKind::ALL
+            .iter()
+            .enumerate()
+            .map(|(i, &kind)| ControlPoint {
+                pos: DVec2::new(i as f64, 0.5),
+                t: i as f64,
+                kind,
+            })
+            .collect();
+        let motion = vec![
+            PatchMotion {
+                standers: vec![DVec2::new(1.0, 2.0)],
+                trajectories: vec![Trajectory {
+                    entry: 3,
+                    exit: 4,
+                    points,
+                }],
+            },
+            PatchMotion::default(),
+        ];
+        let bytes = encode_motion(&motion);
+        assert_eq!(decode_motion(Path::new("m.bin"), &bytes).unwrap(), motion);
+        for cut in [0, 9, bytes.len() / 2, bytes.len() - 1] {
+            assert!(
+                decode_motion(Path::new("m.bin"), &bytes[..cut]).is_err(),
+                "cut at {cut}"
+            );
+        }
     }
 }
