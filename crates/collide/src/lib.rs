@@ -28,6 +28,46 @@ pub struct PatchReport {
     pub worst_margin_m: f64,
 }
 
+/// Restarts a stalled repair from the straight lines with fresh random pushes, up to
+/// [`RESTARTS`] times within the same budget of pushes, and keeps the best attempt. The
+/// greedy repair of the paper can cycle (pushing one pair apart pushes another together);
+/// another draw of the small random rotations usually breaks the cycle.
+pub fn with_restarts(
+    paths: &mut Vec<Path>,
+    patch: &repair::Patch,
+    max_iterations: u32,
+    rng: &mut ChaCha8Rng,
+) -> repair::Outcome {
+    let start = paths.clone();
+    let per_try = (max_iterations / RESTARTS).max(1);
+    let mut best: Option<(Vec<Path>, repair::Outcome)> = None;
+    let mut used = 0;
+    for _ in 0..RESTARTS {
+        let mut attempt = start.clone();
+        let outcome = repair::remove_collisions(&mut attempt, patch, per_try, rng);
+        used += outcome.iterations;
+        let margin = |o: &repair::Outcome| o.worst.map_or(f64::INFINITY, |w| w.margin);
+        if best
+            .as_ref()
+            .is_none_or(|(_, b)| margin(&outcome) > margin(b))
+        {
+            best = Some((attempt, outcome));
+        }
+        if outcome.worst.is_none() {
+            break;
+        }
+    }
+    let (chosen, outcome) = best.expect("at least one attempt");
+    *paths = chosen;
+    repair::Outcome {
+        iterations: used,
+        ..outcome
+    }
+}
+
+/// Attempts per patch (see [`with_restarts`]).
+pub const RESTARTS: u32 = 4;
+
 /// Removes collisions in every patch, in parallel; deterministic for a seed.
 pub fn collide(
     graph: &PatchGraph,
@@ -53,7 +93,7 @@ pub fn collide(
             let mut rng = ChaCha8Rng::seed_from_u64(
                 seed ^ (p as u64 + 1).wrapping_mul(0xD1B5_4A32_D192_ED03),
             );
-            let outcome = repair::remove_collisions(&mut paths, &patch, max_iterations, &mut rng);
+            let outcome = with_restarts(&mut paths, &patch, max_iterations, &mut rng);
             progress.advance(1);
             let report = PatchReport {
                 patch: p as u32,

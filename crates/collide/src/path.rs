@@ -147,14 +147,23 @@ impl Path {
         t: f64,
         force: DVec2,
         window: f64,
+        keep_inside: impl Fn(DVec2) -> DVec2,
         allowed: impl Fn(DVec2) -> bool,
     ) -> bool {
         match self.free_point_at(t, window) {
-            Some(point) if allowed(point.pos + force) => {
-                point.pos += force;
-                true
+            Some(point) => {
+                // A push towards the border slides along it instead; a push into an obstacle
+                // stops at the nearest place clear of it.
+                let target = keep_inside(point.pos + force);
+                match nearest_allowed(target, &keep_inside, &allowed) {
+                    Some(target) => {
+                        point.pos = target;
+                        true
+                    }
+                    None => false,
+                }
             }
-            _ => false,
+            None => false,
         }
     }
 
@@ -189,4 +198,25 @@ impl Path {
         );
         Some(&mut self.free[at])
     }
+}
+
+/// The allowed place nearest `target`, searched on rings of growing radius (up to 2 m).
+fn nearest_allowed(
+    target: DVec2,
+    keep_inside: &impl Fn(DVec2) -> DVec2,
+    allowed: &impl Fn(DVec2) -> bool,
+) -> Option<DVec2> {
+    if allowed(target) {
+        return Some(target);
+    }
+    (1..=20).find_map(|ring| {
+        let radius = 0.1 * ring as f64;
+        (0..16)
+            .map(|k| {
+                keep_inside(
+                    target + DVec2::from_angle(k as f64 * std::f64::consts::TAU / 16.0) * radius,
+                )
+            })
+            .find(|&p| allowed(p))
+    })
 }

@@ -250,15 +250,12 @@ fn push_apart(
     };
     let push = (missing + 0.05).max(0.1 * need);
     let edge = 0.02;
-    let inside = |p: DVec2| {
-        p.x >= edge
-            && p.y >= edge
-            && p.x <= patch.side_m - edge
-            && p.y <= patch.side_m - edge
-            && !patch
-                .obstacles
-                .iter()
-                .any(|o| (p.clamp(o.min, o.max) - p).length() < r)
+    let keep_inside = |p: DVec2| p.clamp(DVec2::splat(edge), DVec2::splat(patch.side_m - edge));
+    let clear = |p: DVec2| {
+        !patch
+            .obstacles
+            .iter()
+            .any(|o| (p.clamp(o.min, o.max) - p).length() < r)
     };
     let mut moves = vec![(e.a, e.t, dir, share_a)];
     if let Some((b, tb)) = other_walker {
@@ -272,7 +269,7 @@ fn push_apart(
         let phi = rng.random_range(-0.5..0.5);
         let force = DVec2::from_angle(phi).rotate(d) * push * share;
         // Moved or not, a new free point may have been added: the row is recomputed.
-        paths[p].push_at(t, force, window, inside);
+        paths[p].push_at(t, force, window, keep_inside, clear);
         touched.push(p);
     }
     touched.sort_unstable();
