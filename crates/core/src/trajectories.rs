@@ -22,17 +22,20 @@ pub enum PointKind {
     Turn,
     /// A bend that keeps the walker clear of others (added by the collide stage).
     Bend,
+    /// A corner of the way round a static obstacle.
+    Detour,
 }
 
 impl PointKind {
     /// Every kind, in code order.
-    pub const ALL: [PointKind; 6] = [
+    pub const ALL: [PointKind; 7] = [
         PointKind::Entry,
         PointKind::Exit,
         PointKind::Split,
         PointKind::Pause,
         PointKind::Turn,
         PointKind::Bend,
+        PointKind::Detour,
     ];
 
     fn code(self) -> u8 {

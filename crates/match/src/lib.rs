@@ -10,6 +10,7 @@
 //! Stage 3 uses [`measure_patch`] to measure density and direction from the same matching.
 
 pub mod plan;
+pub mod route;
 pub mod score;
 pub mod stable;
 pub mod standers;
@@ -41,6 +42,8 @@ pub struct PatchContext<'a> {
     pub comfort_speed: f64,
     pub direction: Option<RequestedDirection>,
     pub obstacles: &'a [Rect],
+    /// Character radius: paths keep this far from obstacles.
+    pub radius_m: f64,
     pub settings: &'a MatchSettings,
 }
 
@@ -61,6 +64,7 @@ impl<'a> PatchContext<'a> {
             ),
             direction: p.direction,
             obstacles: &p.obstacles,
+            radius_m: graph.radius_m,
             settings,
         }
     }

@@ -30,12 +30,38 @@ pub fn turn_point(entry: &Endpoint, exit: &Endpoint, ctx: &PatchContext) -> Opti
         .or(Some(mid + inward * depth))
 }
 
-/// Length of the path from `entry` to `exit` (through the turn point, if any).
-pub fn path_length(entry: &Endpoint, exit: &Endpoint, ctx: &PatchContext) -> f64 {
-    match turn_point(entry, exit, ctx) {
-        Some(c) => entry.pos.distance(c) + c.distance(exit.pos),
-        None => entry.pos.distance(exit.pos),
+/// The corners of the way from `entry` to `exit`: through the turn point, if any, and round
+/// the patch's obstacles (see [`crate::route`]).
+pub fn waypoints(entry: &Endpoint, exit: &Endpoint, ctx: &PatchContext) -> Vec<(DVec2, PointKind)> {
+    let legs = match turn_point(entry, exit, ctx) {
+        Some(c) => vec![
+            (entry.pos, c, PointKind::Turn),
+            (c, exit.pos, PointKind::Exit),
+        ],
+        None => vec![(entry.pos, exit.pos, PointKind::Exit)],
+    };
+    let mut out = vec![(entry.pos, PointKind::Entry)];
+    for (from, to, end_kind) in legs {
+        let corners = crate::route::route(from, to, ctx.obstacles, ctx.radius_m, ctx.side_m);
+        let inner = &corners[1..corners.len() - 1];
+        out.extend(inner.iter().map(|&p| (p, PointKind::Detour)));
+        out.push((to, end_kind));
     }
+    out
+}
+
+/// Length of the way from `entry` to `exit` (see [`waypoints`]).
+pub fn path_length(entry: &Endpoint, exit: &Endpoint, ctx: &PatchContext) -> f64 {
+    if ctx.obstacles.is_empty() {
+        return match turn_point(entry, exit, ctx) {
+            Some(c) => entry.pos.distance(c) + c.distance(exit.pos),
+            None => entry.pos.distance(exit.pos),
+        };
+    }
+    waypoints(entry, exit, ctx)
+        .windows(2)
+        .map(|w| w[0].0.distance(w[1].0))
+        .sum()
 }
 
 /// Whole periods a walker must add so that it never walks faster than `max_speed`.
@@ -62,11 +88,8 @@ pub fn plan(entry: &Endpoint, exit: &Endpoint, ctx: &PatchContext) -> Trajectory
     let turn = turn_point(entry, exit, ctx);
     let mut length = path_length(entry, exit, ctx);
     let total = duration(entry, exit, ctx);
-    let mut path = vec![(entry.pos, PointKind::Entry)];
-    if let Some(c) = turn {
-        path.push((c, PointKind::Turn));
-    }
-    path.push((exit.pos, PointKind::Exit));
+    let mut path = waypoints(entry, exit, ctx);
+    let detour = path.len() > 2 + turn.is_some() as usize;
 
     let pausing = length / total < ctx.settings.min_speed;
     let speed = if pausing {
@@ -74,7 +97,7 @@ pub fn plan(entry: &Endpoint, exit: &Endpoint, ctx: &PatchContext) -> Trajectory
     } else {
         length / total
     };
-    if pausing && turn.is_none() {
+    if pausing && turn.is_none() && !detour {
         // Pause off the border, a third of the way from the middle of the line to the centre
         // of the patch, where it is less in the way of walkers crossing; on the line itself if
         // that detour would not leave time to pause.
@@ -85,6 +108,7 @@ pub fn plan(entry: &Endpoint, exit: &Endpoint, ctx: &PatchContext) -> Trajectory
         length = entry.pos.distance(spot) + spot.distance(exit.pos);
         path.insert(1, (spot, PointKind::Pause));
     }
+    // Pause at the turn, else at the first corner of a detour, else at the added spot.
     let pause_at = if pausing { Some(1) } else { None };
 
     let mut points = Vec::with_capacity(path.len() + 3);
@@ -157,6 +181,7 @@ mod tests {
             comfort_speed: 1.33,
             direction: None,
             obstacles: &[],
+            radius_m: 0.3,
             settings,
         }
     }

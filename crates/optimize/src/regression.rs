@@ -26,6 +26,7 @@ pub fn fit(
         comfort_speed: settings.comfort_speed,
         direction: None,
         obstacles: &[],
+        radius_m: 0.3,
         settings,
     };
     let sides = [Side::West, Side::East, Side::South, Side::North];
