@@ -28,8 +28,8 @@ pub struct PatchReport {
     pub worst_margin_m: f64,
 }
 
-/// Restarts a stalled repair from the straight lines with fresh random pushes, up to
-/// [`RESTARTS`] times within the same budget of pushes, and keeps the best attempt. The
+/// Restarts a stalled repair from the straight lines with fresh random pushes, [`RESTARTS`]
+/// attempts with doubling budgets that add up to `max_iterations`, and keeps the best attempt. The
 /// greedy repair of the paper can cycle (pushing one pair apart pushes another together);
 /// another draw of the small random rotations usually breaks the cycle.
 pub fn with_restarts(
@@ -39,10 +39,13 @@ pub fn with_restarts(
     rng: &mut ChaCha8Rng,
 ) -> repair::Outcome {
     let start = paths.clone();
-    let per_try = (max_iterations / RESTARTS).max(1);
+    // Budgets double from try to try: most stalls clear on a cheap second draw, the rest get
+    // room. They add up to `max_iterations`.
+    let unit = (max_iterations / ((1 << RESTARTS) - 1)).max(1);
     let mut best: Option<(Vec<Path>, repair::Outcome)> = None;
     let mut used = 0;
-    for _ in 0..RESTARTS {
+    for k in 0..RESTARTS {
+        let per_try = unit << k;
         let mut attempt = start.clone();
         let outcome = repair::remove_collisions(&mut attempt, patch, per_try, rng);
         used += outcome.iterations;
