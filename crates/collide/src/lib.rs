@@ -132,16 +132,8 @@ pub fn input_hash(
     inputs: &Inputs,
 ) -> crowd_core::Hash {
     crowd_core::Hasher::new(STAGE, VERSION)
-        .part(
-            "graph file",
-            crowd_core::Hash::of(graph_bytes).to_string().as_bytes(),
-        )
-        .part(
-            "trajectories file",
-            crowd_core::Hash::of(trajectories_bytes)
-                .to_string()
-                .as_bytes(),
-        )
+        .file("graph file", graph_bytes)
+        .file("trajectories file", trajectories_bytes)
         .value("inputs", inputs)
         .finish()
 }
@@ -161,7 +153,7 @@ pub fn encode(
     use crowd_core::files::{Header, SideFile};
     use crowd_core::trajectories::{CollisionSummary, TrajectoriesFile, encode_motion, summarize};
     let bytes = encode_motion(motion);
-    let side = out.with_extension("bin");
+    let (side, record) = SideFile::beside(out, &bytes);
     let file = TrajectoriesFile {
         header: Header {
             stage: STAGE.to_string(),
@@ -180,15 +172,7 @@ pub fn encode(
                 .map(|r| (r.patch, r.worst_margin_m))
                 .collect(),
         }),
-        motion: SideFile {
-            file: side
-                .file_name()
-                .expect("a file")
-                .to_string_lossy()
-                .into_owned(),
-            bytes: bytes.len() as u64,
-            hash: crowd_core::Hash::of(&bytes),
-        },
+        motion: record,
     };
     let ron = crowd_core::files::to_ron(&file).into_bytes();
     (file, vec![(side, bytes), (out.to_path_buf(), ron)])

@@ -34,6 +34,22 @@ pub struct SideFile {
 }
 
 impl SideFile {
+    /// The side file of `owner` (the same name with `.bin`) holding `bytes`: its path and the
+    /// record that names it.
+    pub fn beside(owner: &Path, bytes: &[u8]) -> (std::path::PathBuf, SideFile) {
+        let path = owner.with_extension("bin");
+        let file = path
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        let record = SideFile {
+            file,
+            bytes: bytes.len() as u64,
+            hash: Hash::of(bytes),
+        };
+        (path, record)
+    }
+
     /// Reads the side file next to `owner` and checks its size and hash.
     pub fn read(&self, owner: &Path) -> Result<Vec<u8>> {
         let path = owner.with_file_name(&self.file);

@@ -81,6 +81,12 @@ impl Hasher {
         self
     }
 
+    /// Adds an input file by the hash of its bytes.
+    pub fn file(&mut self, label: &str, bytes: &[u8]) -> &mut Hasher {
+        let hash = Hash::of(bytes).to_string();
+        self.part(label, hash.as_bytes())
+    }
+
     /// Adds a labelled value through its RON text (settings structs).
     pub fn value<T: Serialize>(&mut self, label: &str, value: &T) -> &mut Hasher {
         let text = ron::to_string(value).expect("settings always serialise to RON");

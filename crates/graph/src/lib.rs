@@ -228,10 +228,7 @@ pub fn inputs(pipeline: &PipelineFile) -> GraphInputs {
 /// The hash of stage 2's inputs: the merge file's bytes and the graph settings.
 pub fn input_hash(merge_file_bytes: &[u8], inputs: &GraphInputs) -> Hash {
     Hasher::new(PatchGraph::STAGE, PatchGraph::VERSION)
-        .part(
-            "merge file",
-            Hash::of(merge_file_bytes).to_string().as_bytes(),
-        )
+        .file("merge file", merge_file_bytes)
         .value("inputs", inputs)
         .finish()
 }

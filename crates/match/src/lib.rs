@@ -251,14 +251,8 @@ pub fn inputs(pipeline: &crowd_core::config::PipelineFile) -> Inputs {
 pub fn input_hash(graph_bytes: &[u8], patterns_bytes: &[u8], inputs: &Inputs) -> crowd_core::Hash {
     use crowd_core::trajectories::TrajectoriesFile;
     crowd_core::Hasher::new(TrajectoriesFile::STAGE, TrajectoriesFile::VERSION)
-        .part(
-            "graph file",
-            crowd_core::Hash::of(graph_bytes).to_string().as_bytes(),
-        )
-        .part(
-            "patterns file",
-            crowd_core::Hash::of(patterns_bytes).to_string().as_bytes(),
-        )
+        .file("graph file", graph_bytes)
+        .file("patterns file", patterns_bytes)
         .value("period", &inputs.period_s)
         .value("seed", &inputs.seed)
         .value("settings", &inputs.settings)
@@ -300,7 +294,7 @@ pub fn encode(
     use crowd_core::files::{Header, SideFile};
     use crowd_core::trajectories::{TrajectoriesFile, encode_motion};
     let bytes = encode_motion(motion);
-    let side = out.with_extension("bin");
+    let (side, record) = SideFile::beside(out, &bytes);
     let summary = crowd_core::trajectories::summarize(motion, inputs.period_s);
     let file = TrajectoriesFile {
         header: Header {
@@ -312,15 +306,7 @@ pub fn encode(
         radius_m: graph.radius_m,
         summary,
         collisions: None,
-        motion: SideFile {
-            file: side
-                .file_name()
-                .expect("a file")
-                .to_string_lossy()
-                .into_owned(),
-            bytes: bytes.len() as u64,
-            hash: crowd_core::Hash::of(&bytes),
-        },
+        motion: record,
     };
     let ron = crowd_core::files::to_ron(&file).into_bytes();
     (file, vec![(side, bytes), (out.to_path_buf(), ron)])

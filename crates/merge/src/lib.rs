@@ -80,7 +80,7 @@ pub fn encode(
     maps: &MergedMaps,
 ) -> Encoded {
     let bytes = maps.to_bytes();
-    let side = out.with_extension("bin");
+    let (side, record) = SideFile::beside(out, &bytes);
     let file = MergeFile {
         header: Header {
             stage: MergeFile::STAGE.to_string(),
@@ -102,15 +102,7 @@ pub fn encode(
             })
             .collect(),
         summary: summarize(maps),
-        grids: SideFile {
-            file: side
-                .file_name()
-                .expect("a file path")
-                .to_string_lossy()
-                .into_owned(),
-            bytes: bytes.len() as u64,
-            hash: Hash::of(&bytes),
-        },
+        grids: record,
     };
     let ron = files::to_ron(&file).into_bytes();
     Encoded {

@@ -450,12 +450,7 @@ pub fn input_hash(graph_file_bytes: &[u8], inputs: &Inputs) -> crowd_core::Hash 
         crowd_core::patterns::Patterns::STAGE,
         crowd_core::patterns::Patterns::VERSION,
     )
-    .part(
-        "graph file",
-        crowd_core::Hash::of(graph_file_bytes)
-            .to_string()
-            .as_bytes(),
-    )
+    .file("graph file", graph_file_bytes)
     .value("inputs", inputs)
     .finish()
 }
@@ -473,7 +468,7 @@ pub fn encode(
 ) {
     use crowd_core::files::{Header, SideFile};
     let bytes = crowd_core::patterns::encode_crossings(&outcome.crossings);
-    let side = out.with_extension("bin");
+    let (side, record) = SideFile::beside(out, &bytes);
     let patterns = crowd_core::patterns::Patterns {
         header: Header {
             stage: crowd_core::patterns::Patterns::STAGE.to_string(),
@@ -491,15 +486,7 @@ pub fn encode(
         regression: outcome.regression,
         log: outcome.log.clone(),
         measured: outcome.measured.clone(),
-        crossings: SideFile {
-            file: side
-                .file_name()
-                .expect("a file")
-                .to_string_lossy()
-                .into_owned(),
-            bytes: bytes.len() as u64,
-            hash: crowd_core::Hash::of(&bytes),
-        },
+        crossings: record,
     };
     let mut csv = String::from("iteration,E_rho,E_d,E,crossings\n");
     for f in &outcome.log {
