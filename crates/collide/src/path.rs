@@ -134,6 +134,20 @@ impl Path {
             .map_or(0.0, |s| s.velocity().length())
     }
 
+    /// The pause the walker is in at time `t`, as the indices of its two pause points.
+    pub fn pause_at(&self, t: f64) -> Option<(usize, usize)> {
+        self.free
+            .windows(2)
+            .position(|w| {
+                w[0].kind == PointKind::Pause
+                    && w[1].kind == PointKind::Pause
+                    && w[0].pos == w[1].pos
+                    && w[0].t <= t
+                    && t <= w[1].t
+            })
+            .map(|i| (i, i + 1))
+    }
+
     /// Whether the walker can be moved at time `t`: not within `window` of an anchor.
     pub fn movable_at(&self, t: f64, window: f64) -> bool {
         let (t0, t1) = self.span();

@@ -8,6 +8,9 @@ use glam::DVec2;
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 
+/// Walking speed to and from a moved pause, m/s (the comfort speed).
+const WALK_SPEED: f64 = 1.33;
+
 /// What a patch holds besides its walkers.
 pub struct Patch<'a> {
     pub side_m: f64,
@@ -266,6 +269,14 @@ fn push_apart(
         if share <= 0.0 {
             continue;
         }
+        // A walker caught pausing moves its whole pause to the clearest spot for its duration:
+        // pushing one moment of a long pause only makes it zigzag.
+        if let Some(pause) = paths[p].pause_at(t)
+            && relocate_pause(paths, p, pause, patch)
+        {
+            touched.push(p);
+            continue;
+        }
         let phi = rng.random_range(-0.5..0.5);
         let force = DVec2::from_angle(phi).rotate(d) * push * share;
         // Moved or not, a new free point may have been added: the row is recomputed.
@@ -275,4 +286,86 @@ fn push_apart(
     touched.sort_unstable();
     touched.dedup();
     touched
+}
+
+/// Moves the pause `(i, j)` of walker `p` to the spot of the patch that stays farthest from
+/// every other walker (and stander and obstacle) during the pause, if that is farther than
+/// where it is. Returns whether it moved.
+fn relocate_pause(paths: &mut [Path], p: usize, (i, j): (usize, usize), patch: &Patch) -> bool {
+    let r = patch.radius_m;
+    let (t0, t1) = (paths[p].free[i].t, paths[p].free[j].t);
+    let here = paths[p].free[i].pos;
+    // Where everyone else is during the pause, sampled every 0.2 s.
+    let mut others: Vec<DVec2> = patch.standers.to_vec();
+    let steps = ((t1 - t0) / 0.2).ceil().max(1.0) as usize;
+    for (b, path) in paths.iter().enumerate() {
+        let (b0, b1) = path.span();
+        let kmin = ((t0 - b1) / patch.period_s).ceil() as i64;
+        let kmax = ((t1 - b0) / patch.period_s).floor() as i64;
+        for k in kmin..=kmax {
+            if b == p && k == 0 {
+                continue;
+            }
+            let shift = k as f64 * patch.period_s;
+            for s in 0..=steps {
+                let t = t0 + (t1 - t0) * s as f64 / steps as f64;
+                if t - shift >= b0 && t - shift <= b1 {
+                    others.push(path.position(t - shift));
+                }
+            }
+        }
+    }
+    let clearance = |q: DVec2| {
+        let walls = patch
+            .obstacles
+            .iter()
+            .map(|o| (q.clamp(o.min, o.max) - q).length() + r)
+            .fold(f64::INFINITY, f64::min);
+        others.iter().map(|o| o.distance(q)).fold(walls, f64::min)
+    };
+    // Only spots the walker can reach and leave without walking faster than it may.
+    let path = &paths[p];
+    let before = if i == 0 {
+        (path.entry().pos(), path.entry().t())
+    } else {
+        (path.free[i - 1].pos, path.free[i - 1].t)
+    };
+    let after = path
+        .free
+        .get(j + 1)
+        .map_or((path.exit().pos(), path.exit().t()), |f| (f.pos, f.t));
+    // The pause may start later and end sooner to leave time for the walk (a time move).
+    let times = |q: DVec2| {
+        let start = t0.max(before.1 + before.0.distance(q) / WALK_SPEED);
+        let end = t1.min(after.1 - q.distance(after.0) / WALK_SPEED);
+        (start <= end).then_some((start, end))
+    };
+    let reachable = |q: DVec2| times(q).is_some();
+    let margin = r + 0.3;
+    let n = 9;
+    let best = (0..n * n)
+        .map(|k| {
+            let f = |i: usize| margin + (patch.side_m - 2.0 * margin) * i as f64 / (n - 1) as f64;
+            DVec2::new(f(k % n), f(k / n))
+        })
+        .filter(|&q| reachable(q))
+        .map(|q| (clearance(q), q))
+        .max_by(|a, b| a.0.total_cmp(&b.0));
+    let Some(best) = best else { return false };
+    if best.0 <= clearance(here) + 1e-9 {
+        return false;
+    }
+    let (start, end) = times(best.1).expect("a reachable spot");
+    let path = &mut paths[p];
+    path.free[i] = crate::path::Free {
+        pos: best.1,
+        t: start,
+        ..path.free[i]
+    };
+    path.free[j] = crate::path::Free {
+        pos: best.1,
+        t: end,
+        ..path.free[j]
+    };
+    true
 }
