@@ -181,6 +181,46 @@ impl Path {
         }
     }
 
+    /// Sends every piece of the path that cuts through a static obstacle round it (the
+    /// shortest way past the obstacles grown by `radius`, see `crowd_match::route`), keeping the
+    /// times of the points it has: the corners share the piece's time by length.
+    pub fn reroute(&mut self, obstacles: &[crowd_core::Rect], radius: f64, side: f64) {
+        if obstacles.is_empty() {
+            return;
+        }
+        let mut points: Vec<(DVec2, f64, Option<PointKind>)> =
+            Vec::with_capacity(self.free.len() + 2);
+        points.push((self.entry.pos, self.entry.t, None));
+        points.extend(self.free.iter().map(|f| (f.pos, f.t, Some(f.kind))));
+        points.push((self.exit.pos, self.exit.t, None));
+        let mut free = Vec::with_capacity(self.free.len());
+        for w in points.windows(2) {
+            let ((p0, t0, _), (p1, t1, kind1)) = (w[0], w[1]);
+            let corners = crowd_match::route::route(p0, p1, obstacles, radius, side);
+            if corners.len() > 2 {
+                let length: f64 = corners.windows(2).map(|c| c[0].distance(c[1])).sum();
+                let mut walked = 0.0;
+                for c in corners.windows(2).take(corners.len() - 2) {
+                    walked += c[0].distance(c[1]);
+                    let t = t0 + (t1 - t0) * walked / length.max(1e-12);
+                    free.push(Free {
+                        pos: c[1],
+                        t,
+                        kind: PointKind::Detour,
+                    });
+                }
+            }
+            if let Some(kind) = kind1 {
+                free.push(Free {
+                    pos: p1,
+                    t: t1,
+                    kind,
+                });
+            }
+        }
+        self.free = free;
+    }
+
     /// The free point at time `t`: an existing one within `window` seconds, or a new one on
     /// the path. Near an anchor (anchors never move) the point is taken `window` away from it;
     /// `None` only when the whole path is shorter than two windows.

@@ -170,6 +170,9 @@ pub fn remove_collisions(
         iterations += 1;
         let touched = push_apart(paths, patch, &w, rng);
         for &p in &touched {
+            paths[p].reroute(patch.obstacles, patch.radius_m, patch.side_m);
+        }
+        for &p in &touched {
             segs[p] = paths[p].segments();
         }
         // Rows of the touched walkers, and their entries in the rows of the others.

@@ -106,3 +106,30 @@ proptest! {
         }
     }
 }
+
+#[test]
+fn a_piece_that_cuts_through_an_obstacle_is_sent_round_it() {
+    let wall = crowd_core::Rect {
+        min: DVec2::new(3.0, 2.0),
+        max: DVec2::new(5.0, 6.0),
+    };
+    let mut path = line(DVec2::new(0.0, 4.0), 0.0, DVec2::new(8.0, 4.0), 10.0);
+    path.reroute(&[wall], 0.3, 8.0);
+    let t = path.to_trajectory();
+    assert!(t.points.len() > 2);
+    assert!(t.points.windows(2).all(|w| w[1].t > w[0].t));
+    assert_eq!(
+        (t.points[0].pos, t.points.last().unwrap().pos),
+        (DVec2::new(0.0, 4.0), DVec2::new(8.0, 4.0))
+    );
+    // Sampled along the whole path, the walker keeps its radius from the wall.
+    let mut s = 0.0;
+    while s <= 10.0 {
+        let p = path.position(s);
+        assert!(
+            (p.clamp(wall.min, wall.max) - p).length() >= 0.3 - 1e-9,
+            "{p} at {s}"
+        );
+        s += 0.01;
+    }
+}
