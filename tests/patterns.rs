@@ -224,3 +224,23 @@ fn the_collide_stage_never_moves_a_boundary_point() {
     );
     drop(dir);
 }
+
+#[test]
+fn crowd_check_reports_collisions_and_clearance_for_the_tiled_world() {
+    let (_dir, out) = build_shared_scene("bands", "collide");
+    let text = String::from_utf8(crowd_ok(&["check", s(&out)]).stdout).unwrap();
+    assert!(
+        text.contains("collisions") && text.contains("smallest clearance"),
+        "{text}"
+    );
+    let json: serde_json::Value =
+        serde_json::from_slice(&crowd_ok(&["report", s(&out), "--json"]).stdout).unwrap();
+    let collisions = json["collisions"].as_u64().unwrap();
+    let across = json["collisions_across_borders"].as_u64().unwrap();
+    assert!(across <= collisions);
+    assert!(json["min_clearance_m"].as_f64().unwrap() >= -0.6);
+    // Inside patches, only the patches stage 5 could not clear hold collisions.
+    if json["unconverged_patches"] == 0 {
+        assert_eq!(collisions, across);
+    }
+}

@@ -71,6 +71,9 @@ pub enum Command {
         #[arg(long, value_name = "ID")]
         patch: Option<u32>,
     },
+    /// Check a build folder's world as an engine plays it: every pair, every time, across
+    /// borders too; writes `check.ron` beside the stage files.
+    Check { dir: PathBuf },
     /// The figures of a build folder (`--json` for one JSON object).
     Report {
         /// Build folders (one for text and JSON; several for `--table`).
@@ -128,6 +131,21 @@ pub fn run(cli: Cli) -> Result<()> {
             ui.say(format!("graph: wrote {}", out.display()));
         }
         Command::Inspect { file } => print!("{}", crate::inspect::inspect(&file)?),
+        Command::Check { dir } => {
+            let report = crate::report::check(&dir)?;
+            println!(
+                "{} walkers, {} segments: {} collisions ({} across borders); smallest clearance {:+.3} m{}",
+                report.walkers,
+                report.segments,
+                report.collisions,
+                report.across_borders,
+                report.min_clearance_m,
+                report
+                    .worst_at
+                    .map(|(x, y, t)| format!(" at ({x:.2}, {y:.2}) m, t = {t:.2} s"))
+                    .unwrap_or_default()
+            );
+        }
         Command::Render {
             file,
             output,

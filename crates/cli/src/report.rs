@@ -18,6 +18,8 @@ pub struct Report {
     pub patterns: Option<Patterns>,
     pub trajectories: Option<TrajectoriesFile>,
     pub collided: Option<TrajectoriesFile>,
+    /// The last `crowd check` of the folder.
+    pub check: Option<crowd_check::CheckReport>,
     pub stage_seconds: BTreeMap<String, f64>,
 }
 
@@ -54,11 +56,18 @@ impl Report {
         } else {
             None
         };
+        let check_path = dir.join(CHECK_FILE);
+        let check = if check_path.exists() {
+            Some(files::read_ron(&check_path)?)
+        } else {
+            None
+        };
         Ok(Report {
             graph,
             patterns,
             trajectories,
             collided,
+            check,
             stage_seconds: read_timings(dir),
         })
     }
@@ -103,6 +112,11 @@ impl Report {
         if let Some(t) = &self.trajectories {
             out.insert("walkers_measured".into(), json!(t.summary.walkers_measured));
             out.insert("trajectories".into(), json!(t.summary.walkers_trajectories));
+        }
+        if let Some(c) = &self.check {
+            out.insert("collisions".into(), json!(c.collisions));
+            out.insert("collisions_across_borders".into(), json!(c.across_borders));
+            out.insert("min_clearance_m".into(), json!(c.min_clearance_m));
         }
         if let Some(c) = self.collided.as_ref().and_then(|c| c.collisions.as_ref()) {
             out.insert("unconverged_patches".into(), json!(c.unconverged.len()));
@@ -169,3 +183,21 @@ impl Report {
         )
     }
 }
+
+/// `crowd check DIR`: checks the latest trajectories of a build folder (collided, else
+/// matched) and writes `check.ron`.
+pub fn check(dir: &Path) -> Result<crowd_check::CheckReport> {
+    let graph = PatchGraph::load(&dir.join(GRAPH_FILE))?;
+    let collided = dir.join(COLLIDED_FILE);
+    let (file, motion) = if collided.exists() {
+        TrajectoriesFile::load_stage(&collided, crowd_collide::STAGE, crowd_collide::VERSION)?
+    } else {
+        TrajectoriesFile::load(&dir.join(TRAJECTORIES_FILE))?
+    };
+    let report = crowd_check::check(&graph, &motion, file.period_s);
+    files::write_atomic(&dir.join(CHECK_FILE), files::to_ron(&report).as_bytes())?;
+    Ok(report)
+}
+
+/// What `crowd check` writes.
+pub const CHECK_FILE: &str = "check.ron";
