@@ -28,6 +28,50 @@ pub struct PatchReport {
     pub worst_margin_m: f64,
 }
 
+/// The static obstacles a walker of patch `p` can touch: its own, and those of the eight
+/// neighbours that come within a diameter of its square, in `p`'s local metres (a walker near a
+/// border must keep clear of a wall just across it too).
+fn obstacles_near(
+    graph: &PatchGraph,
+    by_cell: &std::collections::HashMap<crowd_core::patch_graph::Cell, usize>,
+    p: usize,
+) -> Vec<crowd_core::Rect> {
+    let side = graph.world.patch_side_m;
+    let reach = 2.0 * graph.radius_m;
+    let cell = graph.patches[p].cell;
+    let mut out = graph.patches[p].obstacles.clone();
+    for dc in -1i64..=1 {
+        for dr in -1i64..=1 {
+            let (c, r) = (cell.col as i64 + dc, cell.row as i64 + dr);
+            if (dc, dr) == (0, 0) || c < 0 || r < 0 {
+                continue;
+            }
+            let neighbour = crowd_core::patch_graph::Cell {
+                col: c as u32,
+                row: r as u32,
+            };
+            let Some(&q) = by_cell.get(&neighbour) else {
+                continue;
+            };
+            let offset = glam::DVec2::new(dc as f64, dr as f64) * side;
+            for o in &graph.patches[q].obstacles {
+                let moved = crowd_core::Rect {
+                    min: o.min + offset,
+                    max: o.max + offset,
+                };
+                let near = moved.max.x > -reach
+                    && moved.max.y > -reach
+                    && moved.min.x < side + reach
+                    && moved.min.y < side + reach;
+                if near {
+                    out.push(moved);
+                }
+            }
+        }
+    }
+    out
+}
+
 /// Restarts a stalled repair from the straight lines with fresh random pushes, [`RESTARTS`]
 /// attempts with doubling budgets that add up to `max_iterations`, and keeps the best attempt. The
 /// greedy repair of the paper can cycle (pushing one pair apart pushes another together);
@@ -81,15 +125,22 @@ pub fn collide(
     progress: &dyn crowd_core::Progress,
 ) -> (Vec<PatchMotion>, Vec<PatchReport>) {
     progress.begin("collide", motion.len() as u64);
+    let by_cell: std::collections::HashMap<crowd_core::patch_graph::Cell, usize> = graph
+        .patches
+        .iter()
+        .enumerate()
+        .map(|(i, p)| (p.cell, i))
+        .collect();
     motion
         .par_iter()
         .enumerate()
         .map(|(p, m)| {
+            let obstacles = obstacles_near(graph, &by_cell, p);
             let patch = repair::Patch {
                 side_m: graph.world.patch_side_m,
                 period_s,
                 radius_m: graph.radius_m,
-                obstacles: &graph.patches[p].obstacles,
+                obstacles: &obstacles,
                 standers: &m.standers,
             };
             let mut paths: Vec<Path> = m.trajectories.iter().map(Path::from_trajectory).collect();
