@@ -32,36 +32,28 @@ impl Report {
                 dir.display()
             );
         }
+        // Each stage file is read if the build got that far.
+        fn optional<T: serde::de::DeserializeOwned>(path: &Path) -> Result<Option<T>> {
+            Ok(if path.exists() {
+                Some(files::read_ron(path)?)
+            } else {
+                None
+            })
+        }
         let graph_path = dir.join(GRAPH_FILE);
-        let graph = if graph_path.exists() {
-            Some(PatchGraph::load(&graph_path)?)
-        } else {
-            None
-        };
-        let patterns_path = dir.join(PATTERNS_FILE);
-        let patterns = if patterns_path.exists() {
-            Some(files::read_ron::<Patterns>(&patterns_path)?)
-        } else {
-            None
-        };
-        let trajectories_path = dir.join(TRAJECTORIES_FILE);
-        let trajectories = if trajectories_path.exists() {
-            Some(files::read_ron::<TrajectoriesFile>(&trajectories_path)?)
-        } else {
-            None
-        };
-        let collided_path = dir.join(COLLIDED_FILE);
-        let collided = if collided_path.exists() {
-            Some(files::read_ron::<TrajectoriesFile>(&collided_path)?)
-        } else {
-            None
-        };
-        let check_path = dir.join(CHECK_FILE);
-        let check = if check_path.exists() {
-            Some(files::read_ron(&check_path)?)
-        } else {
-            None
-        };
+        let graph: Option<PatchGraph> = optional(&graph_path)?;
+        if let Some(g) = &graph {
+            files::expect_stage(
+                &graph_path,
+                &g.header,
+                PatchGraph::STAGE,
+                PatchGraph::VERSION,
+            )?;
+        }
+        let patterns = optional(&dir.join(PATTERNS_FILE))?;
+        let trajectories = optional(&dir.join(TRAJECTORIES_FILE))?;
+        let collided = optional(&dir.join(COLLIDED_FILE))?;
+        let check = optional(&dir.join(CHECK_FILE))?;
         Ok(Report {
             graph,
             patterns,
