@@ -165,3 +165,70 @@ fn report_prints_the_figures_as_json() {
         "{text}"
     );
 }
+
+#[test]
+fn stages_run_one_at_a_time_write_the_same_files_as_a_build() {
+    let dir = tempfile::tempdir().unwrap();
+    let pipeline = scene_pipeline("bands");
+    let p = s(&pipeline);
+    let (a, b) = (dir.path().join("built"), dir.path().join("staged"));
+    crowd_ok(&[
+        "build",
+        "-q",
+        "--pipeline",
+        p,
+        "--output",
+        s(&a),
+        "--until",
+        "collide",
+    ]);
+    std::fs::create_dir_all(&b).unwrap();
+    let f = |name: &str| b.join(name);
+    crowd_ok(&["merge", "-q", "--pipeline", p, "-o", s(&f("merge.ron"))]);
+    crowd_ok(&[
+        "graph",
+        "-q",
+        "--pipeline",
+        p,
+        "-i",
+        s(&f("merge.ron")),
+        "-o",
+        s(&f("graph.ron")),
+    ]);
+    crowd_ok(&[
+        "optimize",
+        "-q",
+        "--pipeline",
+        p,
+        "-i",
+        s(&f("graph.ron")),
+        "-o",
+        s(&f("patterns.ron")),
+    ]);
+    crowd_ok(&[
+        "match",
+        "-q",
+        "--pipeline",
+        p,
+        "-i",
+        s(&f("patterns.ron")),
+        "-o",
+        s(&f("trajectories.ron")),
+    ]);
+    crowd_ok(&[
+        "collide",
+        "-q",
+        "--pipeline",
+        p,
+        "-i",
+        s(&f("trajectories.ron")),
+        "-o",
+        s(&f("collided.ron")),
+    ]);
+    let (built, staged) = (snapshot(&a), snapshot(&b));
+    let names = |v: &[(String, Vec<u8>)]| v.iter().map(|f| f.0.clone()).collect::<Vec<_>>();
+    assert_eq!(names(&built), names(&staged));
+    for (x, y) in built.iter().zip(&staged) {
+        assert!(x.1 == y.1, "{} differs", x.0);
+    }
+}

@@ -4,7 +4,10 @@ use crate::driver::{self, BuildOptions, GRAPH_FILE, MERGE_FILE};
 use crate::ui::Ui;
 use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
+use crowd_core::PatchGraph;
 use crowd_core::config::PipelineFile;
+use crowd_core::patterns::Patterns;
+use crowd_core::trajectories::TrajectoriesFile;
 use std::path::PathBuf;
 
 #[derive(Debug, Parser)]
@@ -59,6 +62,42 @@ pub enum Command {
         #[arg(long, short, value_name = "FILE")]
         output: Option<PathBuf>,
     },
+    /// Stage 3: place the crossings of every border (reads the graph).
+    Optimize {
+        #[arg(long, default_value = "pipeline.ron", value_name = "FILE")]
+        pipeline: PathBuf,
+        /// Stage 2's file (default: `graph.ron` in the pipeline's output folder).
+        #[arg(long, short, value_name = "FILE")]
+        input: Option<PathBuf>,
+        /// Output file (default: `patterns.ron` in the pipeline's output folder).
+        #[arg(long, short, value_name = "FILE")]
+        output: Option<PathBuf>,
+    },
+    /// Stage 4: match entries with exits, straight lines and standers (reads the graph and the
+    /// patterns beside the input).
+    Match {
+        #[arg(long, default_value = "pipeline.ron", value_name = "FILE")]
+        pipeline: PathBuf,
+        /// Stage 3's file (default: `patterns.ron` in the pipeline's output folder); the graph
+        /// is read from `graph.ron` beside it.
+        #[arg(long, short, value_name = "FILE")]
+        input: Option<PathBuf>,
+        /// Output file (default: `trajectories.ron` in the pipeline's output folder).
+        #[arg(long, short, value_name = "FILE")]
+        output: Option<PathBuf>,
+    },
+    /// Stage 5: push walkers apart (reads the trajectories and the graph beside them).
+    Collide {
+        #[arg(long, default_value = "pipeline.ron", value_name = "FILE")]
+        pipeline: PathBuf,
+        /// Stage 4's file (default: `trajectories.ron` in the pipeline's output folder); the
+        /// graph is read from `graph.ron` beside it.
+        #[arg(long, short, value_name = "FILE")]
+        input: Option<PathBuf>,
+        /// Output file (default: `collided.ron` in the pipeline's output folder).
+        #[arg(long, short, value_name = "FILE")]
+        output: Option<PathBuf>,
+    },
     /// A readable summary of any stage file.
     Inspect { file: PathBuf },
     /// A picture of a stage file as PNG: merged maps, patch graph, error map and convergence,
@@ -85,6 +124,18 @@ pub enum Command {
         #[arg(long)]
         table: bool,
     },
+}
+
+fn read(path: &std::path::Path) -> Result<Vec<u8>> {
+    Ok(std::fs::read(path).map_err(|e| crowd_core::Error::io(path, "read", e))?)
+}
+
+/// Writes a stage's encoded files, each atomically, in order.
+fn write_all(writes: &[(PathBuf, Vec<u8>)]) -> Result<()> {
+    for (path, bytes) in writes {
+        crowd_core::files::write_atomic(path, bytes)?;
+    }
+    Ok(())
 }
 
 pub fn run(cli: Cli) -> Result<()> {
@@ -129,6 +180,79 @@ pub fn run(cli: Cli) -> Result<()> {
             let bar = ui.stage_bar("graph");
             crowd_graph::run(&p, &input, &out, &bar)?;
             ui.say(format!("graph: wrote {}", out.display()));
+        }
+        Command::Optimize {
+            pipeline,
+            input,
+            output,
+        } => {
+            let p = PipelineFile::load(&pipeline)?;
+            let input = input.unwrap_or_else(|| p.output_dir().join(GRAPH_FILE));
+            let out = output.unwrap_or_else(|| p.output_dir().join(driver::PATTERNS_FILE));
+            driver::ensure_parent(&out)?;
+            let graph_bytes = read(&input)?;
+            let graph = PatchGraph::load(&input)?;
+            let inputs = crowd_optimize::inputs(&p);
+            let hash = crowd_optimize::input_hash(&graph_bytes, &inputs);
+            let bar = ui.stage_bar("optimize");
+            let s = &inputs;
+            let outcome = crowd_optimize::optimize(
+                &graph,
+                &s.settings,
+                &s.matching,
+                s.period_s,
+                s.seed,
+                &bar,
+            );
+            write_all(&crowd_optimize::encode(&out, &outcome, s, hash).1)?;
+            ui.say(format!(
+                "optimize: wrote {} (E = {:.4})",
+                out.display(),
+                outcome.error.e
+            ));
+        }
+        Command::Match {
+            pipeline,
+            input,
+            output,
+        } => {
+            let p = PipelineFile::load(&pipeline)?;
+            let input = input.unwrap_or_else(|| p.output_dir().join(driver::PATTERNS_FILE));
+            let out = output.unwrap_or_else(|| p.output_dir().join(driver::TRAJECTORIES_FILE));
+            driver::ensure_parent(&out)?;
+            let graph_path = input.with_file_name(GRAPH_FILE);
+            let (graph_bytes, patterns_bytes) = (read(&graph_path)?, read(&input)?);
+            let graph = PatchGraph::load(&graph_path)?;
+            let (patterns, crossings) = Patterns::load(&input)?;
+            let inputs = crowd_match::inputs(&p);
+            let hash = crowd_match::input_hash(&graph_bytes, &patterns_bytes, &inputs);
+            let bar = ui.stage_bar("match");
+            let motion =
+                crowd_match::match_all(&graph, &crossings, &patterns.measured, &inputs, &bar);
+            write_all(&crowd_match::encode(&out, &motion, &graph, &inputs, hash).1)?;
+            ui.say(format!("match: wrote {}", out.display()));
+        }
+        Command::Collide {
+            pipeline,
+            input,
+            output,
+        } => {
+            let p = PipelineFile::load(&pipeline)?;
+            let input = input.unwrap_or_else(|| p.output_dir().join(driver::TRAJECTORIES_FILE));
+            let out = output.unwrap_or_else(|| p.output_dir().join(driver::COLLIDED_FILE));
+            driver::ensure_parent(&out)?;
+            let graph_path = input.with_file_name(GRAPH_FILE);
+            let (graph_bytes, trajectories_bytes) = (read(&graph_path)?, read(&input)?);
+            let graph = PatchGraph::load(&graph_path)?;
+            let (_, motion) = TrajectoriesFile::load(&input)?;
+            let inputs = driver::collide_inputs(&p);
+            let hash = crowd_collide::input_hash(&graph_bytes, &trajectories_bytes, &inputs);
+            let bar = ui.stage_bar("collide");
+            let s = &inputs;
+            let (motion, reports) =
+                crowd_collide::collide(&graph, &motion, s.period_s, s.max_iterations, s.seed, &bar);
+            write_all(&crowd_collide::encode(&out, &motion, &reports, &graph, s, hash).1)?;
+            ui.say(format!("collide: wrote {}", out.display()));
         }
         Command::Inspect { file } => print!("{}", crate::inspect::inspect(&file)?),
         Command::Check { dir } => {

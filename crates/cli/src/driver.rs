@@ -231,11 +231,7 @@ pub fn build(pipeline_path: &Path, options: &BuildOptions, ui: &Ui) -> Result<Ve
 
     // Stage 5: collide.
     let collided_path = out.join(COLLIDED_FILE);
-    let inputs = crowd_collide::Inputs {
-        period_s: pipeline.pipeline.period_s,
-        seed: pipeline.pipeline.seed,
-        max_iterations: pipeline.pipeline.collide.max_iterations,
-    };
+    let inputs = collide_inputs(&pipeline);
     let hash = crowd_collide::input_hash(&graph_bytes, &trajectories_bytes, &inputs);
     let (stage5, version5) = (crowd_collide::STAGE, crowd_collide::VERSION);
     let fresh = !options.force
@@ -260,6 +256,16 @@ pub fn build(pipeline_path: &Path, options: &BuildOptions, ui: &Ui) -> Result<Ve
     )?);
 
     finish(&out, pending, &timings, outcomes)
+}
+
+/// What stage 5 reads of a pipeline.
+pub fn collide_inputs(pipeline: &PipelineFile) -> crowd_collide::Inputs {
+    let p = &pipeline.pipeline;
+    crowd_collide::Inputs {
+        period_s: p.period_s,
+        seed: p.seed,
+        max_iterations: p.collide.max_iterations,
+    }
 }
 
 /// Writes the stage files of a build that succeeded, then the timings.
