@@ -201,32 +201,29 @@ pub fn encode(
     crowd_core::trajectories::TrajectoriesFile,
     Vec<(std::path::PathBuf, Vec<u8>)>,
 ) {
-    use crowd_core::files::{Header, SideFile};
-    use crowd_core::trajectories::{CollisionSummary, TrajectoriesFile, encode_motion, summarize};
-    let bytes = encode_motion(motion);
-    let (side, record) = SideFile::beside(out, &bytes);
-    let file = TrajectoriesFile {
-        header: Header {
-            stage: STAGE.to_string(),
-            version: VERSION,
-            input_hash: hash,
-        },
-        period_s: inputs.period_s,
-        radius_m: graph.radius_m,
-        summary: summarize(motion, inputs.period_s),
-        collisions: Some(CollisionSummary {
-            iterations: reports.iter().map(|r| r.iterations as u64).sum(),
-            min_margin_m: reports.iter().map(|r| r.worst_margin_m).fold(0.0, f64::min),
-            unconverged: reports
-                .iter()
-                .filter(|r| !r.converged)
-                .map(|r| (r.patch, r.worst_margin_m))
-                .collect(),
-        }),
-        motion: record,
+    use crowd_core::trajectories::CollisionSummary;
+    let header = crowd_core::files::Header {
+        stage: STAGE.to_string(),
+        version: VERSION,
+        input_hash: hash,
     };
-    let ron = crowd_core::files::to_ron(&file).into_bytes();
-    (file, vec![(side, bytes), (out.to_path_buf(), ron)])
+    let collisions = Some(CollisionSummary {
+        iterations: reports.iter().map(|r| r.iterations as u64).sum(),
+        min_margin_m: reports.iter().map(|r| r.worst_margin_m).fold(0.0, f64::min),
+        unconverged: reports
+            .iter()
+            .filter(|r| !r.converged)
+            .map(|r| (r.patch, r.worst_margin_m))
+            .collect(),
+    });
+    crowd_core::trajectories::encode_file(
+        out,
+        header,
+        inputs.period_s,
+        graph.radius_m,
+        motion,
+        collisions,
+    )
 }
 
 #[cfg(test)]

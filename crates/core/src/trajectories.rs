@@ -229,6 +229,30 @@ pub fn summarize(motion: &[PatchMotion], period_s: f64) -> MotionSummary {
     }
 }
 
+/// Encodes a trajectories-shaped stage file at `out`: its motion side file (`.bin` beside it),
+/// then the RON that names it. Stages 4 and later all write this shape.
+pub fn encode_file(
+    out: &Path,
+    header: Header,
+    period_s: f64,
+    radius_m: f64,
+    motion: &[PatchMotion],
+    collisions: Option<CollisionSummary>,
+) -> (TrajectoriesFile, Vec<(std::path::PathBuf, Vec<u8>)>) {
+    let bytes = encode_motion(motion);
+    let (side, record) = SideFile::beside(out, &bytes);
+    let file = TrajectoriesFile {
+        header,
+        period_s,
+        radius_m,
+        summary: summarize(motion, period_s),
+        collisions,
+        motion: record,
+    };
+    let ron = crate::files::to_ron(&file).into_bytes();
+    (file, vec![(side, bytes), (out.to_path_buf(), ron)])
+}
+
 /// `trajectories.ron` (stage 4's file, and the shape of stages 5 and 6's).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]

@@ -291,23 +291,18 @@ pub fn encode(
     crowd_core::trajectories::TrajectoriesFile,
     Vec<(std::path::PathBuf, Vec<u8>)>,
 ) {
-    use crowd_core::files::{Header, SideFile};
-    use crowd_core::trajectories::{TrajectoriesFile, encode_motion};
-    let bytes = encode_motion(motion);
-    let (side, record) = SideFile::beside(out, &bytes);
-    let summary = crowd_core::trajectories::summarize(motion, inputs.period_s);
-    let file = TrajectoriesFile {
-        header: Header {
-            stage: TrajectoriesFile::STAGE.to_string(),
-            version: TrajectoriesFile::VERSION,
-            input_hash: hash,
-        },
-        period_s: inputs.period_s,
-        radius_m: graph.radius_m,
-        summary,
-        collisions: None,
-        motion: record,
+    use crowd_core::trajectories::TrajectoriesFile;
+    let header = crowd_core::files::Header {
+        stage: TrajectoriesFile::STAGE.to_string(),
+        version: TrajectoriesFile::VERSION,
+        input_hash: hash,
     };
-    let ron = crowd_core::files::to_ron(&file).into_bytes();
-    (file, vec![(side, bytes), (out.to_path_buf(), ron)])
+    crowd_core::trajectories::encode_file(
+        out,
+        header,
+        inputs.period_s,
+        graph.radius_m,
+        motion,
+        None,
+    )
 }
