@@ -194,17 +194,8 @@ pub fn run(cli: Cli) -> Result<()> {
             let graph = PatchGraph::load(&input)?;
             let inputs = crowd_optimize::inputs(&p);
             let hash = crowd_optimize::input_hash(&graph_bytes, &inputs);
-            let bar = ui.stage_bar("optimize");
-            let s = &inputs;
-            let outcome = crowd_optimize::optimize(
-                &graph,
-                &s.settings,
-                &s.matching,
-                s.period_s,
-                s.seed,
-                &bar,
-            );
-            write_all(&crowd_optimize::encode(&out, &outcome, s, hash).1)?;
+            let (outcome, _, writes) = driver::optimize_stage(&graph, &inputs, hash, &out, &ui);
+            write_all(&writes)?;
             ui.say(format!(
                 "optimize: wrote {} (E = {:.4})",
                 out.display(),
@@ -226,10 +217,9 @@ pub fn run(cli: Cli) -> Result<()> {
             let (patterns, crossings) = Patterns::load(&input)?;
             let inputs = crowd_match::inputs(&p);
             let hash = crowd_match::input_hash(&graph_bytes, &patterns_bytes, &inputs);
-            let bar = ui.stage_bar("match");
-            let motion =
-                crowd_match::match_all(&graph, &crossings, &patterns.measured, &inputs, &bar);
-            write_all(&crowd_match::encode(&out, &motion, &graph, &inputs, hash).1)?;
+            let (_, writes) =
+                driver::match_stage(&graph, &patterns, &crossings, &inputs, hash, &out, &ui);
+            write_all(&writes)?;
             ui.say(format!("match: wrote {}", out.display()));
         }
         Command::Collide {
@@ -247,11 +237,9 @@ pub fn run(cli: Cli) -> Result<()> {
             let (_, motion) = TrajectoriesFile::load(&input)?;
             let inputs = driver::collide_inputs(&p);
             let hash = crowd_collide::input_hash(&graph_bytes, &trajectories_bytes, &inputs);
-            let bar = ui.stage_bar("collide");
-            let s = &inputs;
-            let (motion, reports) =
-                crowd_collide::collide(&graph, &motion, s.period_s, s.max_iterations, s.seed, &bar);
-            write_all(&crowd_collide::encode(&out, &motion, &reports, &graph, s, hash).1)?;
+            write_all(&driver::collide_stage(
+                &graph, &motion, &inputs, hash, &out, &ui,
+            ))?;
             ui.say(format!("collide: wrote {}", out.display()));
         }
         Command::Inspect { file } => print!("{}", crate::inspect::inspect(&file)?),

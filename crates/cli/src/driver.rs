@@ -161,17 +161,8 @@ pub fn build(pipeline_path: &Path, options: &BuildOptions, ui: &Ui) -> Result<Ve
         fresh,
         &mut timings,
         || {
-            let bar = ui.stage_bar("optimize");
-            let s = &inputs;
-            let outcome = crowd_optimize::optimize(
-                &graph,
-                &s.settings,
-                &s.matching,
-                s.period_s,
-                s.seed,
-                &bar,
-            );
-            let (patterns, writes) = crowd_optimize::encode(&patterns_path, &outcome, s, hash);
+            let (outcome, patterns, writes) =
+                optimize_stage(&graph, &inputs, hash, &patterns_path, ui);
             let ron = writes.last().expect("the RON file").1.clone();
             built_patterns = Some((ron, patterns, outcome.crossings));
             pending.0.extend(writes);
@@ -207,11 +198,15 @@ pub fn build(pipeline_path: &Path, options: &BuildOptions, ui: &Ui) -> Result<Ve
         fresh,
         &mut timings,
         || {
-            let bar = ui.stage_bar("match");
-            let motion =
-                crowd_match::match_all(&graph, &crossings, &patterns.measured, &inputs, &bar);
-            let (_, writes) =
-                crowd_match::encode(&trajectories_path, &motion, &graph, &inputs, hash);
+            let (motion, writes) = match_stage(
+                &graph,
+                &patterns,
+                &crossings,
+                &inputs,
+                hash,
+                &trajectories_path,
+                ui,
+            );
             built_motion = Some((writes.last().expect("the RON file").1.clone(), motion));
             pending.0.extend(writes);
             Ok(())
@@ -244,18 +239,64 @@ pub fn build(pipeline_path: &Path, options: &BuildOptions, ui: &Ui) -> Result<Ve
         fresh,
         &mut timings,
         || {
-            let bar = ui.stage_bar("collide");
-            let s = &inputs;
-            let (motion, reports) =
-                crowd_collide::collide(&graph, &motion, s.period_s, s.max_iterations, s.seed, &bar);
-            let (_, writes) =
-                crowd_collide::encode(&collided_path, &motion, &reports, &graph, s, hash);
+            let writes = collide_stage(&graph, &motion, &inputs, hash, &collided_path, ui);
             pending.0.extend(writes);
             Ok(())
         },
     )?);
 
     finish(&out, pending, &timings, outcomes)
+}
+
+/// Encoded stage files, in the order they are written.
+pub type Writes = Vec<(PathBuf, Vec<u8>)>;
+
+/// Stage 3 in memory, with a progress bar: what `crowd build` and `crowd optimize` both run.
+pub fn optimize_stage(
+    graph: &PatchGraph,
+    inputs: &crowd_optimize::Inputs,
+    hash: Hash,
+    out: &Path,
+    ui: &Ui,
+) -> (crowd_optimize::Outcome, Patterns, Writes) {
+    let bar = ui.stage_bar("optimize");
+    let s = inputs;
+    let outcome =
+        crowd_optimize::optimize(graph, &s.settings, &s.matching, s.period_s, s.seed, &bar);
+    let (patterns, writes) = crowd_optimize::encode(out, &outcome, s, hash);
+    (outcome, patterns, writes)
+}
+
+/// Stage 4 in memory: what `crowd build` and `crowd match` both run.
+pub fn match_stage(
+    graph: &PatchGraph,
+    patterns: &Patterns,
+    crossings: &[Crossing],
+    inputs: &crowd_match::Inputs,
+    hash: Hash,
+    out: &Path,
+    ui: &Ui,
+) -> (Vec<crowd_core::trajectories::PatchMotion>, Writes) {
+    let bar = ui.stage_bar("match");
+    let motion = crowd_match::match_all(graph, crossings, &patterns.measured, inputs, &bar);
+    let (_, writes) = crowd_match::encode(out, &motion, graph, inputs, hash);
+    (motion, writes)
+}
+
+/// Stage 5 in memory: what `crowd build` and `crowd collide` both run.
+pub fn collide_stage(
+    graph: &PatchGraph,
+    motion: &[crowd_core::trajectories::PatchMotion],
+    inputs: &crowd_collide::Inputs,
+    hash: Hash,
+    out: &Path,
+    ui: &Ui,
+) -> Writes {
+    let bar = ui.stage_bar("collide");
+    let s = inputs;
+    let (motion, reports) =
+        crowd_collide::collide(graph, motion, s.period_s, s.max_iterations, s.seed, &bar);
+    crowd_collide::encode(out, &motion, &reports, graph, s, hash).1
 }
 
 /// What stage 5 reads of a pipeline.
