@@ -267,22 +267,7 @@ fn cycle_through(state: &State, p: usize) -> Option<Vec<Step>> {
             .filter(move |l| state.crossings[l.border].iter().any(|c| c.way == l.way))
     };
     let mut came_from: HashMap<usize, Step> = HashMap::new();
-    let mut queue = VecDeque::new();
-    for l in exits(p) {
-        let step = Step {
-            from: p,
-            to: l.to,
-            border: l.border,
-            way: l.way,
-        };
-        if l.to == p {
-            return Some(vec![step]);
-        }
-        if let std::collections::hash_map::Entry::Vacant(e) = came_from.entry(l.to) {
-            e.insert(step);
-            queue.push_back(l.to);
-        }
-    }
+    let mut queue = VecDeque::from([p]);
     while let Some(u) = queue.pop_front() {
         for l in exits(u) {
             let step = Step {
@@ -302,7 +287,9 @@ fn cycle_through(state: &State, p: usize) -> Option<Vec<Step>> {
                 steps.reverse();
                 return Some(steps);
             }
-            if let std::collections::hash_map::Entry::Vacant(e) = came_from.entry(l.to) {
+            if l.to != p
+                && let std::collections::hash_map::Entry::Vacant(e) = came_from.entry(l.to)
+            {
                 e.insert(step);
                 queue.push_back(l.to);
             }
