@@ -274,19 +274,21 @@ mod tests {
         }
     }
 
+    /// A patch holding one walker.
+    fn alone(tr: Trajectory) -> PatchMotion {
+        PatchMotion {
+            standers: vec![],
+            trajectories: vec![tr],
+        }
+    }
+
     #[test]
     fn a_character_crossing_a_border_does_not_collide_with_itself() {
         let graph = two_patches();
         // Crossing 1 is the shared border: the walker leaves patch 0 and enters patch 1 at t = 6.
         let motion = vec![
-            PatchMotion {
-                standers: vec![],
-                trajectories: vec![walk(0, 1, (0.0, 4.0, 0.0), (8.0, 4.0, 6.0))],
-            },
-            PatchMotion {
-                standers: vec![],
-                trajectories: vec![walk(1, 2, (0.0, 4.0, 6.0), (8.0, 4.0, 12.0))],
-            },
+            alone(walk(0, 1, (0.0, 4.0, 0.0), (8.0, 4.0, 6.0))),
+            alone(walk(1, 2, (0.0, 4.0, 6.0), (8.0, 4.0, 12.0))),
         ];
         let report = check(&graph, &motion, 20.0);
         assert_eq!(report.collisions, 0, "{report:?}");
@@ -298,14 +300,8 @@ mod tests {
         // One walks east along y = 4 and leaves patch 0 at t = 6; another, in patch 1, walks
         // along the border's other side and passes the same spot at t = 6.
         let motion = vec![
-            PatchMotion {
-                standers: vec![],
-                trajectories: vec![walk(0, 1, (0.0, 4.0, 0.0), (8.0, 4.0, 6.0))],
-            },
-            PatchMotion {
-                standers: vec![],
-                trajectories: vec![walk(5, 6, (0.3, 0.0, 2.0), (0.3, 8.0, 10.0))],
-            },
+            alone(walk(0, 1, (0.0, 4.0, 0.0), (8.0, 4.0, 6.0))),
+            alone(walk(5, 6, (0.3, 0.0, 2.0), (0.3, 8.0, 10.0))),
         ];
         let report = check(&graph, &motion, 20.0);
         assert_eq!(
