@@ -126,6 +126,22 @@ pub enum Command {
     },
 }
 
+/// The pipeline of a single-stage command, its input file and its output file (defaults in the
+/// pipeline's output folder), with the output's folder made ready.
+fn stage_files(
+    pipeline: &std::path::Path,
+    input: Option<PathBuf>,
+    output: Option<PathBuf>,
+    default_input: &str,
+    default_output: &str,
+) -> Result<(PipelineFile, PathBuf, PathBuf)> {
+    let p = PipelineFile::load(pipeline)?;
+    let input = input.unwrap_or_else(|| p.output_dir().join(default_input));
+    let out = output.unwrap_or_else(|| p.output_dir().join(default_output));
+    driver::ensure_parent(&out)?;
+    Ok((p, input, out))
+}
+
 fn read(path: &std::path::Path) -> Result<Vec<u8>> {
     Ok(std::fs::read(path).map_err(|e| crowd_core::Error::io(path, "read", e))?)
 }
@@ -173,10 +189,7 @@ pub fn run(cli: Cli) -> Result<()> {
             input,
             output,
         } => {
-            let p = PipelineFile::load(&pipeline)?;
-            let input = input.unwrap_or_else(|| p.output_dir().join(MERGE_FILE));
-            let out = output.unwrap_or_else(|| p.output_dir().join(GRAPH_FILE));
-            driver::ensure_parent(&out)?;
+            let (p, input, out) = stage_files(&pipeline, input, output, MERGE_FILE, GRAPH_FILE)?;
             let bar = ui.stage_bar("graph");
             crowd_graph::run(&p, &input, &out, &bar)?;
             ui.say(format!("graph: wrote {}", out.display()));
@@ -186,10 +199,8 @@ pub fn run(cli: Cli) -> Result<()> {
             input,
             output,
         } => {
-            let p = PipelineFile::load(&pipeline)?;
-            let input = input.unwrap_or_else(|| p.output_dir().join(GRAPH_FILE));
-            let out = output.unwrap_or_else(|| p.output_dir().join(driver::PATTERNS_FILE));
-            driver::ensure_parent(&out)?;
+            let (p, input, out) =
+                stage_files(&pipeline, input, output, GRAPH_FILE, driver::PATTERNS_FILE)?;
             let graph_bytes = read(&input)?;
             let graph = PatchGraph::load(&input)?;
             let inputs = crowd_optimize::inputs(&p);
@@ -207,10 +218,13 @@ pub fn run(cli: Cli) -> Result<()> {
             input,
             output,
         } => {
-            let p = PipelineFile::load(&pipeline)?;
-            let input = input.unwrap_or_else(|| p.output_dir().join(driver::PATTERNS_FILE));
-            let out = output.unwrap_or_else(|| p.output_dir().join(driver::TRAJECTORIES_FILE));
-            driver::ensure_parent(&out)?;
+            let (p, input, out) = stage_files(
+                &pipeline,
+                input,
+                output,
+                driver::PATTERNS_FILE,
+                driver::TRAJECTORIES_FILE,
+            )?;
             let graph_path = input.with_file_name(GRAPH_FILE);
             let (graph_bytes, patterns_bytes) = (read(&graph_path)?, read(&input)?);
             let graph = PatchGraph::load(&graph_path)?;
@@ -227,10 +241,13 @@ pub fn run(cli: Cli) -> Result<()> {
             input,
             output,
         } => {
-            let p = PipelineFile::load(&pipeline)?;
-            let input = input.unwrap_or_else(|| p.output_dir().join(driver::TRAJECTORIES_FILE));
-            let out = output.unwrap_or_else(|| p.output_dir().join(driver::COLLIDED_FILE));
-            driver::ensure_parent(&out)?;
+            let (p, input, out) = stage_files(
+                &pipeline,
+                input,
+                output,
+                driver::TRAJECTORIES_FILE,
+                driver::COLLIDED_FILE,
+            )?;
             let graph_path = input.with_file_name(GRAPH_FILE);
             let (graph_bytes, trajectories_bytes) = (read(&graph_path)?, read(&input)?);
             let graph = PatchGraph::load(&graph_path)?;
