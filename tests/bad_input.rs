@@ -239,3 +239,49 @@ fn a_stage_file_of_another_kind_is_refused_by_inspect() {
         ],
     );
 }
+
+#[test]
+fn an_edited_graph_file_is_refused_not_trusted() {
+    let (_dir, out) = build_shared_scene("bands", "graph");
+    let graph = out.join("graph.ron");
+    let text = std::fs::read_to_string(&graph).unwrap();
+    let broken = text.replacen("(a: (0), b: (1),", "(a: (0), b: (99999),", 1);
+    assert_ne!(text, broken);
+    std::fs::write(&graph, broken).unwrap();
+    let p = scene_pipeline("bands");
+    let err = crowd_err(&[
+        "optimize",
+        "--pipeline",
+        s(&p),
+        "-i",
+        s(&graph),
+        "-o",
+        s(&out.join("patterns.ron")),
+    ]);
+    assert_has(
+        &err,
+        &[
+            "graph.ron",
+            "is inconsistent",
+            "border 0 names a patch beyond",
+        ],
+    );
+}
+
+#[test]
+fn patterns_of_another_graph_are_refused() {
+    let (_dir, out) = build_shared_scene("bands", "optimize");
+    let (_other, lanes) = build_shared_scene("lanes", "graph");
+    std::fs::copy(lanes.join("graph.ron"), out.join("graph.ron")).unwrap();
+    let p = scene_pipeline("bands");
+    let err = crowd_err(&[
+        "match",
+        "--pipeline",
+        s(&p),
+        "-i",
+        s(&out.join("patterns.ron")),
+        "-o",
+        s(&out.join("t.ron")),
+    ]);
+    assert_has(&err, &["patterns.ron", "build the patterns again"]);
+}

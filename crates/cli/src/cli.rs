@@ -6,8 +6,9 @@ use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
 use crowd_core::PatchGraph;
 use crowd_core::config::PipelineFile;
-use crowd_core::patterns::Patterns;
+use crowd_core::patterns::{Patterns, check_crossings};
 use crowd_core::trajectories::TrajectoriesFile;
+use crowd_core::trajectories::check_motion;
 use std::path::PathBuf;
 
 #[derive(Debug, Parser)]
@@ -229,6 +230,7 @@ pub fn run(cli: Cli) -> Result<()> {
             let (graph_bytes, patterns_bytes) = (read(&graph_path)?, read(&input)?);
             let graph = PatchGraph::load(&graph_path)?;
             let (patterns, crossings) = Patterns::load(&input)?;
+            check_crossings(&input, &graph, &patterns, &crossings)?;
             let inputs = crowd_match::inputs(&p);
             let hash = crowd_match::input_hash(&graph_bytes, &patterns_bytes, &inputs);
             let (_, writes) =
@@ -252,6 +254,7 @@ pub fn run(cli: Cli) -> Result<()> {
             let (graph_bytes, trajectories_bytes) = (read(&graph_path)?, read(&input)?);
             let graph = PatchGraph::load(&graph_path)?;
             let (_, motion) = TrajectoriesFile::load(&input)?;
+            check_motion(&input, graph.patches.len(), &motion)?;
             let inputs = driver::collide_inputs(&p);
             let hash = crowd_collide::input_hash(&graph_bytes, &trajectories_bytes, &inputs);
             write_all(&driver::collide_stage(

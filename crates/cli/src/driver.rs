@@ -178,6 +178,7 @@ pub fn build(pipeline_path: &Path, options: &BuildOptions, ui: &Ui) -> Result<Ve
             let bytes =
                 std::fs::read(&patterns_path).map_err(|e| Error::io(&patterns_path, "read", e))?;
             let (p, c) = Patterns::load(&patterns_path)?;
+            crowd_core::patterns::check_crossings(&patterns_path, &graph, &p, &c)?;
             (bytes, p, c)
         }
     };
@@ -220,7 +221,10 @@ pub fn build(pipeline_path: &Path, options: &BuildOptions, ui: &Ui) -> Result<Ve
         None => {
             let bytes = std::fs::read(&trajectories_path)
                 .map_err(|e| Error::io(&trajectories_path, "read", e))?;
-            (bytes, TrajectoriesFile::load(&trajectories_path)?.1)
+            let motion = TrajectoriesFile::load(&trajectories_path)?.1;
+            let patches = graph.patches.len();
+            crowd_core::trajectories::check_motion(&trajectories_path, patches, &motion)?;
+            (bytes, motion)
         }
     };
 

@@ -186,6 +186,12 @@ pub fn check(dir: &Path) -> Result<crowd_check::CheckReport> {
     } else {
         TrajectoriesFile::load(&dir.join(TRAJECTORIES_FILE))?
     };
+    let motion_path = if collided.exists() {
+        collided.clone()
+    } else {
+        dir.join(TRAJECTORIES_FILE)
+    };
+    crowd_core::trajectories::check_motion(&motion_path, graph.patches.len(), &motion)?;
     let report = crowd_check::check(&graph, &motion, file.period_s);
     files::write_atomic(&dir.join(CHECK_FILE), files::to_ron(&report).as_bytes())?;
     Ok(report)

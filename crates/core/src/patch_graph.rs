@@ -162,6 +162,49 @@ impl PatchGraph {
     pub fn load(path: &std::path::Path) -> crate::Result<PatchGraph> {
         let graph: PatchGraph = crate::files::read_ron(path)?;
         crate::files::expect_stage(path, &graph.header, Self::STAGE, Self::VERSION)?;
+        graph.check(path)?;
         Ok(graph)
+    }
+
+    /// Refuses a graph whose numbers do not hold together (an edited or damaged file), so that
+    /// later stages can index it without checking again.
+    fn check(&self, path: &std::path::Path) -> crate::Result<()> {
+        let bad = |what: String| {
+            crate::Error::stage_file(
+                path,
+                format!("is inconsistent: {what}; build the graph again"),
+            )
+        };
+        let w = &self.world;
+        if !(w.patch_side_m.is_finite()
+            && w.patch_side_m > 0.0
+            && self.radius_m.is_finite()
+            && self.radius_m > 0.0)
+        {
+            return Err(bad("patch side and radius must be positive".into()));
+        }
+        for (i, p) in self.patches.iter().enumerate() {
+            if p.id.0 as usize != i {
+                return Err(bad(format!("patch {i} is numbered {}", p.id.0)));
+            }
+            if p.cell.col >= w.cols || p.cell.row >= w.rows {
+                return Err(bad(format!(
+                    "patch {i} lies outside the {} x {} cells",
+                    w.cols, w.rows
+                )));
+            }
+            if p.component as usize >= self.components.len() {
+                return Err(bad(format!("patch {i} names component {}", p.component)));
+            }
+        }
+        let n = self.patches.len() as u32;
+        for (k, b) in self.borders.iter().enumerate() {
+            if b.a.0 >= n || b.b.0 >= n {
+                return Err(bad(format!(
+                    "border {k} names a patch beyond the {n} there are"
+                )));
+            }
+        }
+        Ok(())
     }
 }

@@ -208,6 +208,47 @@ impl Patterns {
     }
 }
 
+/// Refuses crossings that do not fit `graph` (patterns built from another graph, or damaged):
+/// one measure per patch, every border they name must exist and be open, and their times
+/// within the period.
+pub fn check_crossings(
+    path: &std::path::Path,
+    graph: &PatchGraph,
+    patterns: &Patterns,
+    crossings: &[Crossing],
+) -> Result<()> {
+    let period_s = patterns.period_s;
+    if patterns.measured.len() != graph.patches.len() {
+        return Err(Error::stage_file(
+            path,
+            format!(
+                "measures {} patches but the graph beside it has {}; build the patterns again",
+                patterns.measured.len(),
+                graph.patches.len()
+            ),
+        ));
+    }
+    for (k, c) in crossings.iter().enumerate() {
+        let fits = graph
+            .borders
+            .get(c.border as usize)
+            .is_some_and(|b| !b.open.is_empty())
+            && c.s.is_finite()
+            && (0.0..=graph.world.patch_side_m).contains(&c.s)
+            && (0.0..period_s).contains(&c.t);
+        if !fits {
+            return Err(Error::stage_file(
+                path,
+                format!(
+                    "crossing {k} does not fit the graph beside it (border {}, s {}, t {}); build the patterns again",
+                    c.border, c.s, c.t
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
 /// Entries minus exits of every patch; all zero when parity holds.
 pub fn parity(graph: &PatchGraph, crossings: &[Crossing]) -> Vec<i64> {
     let mut balance = vec![0i64; graph.patches.len()];

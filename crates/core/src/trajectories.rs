@@ -215,6 +215,34 @@ pub struct MotionSummary {
     pub walkers_measured: f64,
 }
 
+/// Refuses motion that does not fit a graph of `patches` patches (built from another graph, or
+/// damaged): one entry per patch, every trajectory at least two points forward in time.
+pub fn check_motion(path: &Path, patches: usize, motion: &[PatchMotion]) -> Result<()> {
+    let bad =
+        |what: String| Error::stage_file(path, format!("does not fit the graph beside it: {what}"));
+    if motion.len() != patches {
+        return Err(bad(format!(
+            "{} patches of motion for {patches} patches",
+            motion.len()
+        )));
+    }
+    for (p, m) in motion.iter().enumerate() {
+        for (i, tr) in m.trajectories.iter().enumerate() {
+            let forward = tr.points.windows(2).all(|w| w[1].t >= w[0].t);
+            let finite = tr
+                .points
+                .iter()
+                .all(|c| c.pos.is_finite() && c.t.is_finite());
+            if tr.points.len() < 2 || !forward || !finite {
+                return Err(bad(format!(
+                    "trajectory {i} of patch {p} is not a path forward in time"
+                )));
+            }
+        }
+    }
+    Ok(())
+}
+
 /// Figures of per-patch motion.
 pub fn summarize(motion: &[PatchMotion], period_s: f64) -> MotionSummary {
     let all = || motion.iter().flat_map(|m| &m.trajectories);
