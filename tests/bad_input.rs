@@ -203,6 +203,21 @@ fn zero_walkers_over_a_painted_density_map_is_refused() {
 }
 
 #[test]
+fn more_walkers_than_rho_max_allows_is_refused_with_the_capacity() {
+    let t = Setup::new();
+    t.edit("walkers: 1000,", "walkers: 90000,");
+    let err = t.fails();
+    assert_has(
+        &err,
+        &[
+            "pipeline.ron:9:5:",
+            "`walkers` is 90000 but at most",
+            "rho_max = 0.35",
+        ],
+    );
+}
+
+#[test]
 fn a_scene_without_a_walkable_patch_is_refused() {
     let t = Setup::new();
     let all_blocked = image::GrayImage::from_pixel(400, 400, image::Luma([255]));

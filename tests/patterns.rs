@@ -143,8 +143,8 @@ fn a_contradictory_painting_ends_with_a_compromise_and_says_where() {
     // Dense on the west, nearly empty on the east, and a flow asking everyone to walk east.
     let dir = tempfile::tempdir().unwrap();
     let density =
-        image::GrayImage::from_fn(64, 32, |x, _| image::Luma([if x < 32 { 255 } else { 3 }]));
-    let flow = image::RgbaImage::from_pixel(64, 32, image::Rgba([255, 128, 128, 255]));
+        image::GrayImage::from_fn(128, 64, |x, _| image::Luma([if x < 64 { 255 } else { 3 }]));
+    let flow = image::RgbaImage::from_pixel(128, 64, image::Rgba([255, 128, 128, 255]));
     density.save(dir.path().join("density.png")).unwrap();
     flow.save(dir.path().join("flow.png")).unwrap();
     let pipeline = write_pipeline(

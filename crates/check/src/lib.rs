@@ -256,6 +256,7 @@ mod tests {
             standers: 0,
             patch_side_m: 8.0,
             radius_m: 0.3,
+            rho_max: 0.35,
             settings: GraphSettings::default(),
         };
         crowd_graph::build_graph(&maps, &inputs, Hash::of(b"t"), &()).unwrap()

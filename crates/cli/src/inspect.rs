@@ -265,8 +265,8 @@ fn inspect_patterns(p: &Patterns, crossings: &[Crossing]) -> String {
     let e = &p.error;
     let _ = writeln!(
         s,
-        "error:      E = {:.4} (E_rho {:.4}, E_d {:.4}); E_rho can go no lower than {:.4} under rho_max {}",
-        e.e, e.e_rho, e.e_d, p.e_rho_floor, p.rho_max
+        "error:      E = {:.4} (E_rho {:.4}, E_d {:.4}); rho_max {}",
+        e.e, e.e_rho, e.e_d, p.rho_max
     );
     let _ = writeln!(
         s,

@@ -93,7 +93,6 @@ impl Report {
             out.insert("E_rho".into(), json!(p.error.e_rho));
             out.insert("E_d".into(), json!(p.error.e_d));
             out.insert("E".into(), json!(p.error.e));
-            out.insert("E_rho_floor".into(), json!(p.e_rho_floor));
             out.insert("iterations".into(), json!(p.iterations));
             out.insert("converged".into(), json!(p.converged));
             out.insert(
@@ -140,8 +139,8 @@ impl Report {
 
 /// Columns of [`Report::table_row`].
 pub const TABLE_HEADER: &str = "| scene | patches | walkers requested | walkers measured | standers | \
-iterations | optimise (s) | match (s) | E_rho | E_d | E | E_rho floor |\n\
-| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |";
+iterations | optimise (s) | match (s) | E_rho | E_d | E |\n\
+| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |";
 
 impl Report {
     /// One markdown row of figures (a dash where a stage has not run).
@@ -160,7 +159,7 @@ impl Report {
             n.to_string_lossy().into_owned()
         });
         format!(
-            "| {name} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
+            "| {name} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
             f("patches", 0),
             f("walkers_requested", 0),
             f("walkers_measured", 0),
@@ -171,7 +170,6 @@ impl Report {
             f("E_rho", 4),
             f("E_d", 4),
             f("E", 4),
-            f("E_rho_floor", 4),
         )
     }
 }

@@ -180,9 +180,6 @@ pub struct Patterns {
     pub converged: bool,
     /// The figures of the result (the best step).
     pub error: SceneError,
-    /// The least E_rho any result can reach: patches painted denser than rho_max keep at
-    /// least the excess as error.
-    pub e_rho_floor: f64,
     /// Where the error stays: the patches with the largest signed error, worst first.
     pub worst: Vec<PatchError>,
     pub regression: Regression,
@@ -196,7 +193,7 @@ pub struct Patterns {
 
 impl Patterns {
     pub const STAGE: &'static str = "optimize";
-    pub const VERSION: u32 = 1;
+    pub const VERSION: u32 = 2;
 
     /// Reads `patterns.ron` and its crossings.
     pub fn load(path: &std::path::Path) -> Result<(Patterns, Vec<Crossing>)> {

@@ -13,6 +13,7 @@
 mod borders;
 mod cells;
 mod components;
+mod density;
 
 use crowd_core::config::{GraphSettings, PipelineFile};
 use crowd_core::files::{self, Header};
@@ -29,6 +30,8 @@ pub struct GraphInputs {
     pub standers: u64,
     pub patch_side_m: f64,
     pub radius_m: f64,
+    /// No patch is asked for more characters per m2 than this (`optimize.rho_max`).
+    pub rho_max: f64,
     pub settings: GraphSettings,
 }
 
@@ -50,6 +53,19 @@ pub enum GraphProblem {
          empty patches; paint where they stand or set `standers` to 0"
     )]
     NowhereToStand { standers: u64 },
+    #[error(
+        "`{field}` is {requested} but at most {capacity} fit: the {painted} patches painted for \
+         them hold at most rho_max = {rho_max} characters per m2{besides}; paint a larger area, \
+         lower `{field}` or raise `optimize.rho_max`"
+    )]
+    OverCapacity {
+        field: &'static str,
+        requested: u64,
+        capacity: u64,
+        painted: usize,
+        rho_max: f64,
+        besides: &'static str,
+    },
     #[error(
         "no walkable patch: of {cells} patches of {side_m} m, {empty} are empty (mean painted \
          density at most `graph.empty_below`) and {blocked} are blocked by obstacles"
@@ -77,6 +93,7 @@ impl GraphProblem {
         match self {
             GraphProblem::ZeroWalkers { .. } | GraphProblem::NothingToWalkOn { .. } => "walkers",
             GraphProblem::NowhereToStand { .. } => "standers",
+            GraphProblem::OverCapacity { field, .. } => field,
             GraphProblem::NoWalkablePatch { .. } => "scene.layers",
             GraphProblem::MapsSmallerThanAPatch { .. } => "patch_side_m",
         }
@@ -149,15 +166,40 @@ pub fn build_graph(
             standers: inputs.standers,
         });
     }
-    let scale = |people: u64, painted: f64| {
-        if people == 0 {
-            0.0
-        } else {
-            people as f64 / (area * painted)
+    // People poured in under the cap: standers first (they are fixed), walkers into what the
+    // standers leave (see `density`).
+    let over = |field, requested: u64, weights: &[f64], besides| {
+        let painted = weights.iter().filter(|&&w| w > 0.0).count();
+        move |capacity: f64| GraphProblem::OverCapacity {
+            field,
+            requested,
+            capacity: (capacity * area).floor() as u64,
+            painted,
+            rho_max: inputs.rho_max,
+            besides,
         }
     };
-    let walker_scale = scale(inputs.walkers, painted_walkers);
-    let stander_scale = scale(inputs.standers, painted_standers);
+    let stander_weights: Vec<f64> = kept.iter().map(|c| c.mean_standers).collect();
+    let stander_caps = vec![inputs.rho_max; kept.len()];
+    let stander_density = density::fill_under_caps(
+        &stander_weights,
+        &stander_caps,
+        inputs.standers as f64 / area,
+    )
+    .map_err(over("standers", inputs.standers, &stander_weights, ""))?;
+    let walker_weights: Vec<f64> = kept.iter().map(|c| c.mean_walkers).collect();
+    let walker_caps: Vec<f64> = stander_density
+        .iter()
+        .map(|s| (inputs.rho_max - s).max(0.0))
+        .collect();
+    let walker_density =
+        density::fill_under_caps(&walker_weights, &walker_caps, inputs.walkers as f64 / area)
+            .map_err(over(
+                "walkers",
+                inputs.walkers,
+                &walker_weights,
+                " with the standers",
+            ))?;
 
     let mut patches: Vec<Patch> = kept
         .iter()
@@ -165,8 +207,8 @@ pub fn build_graph(
         .map(|(i, c)| Patch {
             id: PatchId(i as u32),
             cell: c.cell,
-            walker_density: c.mean_walkers * walker_scale,
-            stander_density: c.mean_standers * stander_scale,
+            walker_density: walker_density[i],
+            stander_density: stander_density[i],
             direction: c.direction(s.direction_min_weight),
             obstacle_coverage: c.coverage,
             obstacles: c.obstacles.clone(),
@@ -221,6 +263,7 @@ pub fn inputs(pipeline: &PipelineFile) -> GraphInputs {
         standers: p.standers,
         patch_side_m: p.patch_side_m,
         radius_m: p.radius_m,
+        rho_max: p.optimize.rho_max,
         settings: p.graph.clone(),
     }
 }

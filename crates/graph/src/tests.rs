@@ -31,6 +31,7 @@ fn inputs(walkers: u64) -> GraphInputs {
         standers: 0,
         patch_side_m: 4.0,
         radius_m: 0.3,
+        rho_max: 0.35,
         settings: GraphSettings::default(),
     }
 }
@@ -45,13 +46,43 @@ fn requested_densities_add_up_to_the_requested_walkers() {
     for (i, v) in m.walkers.as_mut_slice().iter_mut().enumerate() {
         *v = (i % 7) as f32 / 6.0;
     }
-    let g = build(&m, 1234);
+    let g = build(&m, 34);
     let total: f64 = g
         .patches
         .iter()
         .map(|p| p.walker_density * g.patch_area())
         .sum();
-    assert!((total - 1234.0).abs() < 1e-9, "{total}");
+    assert!((total - 34.0).abs() < 1e-9, "{total}");
+}
+
+#[test]
+fn no_patch_is_asked_for_more_than_rho_max_and_the_overflow_goes_elsewhere() {
+    // The west half painted four times brighter: linear scaling would ask 0.56 per m2 there.
+    let mut m = maps(16, 8, |_, _| false);
+    for (i, v) in m.walkers.as_mut_slice().iter_mut().enumerate() {
+        *v = if i % 16 < 8 { 1.0 } else { 0.25 };
+    }
+    let g = build(&m, 40);
+    let total: f64 = g.patches.iter().map(|p| p.walker_density).sum::<f64>() * g.patch_area();
+    assert!((total - 40.0).abs() < 1e-9, "{total}");
+    for p in &g.patches {
+        let expected = if p.cell.col < 2 {
+            0.35
+        } else {
+            40.0 / 64.0 - 0.35
+        };
+        assert!((p.walker_density - expected).abs() < 1e-9, "{p:?}");
+    }
+}
+
+#[test]
+fn more_walkers_than_rho_max_allows_is_refused_with_the_capacity() {
+    let err =
+        build_graph(&maps(16, 8, |_, _| false), &inputs(50), Hash::of(b"t"), &()).unwrap_err();
+    assert_eq!(err.field(), "walkers");
+    let text = err.to_string();
+    assert!(text.contains("at most 44 fit"), "{text}");
+    assert!(text.contains("8 patches"), "{text}");
 }
 
 #[test]

@@ -30,7 +30,7 @@ use search::{Costs, Mode, Net};
 use state::State;
 
 /// Paths per step: one per this many patches of a component, plus one (the paper: 400).
-const PATCHES_PER_PATH: usize = 100;
+const PATCHES_PER_PATH: usize = 40;
 /// Optima within this many cells (Manhattan) may share a group, up to this many per group.
 const GROUP_RADIUS: u32 = 4;
 const GROUP_SIZE: usize = 3;
@@ -45,7 +45,6 @@ pub struct Outcome {
     pub crossings: Vec<Crossing>,
     pub measured: Vec<Measured>,
     pub error: SceneError,
-    pub e_rho_floor: f64,
     pub worst: Vec<PatchError>,
     pub regression: Regression,
     pub log: Vec<IterationFigures>,
@@ -191,13 +190,6 @@ pub fn optimize(
     state.remeasure_all();
     enforce_rho_max(&mut state, rho_max);
     let error = scene_error(graph, &state.requested, &state.measured, rho_max);
-    let n = state.requested.len().max(1) as f64;
-    let excess: f64 = state
-        .requested
-        .iter()
-        .map(|r| (r - rho_max).max(0.0).powi(2))
-        .sum();
-    let e_rho_floor = (excess / n).sqrt() / rho_max;
     let worst = worst_patches(graph, &state.requested, &state.measured, rho_max, 10);
     let mut crossings: Vec<Crossing> = state.crossings.into_iter().flatten().collect();
     crossings.sort_by(|a, b| a.border.cmp(&b.border).then(a.t.total_cmp(&b.t)));
@@ -205,7 +197,6 @@ pub fn optimize(
         crossings,
         measured: state.measured,
         error,
-        e_rho_floor,
         worst,
         regression,
         log,
@@ -468,7 +459,6 @@ pub fn encode(
         iterations: outcome.iterations,
         converged: outcome.converged,
         error: outcome.error,
-        e_rho_floor: outcome.e_rho_floor,
         worst: outcome.worst.clone(),
         regression: outcome.regression,
         log: outcome.log.clone(),

@@ -40,6 +40,7 @@ fn scene(walkers: u64) -> PatchGraph {
         standers: 0,
         patch_side_m: 8.0,
         radius_m: 0.3,
+        rho_max: 0.35,
         settings: GraphSettings::default(),
     };
     crowd_graph::build_graph(&maps, &inputs, Hash::of(b"t"), &()).unwrap()
