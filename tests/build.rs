@@ -172,16 +172,7 @@ fn stages_run_one_at_a_time_write_the_same_files_as_a_build() {
     let pipeline = scene_pipeline("bands");
     let p = s(&pipeline);
     let (a, b) = (dir.path().join("built"), dir.path().join("staged"));
-    crowd_ok(&[
-        "build",
-        "-q",
-        "--pipeline",
-        p,
-        "--output",
-        s(&a),
-        "--until",
-        "collide",
-    ]);
+    crowd_ok(&["build", "-q", "--pipeline", p, "--output", s(&a)]);
     std::fs::create_dir_all(&b).unwrap();
     let f = |name: &str| b.join(name);
     crowd_ok(&["merge", "-q", "--pipeline", p, "-o", s(&f("merge.ron"))]);
@@ -224,6 +215,16 @@ fn stages_run_one_at_a_time_write_the_same_files_as_a_build() {
         s(&f("trajectories.ron")),
         "-o",
         s(&f("collided.ron")),
+    ]);
+    crowd_ok(&[
+        "smooth",
+        "-q",
+        "--pipeline",
+        p,
+        "-i",
+        s(&f("collided.ron")),
+        "-o",
+        s(&f("smoothed.ron")),
     ]);
     let (built, staged) = (snapshot(&a), snapshot(&b));
     let names = |v: &[(String, Vec<u8>)]| v.iter().map(|f| f.0.clone()).collect::<Vec<_>>();

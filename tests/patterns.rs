@@ -244,3 +244,62 @@ fn crowd_check_reports_collisions_and_clearance_for_the_tiled_world() {
         assert_eq!(collisions, across);
     }
 }
+
+#[test]
+fn smoothing_keeps_boundary_points_exact_and_never_brings_a_pair_closer_than_stage_5_left_it() {
+    let (_dir, out) = build_shared_scene("bands", "smooth");
+    let graph = crowd_core::PatchGraph::load(&out.join("graph.ron")).unwrap();
+    let load = |name: &str, stage: &str, version: u32| {
+        TrajectoriesFile::load_stage(&out.join(name), stage, version)
+            .unwrap()
+            .1
+    };
+    let before = load("collided.ron", crowd_collide::STAGE, crowd_collide::VERSION);
+    let after = load("smoothed.ron", crowd_smooth::STAGE, crowd_smooth::VERSION);
+    let by_cell = graph
+        .patches
+        .iter()
+        .enumerate()
+        .map(|(i, p)| (p.cell, i))
+        .collect();
+    let mut smoothed = 0;
+    for (p, (b, a)) in before.iter().zip(&after).enumerate() {
+        for (tb, ta) in b.trajectories.iter().zip(&a.trajectories) {
+            assert_eq!(tb.points.first(), ta.points.first());
+            assert_eq!(tb.points.last(), ta.points.last());
+            smoothed += (tb != ta) as usize;
+        }
+        let obstacles = crowd_collide::obstacles_near(&graph, &by_cell, p);
+        let patch = crowd_collide::repair::Patch {
+            side_m: graph.world.patch_side_m,
+            period_s: 20.0,
+            radius_m: graph.radius_m,
+            obstacles: &obstacles,
+            standers: &b.standers,
+        };
+        let worst = |m: &crowd_core::trajectories::PatchMotion| {
+            let segs: Vec<_> = m.trajectories.iter().map(crowd_smooth::segments).collect();
+            crowd_collide::repair::encounters(&segs, &patch)
+                .iter()
+                .map(|e| e.margin)
+                .fold(0.0, f64::min)
+        };
+        assert!(worst(a) >= worst(b) - 1e-9, "patch {p}");
+    }
+    assert!(smoothed * 2 > after.iter().map(|m| m.trajectories.len()).sum::<usize>());
+    crowd_ok(&["check", s(&out)]);
+    let json: serde_json::Value =
+        serde_json::from_slice(&crowd_ok(&["report", s(&out), "--json"]).stdout).unwrap();
+    assert_eq!(json["checked_stage"], "smooth");
+    assert_eq!(json["max_boundary_error_m"].as_f64(), Some(0.0));
+    assert!(json["max_boundary_time_error_s"].as_f64().unwrap() < 1e-9);
+    assert_eq!(json["unmatched_crossings"], 0);
+    for key in [
+        "speed_in_band",
+        "accel_p95",
+        "turn_rate_p95",
+        "max_border_velocity_jump",
+    ] {
+        assert!(json[key].as_f64().is_some_and(f64::is_finite), "{key}");
+    }
+}

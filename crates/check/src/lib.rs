@@ -7,6 +7,8 @@
 //! different patches are checked exactly like pairs in one patch, so collisions across borders
 //! are found too.
 
+pub mod motion;
+
 use crowd_collide::geometry::{self, Segment};
 use crowd_core::PatchGraph;
 use crowd_core::trajectories::PatchMotion;
@@ -28,6 +30,12 @@ pub struct CheckReport {
     pub worst_at: Option<(f64, f64, f64)>,
     pub walkers: u64,
     pub segments: u64,
+    /// The stage whose trajectories were checked (`match`, `collide`, `smooth`).
+    #[serde(default)]
+    pub stage: String,
+    /// Exactness, continuity and motion quality (when the patterns were at hand).
+    #[serde(default)]
+    pub motion: Option<motion::MotionFigures>,
 }
 
 struct Piece {
@@ -172,6 +180,8 @@ pub fn check(graph: &PatchGraph, motion: &[PatchMotion], period_s: f64) -> Check
         worst_at: None,
         walkers: walker as u64,
         segments: pieces.len() as u64,
+        stage: String::new(),
+        motion: None,
     };
     let note = |margin: f64, at: DVec2, t: f64, across: bool, report: &mut CheckReport| {
         if margin < -1e-6 {

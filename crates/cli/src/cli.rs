@@ -99,6 +99,19 @@ pub enum Command {
         #[arg(long, short, value_name = "FILE")]
         output: Option<PathBuf>,
     },
+    /// Stage 6: smooth the walkers' paths (reads the collided trajectories, and the graph and
+    /// patterns beside them).
+    Smooth {
+        #[arg(long, default_value = "pipeline.ron", value_name = "FILE")]
+        pipeline: PathBuf,
+        /// Stage 5's file (default: `collided.ron` in the pipeline's output folder); the graph
+        /// and patterns are read from `graph.ron` and `patterns.ron` beside it.
+        #[arg(long, short, value_name = "FILE")]
+        input: Option<PathBuf>,
+        /// Output file (default: `smoothed.ron` in the pipeline's output folder).
+        #[arg(long, short, value_name = "FILE")]
+        output: Option<PathBuf>,
+    },
     /// A readable summary of any stage file.
     Inspect { file: PathBuf },
     /// A picture of a stage file as PNG: merged maps, patch graph, error map and convergence,
@@ -113,7 +126,13 @@ pub enum Command {
     },
     /// Check a build folder's world as an engine plays it: every pair, every time, across
     /// borders too; writes `check.ron` beside the stage files.
-    Check { dir: PathBuf },
+    Check {
+        dir: PathBuf,
+        /// The stage whose trajectories to check: match, collide or smooth (default: the latest
+        /// in the folder).
+        #[arg(long, value_name = "STAGE")]
+        stage: Option<crate::driver::Stage>,
+    },
     /// The figures of a build folder (`--json` for one JSON object).
     Report {
         /// Build folders (one for text and JSON; several for `--table`).
@@ -257,14 +276,44 @@ pub fn run(cli: Cli) -> Result<()> {
             check_motion(&input, graph.patches.len(), &motion)?;
             let inputs = driver::collide_inputs(&p);
             let hash = crowd_collide::input_hash(&graph_bytes, &trajectories_bytes, &inputs);
-            write_all(&driver::collide_stage(
-                &graph, &motion, &inputs, hash, &out, &ui,
-            ))?;
+            let (_, _, writes) = driver::collide_stage(&graph, &motion, &inputs, hash, &out, &ui);
+            write_all(&writes)?;
             ui.say(format!("collide: wrote {}", out.display()));
         }
+        Command::Smooth {
+            pipeline,
+            input,
+            output,
+        } => {
+            let (p, input, out) = stage_files(
+                &pipeline,
+                input,
+                output,
+                driver::COLLIDED_FILE,
+                driver::SMOOTHED_FILE,
+            )?;
+            let graph_path = input.with_file_name(GRAPH_FILE);
+            let patterns_path = input.with_file_name(driver::PATTERNS_FILE);
+            let graph_bytes = read(&graph_path)?;
+            let patterns_bytes = read(&patterns_path)?;
+            let collided_bytes = read(&input)?;
+            let graph = PatchGraph::load(&graph_path)?;
+            let (patterns, crossings) = Patterns::load(&patterns_path)?;
+            check_crossings(&patterns_path, &graph, &patterns, &crossings)?;
+            let (collided, motion) =
+                TrajectoriesFile::load_stage(&input, crowd_collide::STAGE, crowd_collide::VERSION)?;
+            check_motion(&input, graph.patches.len(), &motion)?;
+            let inputs = driver::smooth_inputs(&p);
+            let hash =
+                crowd_smooth::input_hash(&graph_bytes, &patterns_bytes, &collided_bytes, &inputs);
+            write_all(&driver::smooth_stage(
+                &graph, &crossings, &collided, &motion, &inputs, hash, &out, &ui,
+            ))?;
+            ui.say(format!("smooth: wrote {}", out.display()));
+        }
         Command::Inspect { file } => print!("{}", crate::inspect::inspect(&file)?),
-        Command::Check { dir } => {
-            let report = crate::report::check(&dir)?;
+        Command::Check { dir, stage } => {
+            let report = crate::report::check(&dir, stage)?;
             println!(
                 "{} walkers, {} segments: {} collisions ({} across borders); smallest clearance {:+.3} m{}",
                 report.walkers,
@@ -277,6 +326,22 @@ pub fn run(cli: Cli) -> Result<()> {
                     .map(|(x, y, t)| format!(" at ({x:.2}, {y:.2}) m, t = {t:.2} s"))
                     .unwrap_or_default()
             );
+            if let Some(m) = &report.motion {
+                println!(
+                    "{}: walking speed in 0.5-1.8 m/s {:.1} % of the time; acceleration p95 {:.3} m/s2; turning rate p95 {:.3} rad/s",
+                    report.stage,
+                    100.0 * m.speed_in_band,
+                    m.accel_p95,
+                    m.turn_rate_p95
+                );
+                println!(
+                    "borders: largest velocity jump {:.3} m/s; ends off their crossings by at most {:.2e} m and {:.2e} s; {} crossings not entered and left once",
+                    m.max_border_velocity_jump,
+                    m.max_boundary_error_m,
+                    m.max_boundary_time_error_s,
+                    m.unmatched_crossings
+                );
+            }
         }
         Command::Render {
             file,

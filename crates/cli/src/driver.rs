@@ -15,7 +15,7 @@ use crowd_core::config::PipelineFile;
 use crowd_core::files::{self, Header};
 use crowd_core::maps::MergeFile;
 use crowd_core::patterns::{Crossing, Patterns};
-use crowd_core::trajectories::TrajectoriesFile;
+use crowd_core::trajectories::{PatchMotion, TrajectoriesFile};
 use crowd_core::{Error, Hash, MergedMaps, PatchGraph};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -26,6 +26,7 @@ pub const GRAPH_FILE: &str = "graph.ron";
 pub const PATTERNS_FILE: &str = "patterns.ron";
 pub const TRAJECTORIES_FILE: &str = "trajectories.ron";
 pub const COLLIDED_FILE: &str = "collided.ron";
+pub const SMOOTHED_FILE: &str = "smoothed.ron";
 /// Wall time of the last run of each stage. Not compared between builds: it is the one output
 /// that is not deterministic.
 pub const TIMINGS_FILE: &str = "timings.ron";
@@ -48,6 +49,7 @@ pub enum Stage {
     Optimize,
     Match,
     Collide,
+    Smooth,
 }
 
 /// What happened to one stage in a build.
@@ -236,6 +238,7 @@ pub fn build(pipeline_path: &Path, options: &BuildOptions, ui: &Ui) -> Result<Ve
     let fresh = !options.force
         && is_current(&collided_path, stage5, version5, hash)
         && TrajectoriesFile::load_stage(&collided_path, stage5, version5).is_ok();
+    let mut built_collided: Option<(Vec<u8>, TrajectoriesFile, Vec<PatchMotion>)> = None;
     outcomes.push(stage(
         ui,
         "collide",
@@ -243,7 +246,53 @@ pub fn build(pipeline_path: &Path, options: &BuildOptions, ui: &Ui) -> Result<Ve
         fresh,
         &mut timings,
         || {
-            let writes = collide_stage(&graph, &motion, &inputs, hash, &collided_path, ui);
+            let (file, motion, writes) =
+                collide_stage(&graph, &motion, &inputs, hash, &collided_path, ui);
+            built_collided = Some((writes.last().expect("the RON file").1.clone(), file, motion));
+            pending.0.extend(writes);
+            Ok(())
+        },
+    )?);
+    if options.until == Some(Stage::Collide) {
+        return finish(&out, pending, &timings, outcomes);
+    }
+    let (collided_bytes, collided, motion) = match built_collided {
+        Some(built) => built,
+        None => {
+            let bytes =
+                std::fs::read(&collided_path).map_err(|e| Error::io(&collided_path, "read", e))?;
+            let (file, motion) = TrajectoriesFile::load_stage(&collided_path, stage5, version5)?;
+            let patches = graph.patches.len();
+            crowd_core::trajectories::check_motion(&collided_path, patches, &motion)?;
+            (bytes, file, motion)
+        }
+    };
+
+    // Stage 6: smooth.
+    let smoothed_path = out.join(SMOOTHED_FILE);
+    let inputs = smooth_inputs(&pipeline);
+    let hash = crowd_smooth::input_hash(&graph_bytes, &patterns_bytes, &collided_bytes, &inputs);
+    let (stage6, version6) = (crowd_smooth::STAGE, crowd_smooth::VERSION);
+    let fresh = !options.force
+        && is_current(&smoothed_path, stage6, version6, hash)
+        && TrajectoriesFile::load_stage(&smoothed_path, stage6, version6).is_ok();
+    outcomes.push(stage(
+        ui,
+        "smooth",
+        &smoothed_path,
+        fresh,
+        &mut timings,
+        || {
+            let writes = smooth_stage(
+                &graph,
+                &crossings,
+                &collided,
+                &motion,
+                &inputs,
+                hash,
+                &smoothed_path,
+                ui,
+            );
             pending.0.extend(writes);
             Ok(())
         },
@@ -295,12 +344,39 @@ pub fn collide_stage(
     hash: Hash,
     out: &Path,
     ui: &Ui,
-) -> Writes {
+) -> (TrajectoriesFile, Vec<PatchMotion>, Writes) {
     let bar = ui.stage_bar("collide");
     let s = inputs;
     let (motion, reports) =
         crowd_collide::collide(graph, motion, s.period_s, s.max_iterations, s.seed, &bar);
-    crowd_collide::encode(out, &motion, &reports, graph, s, hash).1
+    let (file, writes) = crowd_collide::encode(out, &motion, &reports, graph, s, hash);
+    (file, motion, writes)
+}
+
+/// Stage 6 in memory: what `crowd build` and `crowd smooth` both run.
+#[allow(clippy::too_many_arguments)]
+pub fn smooth_stage(
+    graph: &PatchGraph,
+    crossings: &[Crossing],
+    collided: &TrajectoriesFile,
+    motion: &[PatchMotion],
+    inputs: &crowd_smooth::Inputs,
+    hash: Hash,
+    out: &Path,
+    ui: &Ui,
+) -> Writes {
+    let bar = ui.stage_bar("smooth");
+    let (motion, summary) = crowd_smooth::smooth(graph, crossings, motion, inputs, &bar);
+    crowd_smooth::encode(out, &motion, summary, collided, inputs, hash).1
+}
+
+/// What stage 6 reads of a pipeline.
+pub fn smooth_inputs(pipeline: &PipelineFile) -> crowd_smooth::Inputs {
+    let p = &pipeline.pipeline;
+    crowd_smooth::Inputs {
+        period_s: p.period_s,
+        settings: p.smooth.clone(),
+    }
 }
 
 /// What stage 5 reads of a pipeline.

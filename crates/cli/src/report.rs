@@ -1,7 +1,8 @@
 //! `crowd report`: the figures a build folder holds so far, as text or one JSON object.
 
 use crate::driver::{
-    COLLIDED_FILE, GRAPH_FILE, MERGE_FILE, PATTERNS_FILE, TRAJECTORIES_FILE, read_timings,
+    COLLIDED_FILE, GRAPH_FILE, MERGE_FILE, PATTERNS_FILE, SMOOTHED_FILE, Stage, TRAJECTORIES_FILE,
+    read_timings,
 };
 use anyhow::{Result, bail};
 use crowd_core::PatchGraph;
@@ -18,6 +19,7 @@ pub struct Report {
     pub patterns: Option<Patterns>,
     pub trajectories: Option<TrajectoriesFile>,
     pub collided: Option<TrajectoriesFile>,
+    pub smoothed: Option<TrajectoriesFile>,
     /// The last `crowd check` of the folder.
     pub check: Option<crowd_check::CheckReport>,
     pub stage_seconds: BTreeMap<String, f64>,
@@ -53,12 +55,14 @@ impl Report {
         let patterns = optional(&dir.join(PATTERNS_FILE))?;
         let trajectories = optional(&dir.join(TRAJECTORIES_FILE))?;
         let collided = optional(&dir.join(COLLIDED_FILE))?;
+        let smoothed = optional(&dir.join(SMOOTHED_FILE))?;
         let check = optional(&dir.join(CHECK_FILE))?;
         Ok(Report {
             graph,
             patterns,
             trajectories,
             collided,
+            smoothed,
             check,
             stage_seconds: read_timings(dir),
         })
@@ -108,6 +112,26 @@ impl Report {
             out.insert("collisions".into(), json!(c.collisions));
             out.insert("collisions_across_borders".into(), json!(c.across_borders));
             out.insert("min_clearance_m".into(), json!(c.min_clearance_m));
+            out.insert("checked_stage".into(), json!(c.stage));
+            if let Some(m) = &c.motion {
+                out.insert("speed_in_band".into(), json!(m.speed_in_band));
+                out.insert("accel_p95".into(), json!(m.accel_p95));
+                out.insert("turn_rate_p95".into(), json!(m.turn_rate_p95));
+                out.insert(
+                    "max_border_velocity_jump".into(),
+                    json!(m.max_border_velocity_jump),
+                );
+                out.insert("max_boundary_error_m".into(), json!(m.max_boundary_error_m));
+                out.insert(
+                    "max_boundary_time_error_s".into(),
+                    json!(m.max_boundary_time_error_s),
+                );
+                out.insert("unmatched_crossings".into(), json!(m.unmatched_crossings));
+            }
+        }
+        if let Some(s) = self.smoothed.as_ref().and_then(|s| s.smoothing.as_ref()) {
+            out.insert("smoothed_trajectories".into(), json!(s.smoothed));
+            out.insert("kept_straight".into(), json!(s.kept_straight));
         }
         if let Some(c) = self.collided.as_ref().and_then(|c| c.collisions.as_ref()) {
             out.insert("unconverged_patches".into(), json!(c.unconverged.len()));
@@ -174,23 +198,53 @@ impl Report {
     }
 }
 
-/// `crowd check DIR`: checks the latest trajectories of a build folder (collided, else
-/// matched) and writes `check.ron`.
-pub fn check(dir: &Path) -> Result<crowd_check::CheckReport> {
+/// `crowd check DIR`: checks the trajectories of a build folder written by `stage` (default:
+/// the latest there is: smoothed, else collided, else matched) and writes `check.ron`.
+pub fn check(dir: &Path, stage: Option<Stage>) -> Result<crowd_check::CheckReport> {
     let graph = PatchGraph::load(&dir.join(GRAPH_FILE))?;
-    let collided = dir.join(COLLIDED_FILE);
-    let (file, motion) = if collided.exists() {
-        TrajectoriesFile::load_stage(&collided, crowd_collide::STAGE, crowd_collide::VERSION)?
-    } else {
-        TrajectoriesFile::load(&dir.join(TRAJECTORIES_FILE))?
+    let candidates = [
+        (
+            Stage::Smooth,
+            SMOOTHED_FILE,
+            crowd_smooth::STAGE,
+            crowd_smooth::VERSION,
+        ),
+        (
+            Stage::Collide,
+            COLLIDED_FILE,
+            crowd_collide::STAGE,
+            crowd_collide::VERSION,
+        ),
+        (
+            Stage::Match,
+            TRAJECTORIES_FILE,
+            TrajectoriesFile::STAGE,
+            TrajectoriesFile::VERSION,
+        ),
+    ];
+    let Some(&(_, name, kind, version)) = candidates
+        .iter()
+        .find(|c| stage.map_or(dir.join(c.1).exists(), |s| s == c.0))
+    else {
+        bail!(
+            "{}: no trajectories to check; `--stage` takes match, collide or smooth",
+            dir.display()
+        );
     };
-    let motion_path = if collided.exists() {
-        collided.clone()
-    } else {
-        dir.join(TRAJECTORIES_FILE)
-    };
-    crowd_core::trajectories::check_motion(&motion_path, graph.patches.len(), &motion)?;
-    let report = crowd_check::check(&graph, &motion, file.period_s);
+    let path = dir.join(name);
+    let (file, motion) = TrajectoriesFile::load_stage(&path, kind, version)?;
+    crowd_core::trajectories::check_motion(&path, graph.patches.len(), &motion)?;
+    let mut report = crowd_check::check(&graph, &motion, file.period_s);
+    report.stage = kind.to_string();
+    let patterns_path = dir.join(PATTERNS_FILE);
+    let (patterns, crossings) = Patterns::load(&patterns_path)?;
+    crowd_core::patterns::check_crossings(&patterns_path, &graph, &patterns, &crossings)?;
+    report.motion = Some(crowd_check::motion::figures(
+        &graph,
+        &crossings,
+        &motion,
+        file.period_s,
+    ));
     files::write_atomic(&dir.join(CHECK_FILE), files::to_ron(&report).as_bytes())?;
     Ok(report)
 }

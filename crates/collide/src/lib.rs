@@ -31,7 +31,7 @@ pub struct PatchReport {
 /// The static obstacles a walker of patch `p` can touch: its own, and those of the eight
 /// neighbours that come within a diameter of its square, in `p`'s local metres (a walker near a
 /// border must keep clear of a wall just across it too).
-fn obstacles_near(
+pub fn obstacles_near(
     graph: &PatchGraph,
     by_cell: &std::collections::HashMap<crowd_core::patch_graph::Cell, usize>,
     p: usize,
@@ -223,6 +223,7 @@ pub fn encode(
         graph.radius_m,
         motion,
         collisions,
+        None,
     )
 }
 

@@ -52,17 +52,20 @@ pub struct Outcome {
 }
 
 /// The closest encounter of walkers `a` and `b` (or `a` with its own copies a period or more
-/// later when `a == b`), if they ever coexist.
-fn pair(
-    paths: &[Path],
-    segs: &[Vec<Segment>],
-    a: usize,
-    b: usize,
-    patch: &Patch,
-) -> Option<Encounter> {
+/// later when `a == b`), if they ever coexist within reach of each other.
+fn pair(segs: &[Vec<Segment>], a: usize, b: usize, patch: &Patch) -> Option<Encounter> {
     let period = patch.period_s;
-    let (a0, a1) = paths[a].span();
-    let (b0, b1) = paths[b].span();
+    let (sa, sb) = (&segs[a], &segs[b]);
+    let (a0, a1) = (sa.first()?.t0, sa.last()?.t1);
+    let (b0, b1) = (sb.first()?.t0, sb.last()?.t1);
+    // Broad phase: walkers whose whole paths stay farther apart than they need never meet.
+    let reach = 2.0 * patch.radius_m;
+    let (amin, amax) = bounds(sa);
+    let (bmin, bmax) = bounds(sb);
+    let gap = (bmin - amax).max(amin - bmax).max(glam::DVec2::ZERO);
+    if gap.length() > reach {
+        return None;
+    }
     // Copies of b that overlap a in time: b shifted by k periods.
     let kmin = ((a0 - b1) / period).ceil() as i64;
     let kmax = ((a1 - b0) / period).floor() as i64;
@@ -72,17 +75,19 @@ fn pair(
             continue;
         }
         let shift = k as f64 * period;
-        for sa in &segs[a] {
-            for sb in &segs[b] {
-                let sb = sb.shifted(shift);
-                if sb.t1 < sa.t0 || sb.t0 > sa.t1 {
-                    continue;
-                }
-                if let Some((d, t)) = geometry::closest(sa, &sb)
-                    && best.is_none_or(|(bd, _, _)| d < bd)
-                {
-                    best = Some((d, t, shift));
-                }
+        // Both paths run forward in time: one sweep visits every overlapping pair of segments.
+        let (mut i, mut j) = (0, 0);
+        while i < sa.len() && j < sb.len() {
+            let x = sb[j].shifted(shift);
+            if let Some((d, t)) = geometry::closest(&sa[i], &x)
+                && best.is_none_or(|(bd, _, _)| d < bd)
+            {
+                best = Some((d, t, shift));
+            }
+            if sa[i].t1 <= x.t1 {
+                i += 1;
+            } else {
+                j += 1;
             }
         }
     }
@@ -95,11 +100,28 @@ fn pair(
     })
 }
 
+/// The corners of the box that holds a path.
+fn bounds(segs: &[Segment]) -> (glam::DVec2, glam::DVec2) {
+    segs.iter().fold(
+        (
+            glam::DVec2::splat(f64::INFINITY),
+            glam::DVec2::splat(f64::NEG_INFINITY),
+        ),
+        |(lo, hi), s| (lo.min(s.p0).min(s.p1), hi.max(s.p0).max(s.p1)),
+    )
+}
+
+/// Every encounter within reach in a patch: of each walker with every later walker (and its
+/// own later copies), with the standers and with the obstacles.
+pub fn encounters(segs: &[Vec<Segment>], patch: &Patch) -> Vec<Encounter> {
+    (0..segs.len()).flat_map(|a| row(segs, a, patch)).collect()
+}
+
 /// Every encounter of walker `a` with walkers `b >= a`, standers and obstacles.
-fn row(paths: &[Path], segs: &[Vec<Segment>], a: usize, patch: &Patch) -> Vec<Encounter> {
+fn row(segs: &[Vec<Segment>], a: usize, patch: &Patch) -> Vec<Encounter> {
     let r = patch.radius_m;
-    let mut out: Vec<Encounter> = (a..paths.len())
-        .filter_map(|b| pair(paths, segs, a, b, patch))
+    let mut out: Vec<Encounter> = (a..segs.len())
+        .filter_map(|b| pair(segs, a, b, patch))
         .collect();
     for (s, &q) in patch.standers.iter().enumerate() {
         let best = segs[a]
@@ -145,7 +167,7 @@ pub fn remove_collisions(
     let n = paths.len();
     let mut segs: Vec<Vec<Segment>> = paths.iter().map(Path::segments).collect();
     // Row a holds a's encounters with walkers b >= a, standers and obstacles.
-    let mut rows: Vec<Vec<Encounter>> = (0..n).map(|a| row(paths, &segs, a, patch)).collect();
+    let mut rows: Vec<Vec<Encounter>> = (0..n).map(|a| row(&segs, a, patch)).collect();
     let worst = |rows: &[Vec<Encounter>]| {
         rows.iter()
             .flatten()
@@ -178,11 +200,11 @@ pub fn remove_collisions(
         // Rows of the touched walkers, and their entries in the rows of the others.
         for (a, encounters) in rows.iter_mut().enumerate() {
             if touched.contains(&a) {
-                *encounters = row(paths, &segs, a, patch);
+                *encounters = row(&segs, a, patch);
             } else {
                 for &b in touched.iter().filter(|&&b| b > a) {
                     encounters.retain(|e| !matches!(e.other, Other::Walker { b: x, .. } if x == b));
-                    encounters.extend(pair(paths, &segs, a, b, patch));
+                    encounters.extend(pair(&segs, a, b, patch));
                 }
             }
         }

@@ -38,6 +38,8 @@ pub struct Pipeline {
     pub matching: MatchSettings,
     #[serde(default)]
     pub collide: CollideSettings,
+    #[serde(default)]
+    pub smooth: SmoothSettings,
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -196,6 +198,29 @@ impl Default for CollideSettings {
     fn default() -> Self {
         CollideSettings {
             max_iterations: 4_000,
+        }
+    }
+}
+
+/// Settings of stage 6 (Ramirez section 3.5).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct SmoothSettings {
+    /// Time between two tacks sampled on a trajectory, seconds.
+    pub tack_spacing_s: f64,
+    /// A smoothed point farther than this from the trajectory at the same time is dropped,
+    /// metres (Ramirez's alpha; default: a character's diameter, 2 x `radius_m`).
+    pub max_displacement_m: Option<f64>,
+    /// The curve is resampled until no chord strays farther than this from it, metres.
+    pub tolerance_m: f64,
+}
+
+impl Default for SmoothSettings {
+    fn default() -> Self {
+        SmoothSettings {
+            tack_spacing_s: 1.0,
+            max_displacement_m: None,
+            tolerance_m: 0.01,
         }
     }
 }
@@ -387,6 +412,22 @@ impl PipelineFile {
                 "graph.min_opening_m",
                 format!("is {w}; expected a positive width in metres"),
             ));
+        }
+        let sm = &p.smooth;
+        let positive = |v: f64| v.is_finite() && v > 0.0;
+        for (field, value) in [
+            ("smooth.tack_spacing_s", sm.tack_spacing_s),
+            ("smooth.tolerance_m", sm.tolerance_m),
+            (
+                "smooth.max_displacement_m",
+                sm.max_displacement_m.unwrap_or(1.0),
+            ),
+        ] {
+            if !positive(value) {
+                return Err(
+                    self.field_error(field, format!("is {value}; expected a positive number"))
+                );
+            }
         }
         let o = &p.optimize;
         if !(o.rho_max.is_finite() && o.rho_max > 0.0) {

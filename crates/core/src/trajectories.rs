@@ -24,11 +24,13 @@ pub enum PointKind {
     Bend,
     /// A corner of the way round a static obstacle.
     Detour,
+    /// A point of the smoothed curve (added by the smooth stage).
+    Sample,
 }
 
 impl PointKind {
     /// Every kind, in code order.
-    pub const ALL: [PointKind; 7] = [
+    pub const ALL: [PointKind; 8] = [
         PointKind::Entry,
         PointKind::Exit,
         PointKind::Split,
@@ -36,6 +38,7 @@ impl PointKind {
         PointKind::Turn,
         PointKind::Bend,
         PointKind::Detour,
+        PointKind::Sample,
     ];
 
     fn code(self) -> u8 {
@@ -266,6 +269,7 @@ pub fn encode_file(
     radius_m: f64,
     motion: &[PatchMotion],
     collisions: Option<CollisionSummary>,
+    smoothing: Option<SmoothingSummary>,
 ) -> (TrajectoriesFile, Vec<(std::path::PathBuf, Vec<u8>)>) {
     let bytes = encode_motion(motion);
     let (side, record) = SideFile::beside(out, &bytes);
@@ -275,6 +279,7 @@ pub fn encode_file(
         radius_m,
         summary: summarize(motion, period_s),
         collisions,
+        smoothing,
         motion: record,
     };
     let ron = crate::files::to_ron(&file).into_bytes();
@@ -292,6 +297,9 @@ pub struct TrajectoriesFile {
     /// What the collide stage did (absent before it).
     #[serde(default)]
     pub collisions: Option<CollisionSummary>,
+    /// What the smooth stage did (absent before it).
+    #[serde(default)]
+    pub smoothing: Option<SmoothingSummary>,
     /// Per patch motion, in patch order.
     pub motion: SideFile,
 }
@@ -305,6 +313,18 @@ pub struct CollisionSummary {
     pub min_margin_m: f64,
     /// Patches that hit the iteration cap, with their worst margin.
     pub unconverged: Vec<(u32, f64)>,
+}
+
+/// The smooth stage's figures.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SmoothingSummary {
+    /// Trajectories that ship smoothed.
+    pub smoothed: u64,
+    /// Trajectories kept as the collide stage left them, because their smoothed curve came too
+    /// close to someone or something.
+    pub kept_straight: u64,
+    /// Curve points dropped for straying farther than the allowed displacement.
+    pub dropped_points: u64,
 }
 
 impl TrajectoriesFile {

@@ -304,5 +304,6 @@ pub fn encode(
         graph.radius_m,
         motion,
         None,
+        None,
     )
 }

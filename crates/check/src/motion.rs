@@ -1,0 +1,219 @@
+//! Exactness, continuity and motion quality of the shipped trajectories (DESIGN.md's figures).
+//!
+//! Acceleration and turning rate are measured as a player shows the motion: positions sampled
+//! every 0.1 s, second differences of consecutive frames (and the change of velocity where a
+//! character crosses a border, over one frame). A polyline's corner is then the sharp change it
+//! is on screen; weighting its vertices by the time around them instead would spread a corner
+//! over seconds and reward coarse paths. Percentiles are over frames, so by time.
+
+use crowd_core::PatchGraph;
+use crowd_core::patterns::{Crossing, Way, border_point};
+use crowd_core::trajectories::{PatchMotion, Trajectory};
+use glam::DVec2;
+use rayon::prelude::*;
+
+/// DESIGN.md's band of walking speeds, m/s.
+pub const SPEED_BAND: (f64, f64) = (0.5, 1.8);
+/// Slower than this is standing (pauses are left out of the speed share and turning).
+const STANDING: f64 = 0.05;
+/// Frame step of the motion figures, seconds: acceleration and turning are measured on
+/// positions sampled at 10 frames per second, as a player shows them.
+const FRAME_S: f64 = 0.1;
+/// Histogram resolution of accelerations (m/s2) and turning rates (rad/s), and their range.
+const BIN: f64 = 0.005;
+const BINS: usize = 20_000;
+
+/// Motion figures of a set of trajectories.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct MotionFigures {
+    /// Share of walking time (pauses excepted) at speeds within 0.5-1.8 m/s.
+    pub speed_in_band: f64,
+    /// 95th percentile (by time) of acceleration, m/s2, and of turning rate, rad/s.
+    pub accel_p95: f64,
+    pub turn_rate_p95: f64,
+    /// Largest change of velocity where a character crosses from one patch to the next, m/s.
+    pub max_border_velocity_jump: f64,
+    /// Largest distance (m) and time difference (s, modulo the period) between a trajectory's
+    /// end and the crossing it starts or ends at.
+    pub max_boundary_error_m: f64,
+    pub max_boundary_time_error_s: f64,
+    /// Crossings not entered by exactly one trajectory and left by exactly one.
+    pub unmatched_crossings: u64,
+}
+
+#[derive(Clone)]
+struct Tally {
+    walking: f64,
+    in_band: f64,
+    accel: Vec<f64>,
+    turn: Vec<f64>,
+}
+
+impl Tally {
+    fn new() -> Tally {
+        Tally {
+            walking: 0.0,
+            in_band: 0.0,
+            accel: vec![0.0; BINS],
+            turn: vec![0.0; BINS],
+        }
+    }
+
+    fn add(mut self, o: Tally) -> Tally {
+        self.walking += o.walking;
+        self.in_band += o.in_band;
+        for (a, b) in self.accel.iter_mut().zip(&o.accel) {
+            *a += b;
+        }
+        for (a, b) in self.turn.iter_mut().zip(&o.turn) {
+            *a += b;
+        }
+        self
+    }
+
+    fn trajectory(&mut self, tr: &Trajectory) {
+        let pts = &tr.points;
+        for w in pts.windows(2).filter(|w| w[1].t > w[0].t) {
+            let dt = w[1].t - w[0].t;
+            let speed = w[1].pos.distance(w[0].pos) / dt;
+            if speed > STANDING {
+                self.walking += dt;
+                if (SPEED_BAND.0..=SPEED_BAND.1).contains(&speed) {
+                    self.in_band += dt;
+                }
+            }
+        }
+        // Frames every FRAME_S from the entry, as a player samples the path.
+        let (t0, t1) = (pts[0].t, pts[pts.len() - 1].t);
+        let frames = ((t1 - t0) / FRAME_S).floor() as usize;
+        let mut k = 0;
+        let mut at = |t: f64| {
+            while k + 2 < pts.len() && pts[k + 1].t <= t {
+                k += 1;
+            }
+            let (a, b) = (pts[k], pts[k + 1]);
+            if b.t > a.t {
+                a.pos + (b.pos - a.pos) * ((t - a.t) / (b.t - a.t)).clamp(0.0, 1.0)
+            } else {
+                b.pos
+            }
+        };
+        let samples: Vec<DVec2> = (0..=frames).map(|i| at(t0 + i as f64 * FRAME_S)).collect();
+        for w in samples.windows(3) {
+            let (v1, v2) = ((w[1] - w[0]) / FRAME_S, (w[2] - w[1]) / FRAME_S);
+            self.vertex(v1, v2, FRAME_S);
+        }
+    }
+
+    /// A change of velocity from `v1` to `v2` over `window` seconds.
+    fn vertex(&mut self, v1: DVec2, v2: DVec2, window: f64) {
+        let bin = |x: f64| ((x / BIN) as usize).min(BINS - 1);
+        self.accel[bin((v2 - v1).length() / window)] += window;
+        if v1.length() > STANDING && v2.length() > STANDING {
+            let angle = v1.perp_dot(v2).atan2(v1.dot(v2)).abs();
+            self.turn[bin(angle / window)] += window;
+        }
+    }
+}
+
+/// The value below which 95 % of the weight lies.
+fn p95(hist: &[f64]) -> f64 {
+    let total: f64 = hist.iter().sum();
+    let mut seen = 0.0;
+    for (i, w) in hist.iter().enumerate() {
+        seen += w;
+        if seen >= 0.95 * total {
+            return (i as f64 + 1.0) * BIN;
+        }
+    }
+    0.0
+}
+
+/// The motion figures of `motion` (per patch, in patch order) against its crossings.
+pub fn figures(
+    graph: &PatchGraph,
+    crossings: &[Crossing],
+    motion: &[PatchMotion],
+    period_s: f64,
+) -> MotionFigures {
+    let tally = motion
+        .par_iter()
+        .map(|m| {
+            let mut t = Tally::new();
+            for tr in &m.trajectories {
+                t.trajectory(tr);
+            }
+            t
+        })
+        .reduce(Tally::new, Tally::add);
+
+    // Every crossing seen from both sides: where each end lies, and the velocity there.
+    let side = graph.world.patch_side_m;
+    let mut entered = vec![(0u32, DVec2::ZERO, 0.0f64); crossings.len()];
+    let mut left = vec![(0u32, DVec2::ZERO, 0.0f64); crossings.len()];
+    let (mut pos_err, mut time_err) = (0.0f64, 0.0f64);
+    for (p, m) in motion.iter().enumerate() {
+        for tr in &m.trajectories {
+            let pts = &tr.points;
+            let ends = [
+                (tr.entry, pts[0], pts[1], true),
+                (tr.exit, pts[pts.len() - 1], pts[pts.len() - 2], false),
+            ];
+            for (c, end, next, entry) in ends {
+                let Some(crossing) = crossings.get(c as usize) else {
+                    continue;
+                };
+                let border = &graph.borders[crossing.border as usize];
+                let (a, b) = border_point(border, side, crossing.s);
+                // The crossing goes a -> b when its way is AToB.
+                let (from, to) = match crossing.way {
+                    Way::AToB => (a, b),
+                    Way::BToA => (b, a),
+                };
+                let here = if entry { to } else { from };
+                if here.patch.0 as usize != p {
+                    pos_err = f64::INFINITY;
+                    continue;
+                }
+                pos_err = pos_err.max(end.pos.distance(here.pos));
+                let dt = (end.t - crossing.t).rem_euclid(period_s);
+                time_err = time_err.max(dt.min(period_s - dt));
+                let v = if entry {
+                    (next.pos - end.pos) / (next.t - end.t)
+                } else {
+                    (end.pos - next.pos) / (end.t - next.t)
+                };
+                let slot = if entry { &mut entered } else { &mut left };
+                slot[c as usize].0 += 1;
+                slot[c as usize].1 = v;
+                slot[c as usize].2 = (next.t - end.t).abs();
+            }
+        }
+    }
+    let mut unmatched = 0;
+    let mut jump = 0.0f64;
+    // A border is a vertex of the character's world path like any other: its turn and change
+    // of speed count in the percentiles too.
+    let mut tally = tally;
+    for (e, l) in entered.iter().zip(&left) {
+        if e.0 != 1 || l.0 != 1 {
+            unmatched += 1;
+            continue;
+        }
+        jump = jump.max((e.1 - l.1).length());
+        tally.vertex(l.1, e.1, FRAME_S);
+    }
+    MotionFigures {
+        speed_in_band: if tally.walking > 0.0 {
+            tally.in_band / tally.walking
+        } else {
+            1.0
+        },
+        accel_p95: p95(&tally.accel),
+        turn_rate_p95: p95(&tally.turn),
+        max_border_velocity_jump: jump,
+        max_boundary_error_m: pos_err,
+        max_boundary_time_error_s: time_err,
+        unmatched_crossings: unmatched,
+    }
+}
