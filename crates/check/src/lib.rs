@@ -270,18 +270,11 @@ mod tests {
     use crowd_core::config::GraphSettings;
     use crowd_core::trajectories::{ControlPoint, PointKind, Trajectory};
     use crowd_core::{Grid, Hash, MergedMaps};
-    use glam::Vec2;
 
     /// Two 8 m patches side by side.
     fn two_patches() -> PatchGraph {
-        let maps = MergedMaps {
-            meters_per_pixel: 1.0,
-            walkers: Grid::filled(16, 8, 1.0),
-            standers: Grid::filled(16, 8, 0.0),
-            flow: Grid::filled(16, 8, Vec2::ZERO),
-            flow_weight: Grid::filled(16, 8, 0.0),
-            blocked: Grid::filled(16, 8, false),
-        };
+        let mut maps = MergedMaps::empty(16, 8, 1.0);
+        maps.walkers = Grid::filled(16, 8, 1.0);
         let inputs = crowd_graph::GraphInputs {
             walkers: 10,
             standers: 0,

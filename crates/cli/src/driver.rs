@@ -438,13 +438,7 @@ fn stage(
 
 /// Whether the stage file at `path` was built by this stage version from exactly `hash`.
 fn is_current(path: &Path, stage: &str, version: u32, hash: Hash) -> bool {
-    files::read_header(path).is_ok_and(|h| {
-        h == Header {
-            stage: stage.to_string(),
-            version,
-            input_hash: hash,
-        }
-    })
+    files::read_header(path).is_ok_and(|h| h == Header::new(stage, version, hash))
 }
 
 /// Stage timings of a build folder (empty when there are none yet).

@@ -202,11 +202,7 @@ pub fn encode(
     Vec<(std::path::PathBuf, Vec<u8>)>,
 ) {
     use crowd_core::trajectories::CollisionSummary;
-    let header = crowd_core::files::Header {
-        stage: STAGE.to_string(),
-        version: VERSION,
-        input_hash: hash,
-    };
+    let header = crowd_core::files::Header::new(STAGE, VERSION, hash);
     let collisions = Some(CollisionSummary {
         iterations: reports.iter().map(|r| r.iterations as u64).sum(),
         min_margin_m: reports.iter().map(|r| r.worst_margin_m).fold(0.0, f64::min),

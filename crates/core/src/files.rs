@@ -24,6 +24,16 @@ pub struct Header {
     pub input_hash: Hash,
 }
 
+impl Header {
+    pub fn new(stage: &str, version: u32, input_hash: Hash) -> Header {
+        Header {
+            stage: stage.to_string(),
+            version,
+            input_hash,
+        }
+    }
+}
+
 /// A binary side file, named by the RON file that owns it.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
 pub struct SideFile {
@@ -192,11 +202,7 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("demo.ron");
         let demo = Demo {
-            header: Header {
-                stage: "demo".into(),
-                version: 3,
-                input_hash: Hash::of(b"x"),
-            },
+            header: Header::new("demo", 3, Hash::of(b"x")),
             items: vec![(1, 0.5), (2, 1.5)],
         };
         write_atomic(&path, to_ron(&demo).as_bytes()).unwrap();

@@ -29,6 +29,18 @@ pub struct MergedMaps {
 const MAGIC: &[u8; 8] = b"CRWDMAPS";
 
 impl MergedMaps {
+    /// Maps of `width x height` pixels on which nothing is painted yet.
+    pub fn empty(width: u32, height: u32, meters_per_pixel: f64) -> MergedMaps {
+        MergedMaps {
+            meters_per_pixel,
+            walkers: Grid::filled(width, height, 0.0),
+            standers: Grid::filled(width, height, 0.0),
+            flow: Grid::filled(width, height, Vec2::ZERO),
+            flow_weight: Grid::filled(width, height, 0.0),
+            blocked: Grid::filled(width, height, false),
+        }
+    }
+
     pub fn width(&self) -> u32 {
         self.walkers.width()
     }

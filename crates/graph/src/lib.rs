@@ -222,11 +222,7 @@ pub fn build_graph(
     progress.advance(1);
 
     Ok(PatchGraph {
-        header: Header {
-            stage: PatchGraph::STAGE.to_string(),
-            version: PatchGraph::VERSION,
-            input_hash,
-        },
+        header: Header::new(PatchGraph::STAGE, PatchGraph::VERSION, input_hash),
         world,
         walkers_requested: inputs.walkers,
         standers_requested: inputs.standers,

@@ -6,14 +6,8 @@ use proptest::prelude::*;
 
 /// Maps of `w x h` pixels at 1 m per pixel, uniformly painted, with `blocked` pixels.
 fn maps(w: u32, h: u32, blocked: impl Fn(u32, u32) -> bool) -> MergedMaps {
-    let mut m = MergedMaps {
-        meters_per_pixel: 1.0,
-        walkers: Grid::filled(w, h, 1.0),
-        standers: Grid::filled(w, h, 0.0),
-        flow: Grid::filled(w, h, Vec2::ZERO),
-        flow_weight: Grid::filled(w, h, 0.0),
-        blocked: Grid::filled(w, h, false),
-    };
+    let mut m = MergedMaps::empty(w, h, 1.0);
+    m.walkers = Grid::filled(w, h, 1.0);
     for y in 0..h {
         for x in 0..w {
             if blocked(x, y) {

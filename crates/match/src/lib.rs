@@ -292,11 +292,8 @@ pub fn encode(
     Vec<(std::path::PathBuf, Vec<u8>)>,
 ) {
     use crowd_core::trajectories::TrajectoriesFile;
-    let header = crowd_core::files::Header {
-        stage: TrajectoriesFile::STAGE.to_string(),
-        version: TrajectoriesFile::VERSION,
-        input_hash: hash,
-    };
+    let header =
+        crowd_core::files::Header::new(TrajectoriesFile::STAGE, TrajectoriesFile::VERSION, hash);
     crowd_core::trajectories::encode_file(
         out,
         header,

@@ -82,11 +82,7 @@ pub fn encode(
     let bytes = maps.to_bytes();
     let (side, record) = SideFile::beside(out, &bytes);
     let file = MergeFile {
-        header: Header {
-            stage: MergeFile::STAGE.to_string(),
-            version: MergeFile::VERSION,
-            input_hash,
-        },
+        header: Header::new(MergeFile::STAGE, MergeFile::VERSION, input_hash),
         width: maps.width(),
         height: maps.height(),
         meters_per_pixel: pipeline.pipeline.scene.meters_per_pixel,

@@ -19,14 +19,7 @@ pub fn merge(
     let (w, h) = layers
         .first()
         .map_or((0, 0), |l| (l.raster.width, l.raster.height));
-    let mut maps = MergedMaps {
-        meters_per_pixel,
-        walkers: Grid::filled(w, h, 0.0),
-        standers: Grid::filled(w, h, 0.0),
-        flow: Grid::filled(w, h, Vec2::ZERO),
-        flow_weight: Grid::filled(w, h, 0.0),
-        blocked: Grid::filled(w, h, false),
-    };
+    let mut maps = MergedMaps::empty(w, h, meters_per_pixel);
     progress.begin("merge", layers.len() as u64 + 1);
     let width = w as usize;
     for layer in layers.iter().filter(|l| l.weight > 0.0) {

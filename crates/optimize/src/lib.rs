@@ -448,11 +448,11 @@ pub fn encode(
     let bytes = crowd_core::patterns::encode_crossings(&outcome.crossings);
     let (side, record) = SideFile::beside(out, &bytes);
     let patterns = crowd_core::patterns::Patterns {
-        header: Header {
-            stage: crowd_core::patterns::Patterns::STAGE.to_string(),
-            version: crowd_core::patterns::Patterns::VERSION,
-            input_hash: hash,
-        },
+        header: Header::new(
+            crowd_core::patterns::Patterns::STAGE,
+            crowd_core::patterns::Patterns::VERSION,
+            hash,
+        ),
         period_s: inputs.period_s,
         rho_max: inputs.settings.rho_max,
         seed: inputs.seed,

@@ -11,14 +11,8 @@ use proptest::prelude::*;
 /// the top row.
 fn scene(walkers: u64) -> PatchGraph {
     let (w, h) = (48, 32);
-    let mut maps = MergedMaps {
-        meters_per_pixel: 1.0,
-        walkers: Grid::filled(w, h, 0.2),
-        standers: Grid::filled(w, h, 0.0),
-        flow: Grid::filled(w, h, Vec2::ZERO),
-        flow_weight: Grid::filled(w, h, 0.0),
-        blocked: Grid::filled(w, h, false),
-    };
+    let mut maps = MergedMaps::empty(w, h, 1.0);
+    maps.walkers = Grid::filled(w, h, 0.2);
     for y in 0..h {
         for x in 0..w {
             let i = (y * w + x) as usize;

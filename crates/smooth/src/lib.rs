@@ -260,11 +260,7 @@ pub fn encode(
     crowd_core::trajectories::TrajectoriesFile,
     Vec<(std::path::PathBuf, Vec<u8>)>,
 ) {
-    let header = crowd_core::files::Header {
-        stage: STAGE.to_string(),
-        version: VERSION,
-        input_hash: hash,
-    };
+    let header = crowd_core::files::Header::new(STAGE, VERSION, hash);
     crowd_core::trajectories::encode_file(
         out,
         header,
