@@ -6,9 +6,9 @@ use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
 use crowd_core::PatchGraph;
 use crowd_core::config::PipelineFile;
-use crowd_core::patterns::{Patterns, check_crossings};
+use crowd_core::files::read_bytes;
+use crowd_core::patterns::Patterns;
 use crowd_core::trajectories::TrajectoriesFile;
-use crowd_core::trajectories::check_motion;
 use std::path::PathBuf;
 
 #[derive(Debug, Parser)]
@@ -162,8 +162,10 @@ fn stage_files(
     Ok((p, input, out))
 }
 
-fn read(path: &std::path::Path) -> Result<Vec<u8>> {
-    Ok(std::fs::read(path).map_err(|e| crowd_core::Error::io(path, "read", e))?)
+/// The graph a stage file was built on (`graph.ron` beside it) and its bytes.
+fn graph_beside(stage_file: &std::path::Path) -> Result<(Vec<u8>, PatchGraph)> {
+    let path = stage_file.with_file_name(GRAPH_FILE);
+    Ok((read_bytes(&path)?, PatchGraph::load(&path)?))
 }
 
 /// Writes a stage's encoded files, each atomically, in order.
@@ -221,7 +223,7 @@ pub fn run(cli: Cli) -> Result<()> {
         } => {
             let (p, input, out) =
                 stage_files(&pipeline, input, output, GRAPH_FILE, driver::PATTERNS_FILE)?;
-            let graph_bytes = read(&input)?;
+            let graph_bytes = read_bytes(&input)?;
             let graph = PatchGraph::load(&input)?;
             let inputs = crowd_optimize::inputs(&p);
             let hash = crowd_optimize::input_hash(&graph_bytes, &inputs);
@@ -245,11 +247,9 @@ pub fn run(cli: Cli) -> Result<()> {
                 driver::PATTERNS_FILE,
                 driver::TRAJECTORIES_FILE,
             )?;
-            let graph_path = input.with_file_name(GRAPH_FILE);
-            let (graph_bytes, patterns_bytes) = (read(&graph_path)?, read(&input)?);
-            let graph = PatchGraph::load(&graph_path)?;
-            let (patterns, crossings) = Patterns::load(&input)?;
-            check_crossings(&input, &graph, &patterns, &crossings)?;
+            let (graph_bytes, graph) = graph_beside(&input)?;
+            let (patterns, crossings) = Patterns::load_for(&input, &graph)?;
+            let patterns_bytes = read_bytes(&input)?;
             let inputs = crowd_match::inputs(&p);
             let hash = crowd_match::input_hash(&graph_bytes, &patterns_bytes, &inputs);
             let (_, writes) =
@@ -269,11 +269,11 @@ pub fn run(cli: Cli) -> Result<()> {
                 driver::TRAJECTORIES_FILE,
                 driver::COLLIDED_FILE,
             )?;
-            let graph_path = input.with_file_name(GRAPH_FILE);
-            let (graph_bytes, trajectories_bytes) = (read(&graph_path)?, read(&input)?);
-            let graph = PatchGraph::load(&graph_path)?;
-            let (_, motion) = TrajectoriesFile::load(&input)?;
-            check_motion(&input, graph.patches.len(), &motion)?;
+            let (graph_bytes, graph) = graph_beside(&input)?;
+            let (stage, version) = (TrajectoriesFile::STAGE, TrajectoriesFile::VERSION);
+            let (_, motion) =
+                TrajectoriesFile::load_for(&input, stage, version, graph.patches.len())?;
+            let trajectories_bytes = read_bytes(&input)?;
             let inputs = driver::collide_inputs(&p);
             let hash = crowd_collide::input_hash(&graph_bytes, &trajectories_bytes, &inputs);
             let (_, _, writes) = driver::collide_stage(&graph, &motion, &inputs, hash, &out, &ui);
@@ -292,17 +292,14 @@ pub fn run(cli: Cli) -> Result<()> {
                 driver::COLLIDED_FILE,
                 driver::SMOOTHED_FILE,
             )?;
-            let graph_path = input.with_file_name(GRAPH_FILE);
+            let (graph_bytes, graph) = graph_beside(&input)?;
             let patterns_path = input.with_file_name(driver::PATTERNS_FILE);
-            let graph_bytes = read(&graph_path)?;
-            let patterns_bytes = read(&patterns_path)?;
-            let collided_bytes = read(&input)?;
-            let graph = PatchGraph::load(&graph_path)?;
-            let (patterns, crossings) = Patterns::load(&patterns_path)?;
-            check_crossings(&patterns_path, &graph, &patterns, &crossings)?;
+            let (_, crossings) = Patterns::load_for(&patterns_path, &graph)?;
+            let patterns_bytes = read_bytes(&patterns_path)?;
+            let (stage, version) = (crowd_collide::STAGE, crowd_collide::VERSION);
             let (collided, motion) =
-                TrajectoriesFile::load_stage(&input, crowd_collide::STAGE, crowd_collide::VERSION)?;
-            check_motion(&input, graph.patches.len(), &motion)?;
+                TrajectoriesFile::load_for(&input, stage, version, graph.patches.len())?;
+            let collided_bytes = read_bytes(&input)?;
             let inputs = driver::smooth_inputs(&p);
             let hash =
                 crowd_smooth::input_hash(&graph_bytes, &patterns_bytes, &collided_bytes, &inputs);

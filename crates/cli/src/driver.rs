@@ -16,7 +16,7 @@ use crowd_core::files::{self, Header};
 use crowd_core::maps::MergeFile;
 use crowd_core::patterns::{Crossing, Patterns};
 use crowd_core::trajectories::{PatchMotion, TrajectoriesFile};
-use crowd_core::{Error, Hash, MergedMaps, PatchGraph};
+use crowd_core::{Hash, MergedMaps, PatchGraph};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -111,7 +111,7 @@ pub fn build(pipeline_path: &Path, options: &BuildOptions, ui: &Ui) -> Result<Ve
     let graph_path = out.join(GRAPH_FILE);
     let merge_bytes = match &merged {
         Some((bytes, _)) => bytes.clone(),
-        None => std::fs::read(&merge_path).map_err(|e| Error::io(&merge_path, "read", e))?,
+        None => files::read_bytes(&merge_path)?,
     };
     let hash = crowd_graph::input_hash(&merge_bytes, &crowd_graph::inputs(&pipeline));
     let fresh =
@@ -141,11 +141,10 @@ pub fn build(pipeline_path: &Path, options: &BuildOptions, ui: &Ui) -> Result<Ve
     }
     let (graph_bytes, graph) = match built_graph {
         Some(built) => built,
-        None => {
-            let bytes =
-                std::fs::read(&graph_path).map_err(|e| Error::io(&graph_path, "read", e))?;
-            (bytes, PatchGraph::load(&graph_path)?)
-        }
+        None => (
+            files::read_bytes(&graph_path)?,
+            PatchGraph::load(&graph_path)?,
+        ),
     };
 
     // Stage 3: optimize.
@@ -177,11 +176,8 @@ pub fn build(pipeline_path: &Path, options: &BuildOptions, ui: &Ui) -> Result<Ve
     let (patterns_bytes, patterns, crossings) = match built_patterns {
         Some(built) => built,
         None => {
-            let bytes =
-                std::fs::read(&patterns_path).map_err(|e| Error::io(&patterns_path, "read", e))?;
-            let (p, c) = Patterns::load(&patterns_path)?;
-            crowd_core::patterns::check_crossings(&patterns_path, &graph, &p, &c)?;
-            (bytes, p, c)
+            let (p, c) = Patterns::load_for(&patterns_path, &graph)?;
+            (files::read_bytes(&patterns_path)?, p, c)
         }
     };
 
@@ -221,12 +217,10 @@ pub fn build(pipeline_path: &Path, options: &BuildOptions, ui: &Ui) -> Result<Ve
     let (trajectories_bytes, motion) = match built_motion {
         Some(built) => built,
         None => {
-            let bytes = std::fs::read(&trajectories_path)
-                .map_err(|e| Error::io(&trajectories_path, "read", e))?;
-            let motion = TrajectoriesFile::load(&trajectories_path)?.1;
             let patches = graph.patches.len();
-            crowd_core::trajectories::check_motion(&trajectories_path, patches, &motion)?;
-            (bytes, motion)
+            let (_, motion) =
+                TrajectoriesFile::load_for(&trajectories_path, stage4, version4, patches)?;
+            (files::read_bytes(&trajectories_path)?, motion)
         }
     };
 
@@ -259,12 +253,10 @@ pub fn build(pipeline_path: &Path, options: &BuildOptions, ui: &Ui) -> Result<Ve
     let (collided_bytes, collided, motion) = match built_collided {
         Some(built) => built,
         None => {
-            let bytes =
-                std::fs::read(&collided_path).map_err(|e| Error::io(&collided_path, "read", e))?;
-            let (file, motion) = TrajectoriesFile::load_stage(&collided_path, stage5, version5)?;
             let patches = graph.patches.len();
-            crowd_core::trajectories::check_motion(&collided_path, patches, &motion)?;
-            (bytes, file, motion)
+            let (file, motion) =
+                TrajectoriesFile::load_for(&collided_path, stage5, version5, patches)?;
+            (files::read_bytes(&collided_path)?, file, motion)
         }
     };
 

@@ -50,15 +50,9 @@ pub fn render(path: &Path, out: &Path, patch: Option<u32>) -> Result<&'static st
         }
         stage @ (TrajectoriesFile::STAGE | crowd_collide::STAGE) => {
             let graph = PatchGraph::load(&beside(GRAPH_FILE))?;
-            let (patterns, crossings) = Patterns::load(&beside(PATTERNS_FILE))?;
-            crowd_core::patterns::check_crossings(
-                &beside(PATTERNS_FILE),
-                &graph,
-                &patterns,
-                &crossings,
-            )?;
-            let (_, motion) = TrajectoriesFile::load_stage(path, stage, header.version)?;
-            crowd_core::trajectories::check_motion(path, graph.patches.len(), &motion)?;
+            let (patterns, crossings) = Patterns::load_for(&beside(PATTERNS_FILE), &graph)?;
+            let patches = graph.patches.len();
+            let (_, motion) = TrajectoriesFile::load_for(path, stage, header.version, patches)?;
             let busiest = (0..motion.len())
                 .max_by_key(|&p| (motion[p].trajectories.len(), std::cmp::Reverse(p)));
             let Some(p) = patch.map(|p| p as usize).or(busiest) else {

@@ -232,13 +232,11 @@ pub fn check(dir: &Path, stage: Option<Stage>) -> Result<crowd_check::CheckRepor
         );
     };
     let path = dir.join(name);
-    let (file, motion) = TrajectoriesFile::load_stage(&path, kind, version)?;
-    crowd_core::trajectories::check_motion(&path, graph.patches.len(), &motion)?;
+    let (file, motion) = TrajectoriesFile::load_for(&path, kind, version, graph.patches.len())?;
     let mut report = crowd_check::check(&graph, &motion, file.period_s);
     report.stage = kind.to_string();
     let patterns_path = dir.join(PATTERNS_FILE);
-    let (patterns, crossings) = Patterns::load(&patterns_path)?;
-    crowd_core::patterns::check_crossings(&patterns_path, &graph, &patterns, &crossings)?;
+    let (_, crossings) = Patterns::load_for(&patterns_path, &graph)?;
     report.motion = Some(crowd_check::motion::figures(
         &graph,
         &crossings,

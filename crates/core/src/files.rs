@@ -34,6 +34,11 @@ impl Header {
     }
 }
 
+/// The bytes of a file (a stage file whose bytes the next stage's input hash covers).
+pub fn read_bytes(path: &Path) -> Result<Vec<u8>> {
+    std::fs::read(path).map_err(|e| Error::io(path, "read", e))
+}
+
 /// A binary side file, named by the RON file that owns it.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
 pub struct SideFile {
@@ -63,7 +68,7 @@ impl SideFile {
     /// Reads the side file next to `owner` and checks its size and hash.
     pub fn read(&self, owner: &Path) -> Result<Vec<u8>> {
         let path = owner.with_file_name(&self.file);
-        let bytes = std::fs::read(&path).map_err(|e| Error::io(&path, "read", e))?;
+        let bytes = read_bytes(&path)?;
         if bytes.len() as u64 != self.bytes || Hash::of(&bytes) != self.hash {
             return Err(Error::stage_file(
                 &path,

@@ -203,6 +203,16 @@ impl Patterns {
         let crossings = decode_crossings(&path.with_file_name(&p.crossings.file), &bytes)?;
         Ok((p, crossings))
     }
+
+    /// Reads `patterns.ron` and refuses it unless it fits `graph` ([`check_crossings`]).
+    pub fn load_for(
+        path: &std::path::Path,
+        graph: &PatchGraph,
+    ) -> Result<(Patterns, Vec<Crossing>)> {
+        let (p, crossings) = Self::load(path)?;
+        check_crossings(path, graph, &p, &crossings)?;
+        Ok((p, crossings))
+    }
 }
 
 /// Refuses crossings that do not fit `graph` (patterns built from another graph, or damaged):

@@ -347,6 +347,19 @@ impl TrajectoriesFile {
         let motion = decode_motion(&path.with_file_name(&file.motion.file), &bytes)?;
         Ok((file, motion))
     }
+
+    /// [`Self::load_stage`], refused unless the motion fits a graph of `patches` patches
+    /// ([`check_motion`]).
+    pub fn load_for(
+        path: &Path,
+        stage: &str,
+        version: u32,
+        patches: usize,
+    ) -> Result<(TrajectoriesFile, Vec<PatchMotion>)> {
+        let (file, motion) = Self::load_stage(path, stage, version)?;
+        check_motion(path, patches, &motion)?;
+        Ok((file, motion))
+    }
 }
 
 #[cfg(test)]

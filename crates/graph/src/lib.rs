@@ -279,7 +279,7 @@ pub fn run(
     out: &Path,
     progress: &dyn Progress,
 ) -> Result<PatchGraph> {
-    let merge_bytes = std::fs::read(merge).map_err(|e| Error::io(merge, "read", e))?;
+    let merge_bytes = files::read_bytes(merge)?;
     let (_, maps) = MergeFile::load(merge)?;
     let graph = build(pipeline, merge, &merge_bytes, &maps, progress)?;
     files::write_atomic(out, files::to_ron(&graph).as_bytes())?;
