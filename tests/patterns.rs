@@ -279,8 +279,9 @@ fn smoothing_keeps_boundary_points_exact_and_never_brings_a_pair_closer_than_sta
         };
         let worst = |m: &crowd_core::trajectories::PatchMotion| {
             let segs: Vec<_> = m.trajectories.iter().map(crowd_smooth::segments).collect();
-            crowd_collide::repair::encounters(&segs, &patch)
+            crowd_collide::repair::rows(&segs, &patch)
                 .iter()
+                .flatten()
                 .map(|e| e.margin)
                 .fold(0.0, f64::min)
         };

@@ -111,10 +111,30 @@ fn bounds(segs: &[Segment]) -> (glam::DVec2, glam::DVec2) {
     )
 }
 
-/// Every encounter within reach in a patch: of each walker with every later walker (and its
-/// own later copies), with the standers and with the obstacles.
-pub fn encounters(segs: &[Vec<Segment>], patch: &Patch) -> Vec<Encounter> {
-    (0..segs.len()).flat_map(|a| row(segs, a, patch)).collect()
+/// Every encounter within reach in a patch, by walker: row `a` holds walker `a`'s encounters
+/// with every later walker (and its own later copies), with the standers and the obstacles.
+pub fn rows(segs: &[Vec<Segment>], patch: &Patch) -> Vec<Vec<Encounter>> {
+    (0..segs.len()).map(|a| row(segs, a, patch)).collect()
+}
+
+/// Brings [`rows`] up to date after the paths of the walkers `touched` changed: their own rows
+/// anew, and in every other row only the entries with them.
+pub fn refresh(
+    rows: &mut [Vec<Encounter>],
+    segs: &[Vec<Segment>],
+    touched: &[usize],
+    patch: &Patch,
+) {
+    for (a, encounters) in rows.iter_mut().enumerate() {
+        if touched.contains(&a) {
+            *encounters = row(segs, a, patch);
+        } else {
+            for &b in touched.iter().filter(|&&b| b > a) {
+                encounters.retain(|e| !matches!(e.other, Other::Walker { b: x, .. } if x == b));
+                encounters.extend(pair(segs, a, b, patch));
+            }
+        }
+    }
 }
 
 /// Every encounter of walker `a` with walkers `b >= a`, standers and obstacles.
@@ -164,10 +184,8 @@ pub fn remove_collisions(
     max_iterations: u32,
     rng: &mut ChaCha8Rng,
 ) -> Outcome {
-    let n = paths.len();
     let mut segs: Vec<Vec<Segment>> = paths.iter().map(Path::segments).collect();
-    // Row a holds a's encounters with walkers b >= a, standers and obstacles.
-    let mut rows: Vec<Vec<Encounter>> = (0..n).map(|a| row(&segs, a, patch)).collect();
+    let mut rows = rows(&segs, patch);
     let worst = |rows: &[Vec<Encounter>]| {
         rows.iter()
             .flatten()
@@ -197,17 +215,7 @@ pub fn remove_collisions(
         for &p in &touched {
             segs[p] = paths[p].segments();
         }
-        // Rows of the touched walkers, and their entries in the rows of the others.
-        for (a, encounters) in rows.iter_mut().enumerate() {
-            if touched.contains(&a) {
-                *encounters = row(&segs, a, patch);
-            } else {
-                for &b in touched.iter().filter(|&&b| b > a) {
-                    encounters.retain(|e| !matches!(e.other, Other::Walker { b: x, .. } if x == b));
-                    encounters.extend(pair(&segs, a, b, patch));
-                }
-            }
-        }
+        refresh(&mut rows, &segs, &touched, patch);
     }
 }
 

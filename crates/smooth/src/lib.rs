@@ -212,16 +212,19 @@ fn keep_clear(
     curve_at: impl Fn(usize, u32) -> Trajectory,
 ) -> Vec<Trajectory> {
     let old_segs: Vec<Vec<Segment>> = before.iter().map(segments).collect();
-    let old: HashMap<_, f64> = repair::encounters(&old_segs, patch)
+    let old: HashMap<_, f64> = repair::rows(&old_segs, patch)
         .iter()
+        .flatten()
         .map(|e| (key(e), e.margin))
         .collect();
     let mut segs: Vec<Vec<Segment>> = after.iter().map(segments).collect();
+    // Only the rows of walkers that changed are measured again.
+    let mut rows = repair::rows(&segs, patch);
     let mut level = vec![0u32; before.len()];
     loop {
         let mut again: Vec<usize> = Vec::new();
-        for e in repair::encounters(&segs, patch) {
-            let was = old.get(&key(&e)).copied().unwrap_or(f64::INFINITY);
+        for e in rows.iter().flatten() {
+            let was = old.get(&key(e)).copied().unwrap_or(f64::INFINITY);
             if e.margin < 0.0 && e.margin < was - 1e-9 {
                 again.push(e.a);
                 if let Other::Walker { b, .. } = e.other {
@@ -235,7 +238,7 @@ fn keep_clear(
         if again.is_empty() {
             return after;
         }
-        for i in again {
+        for &i in &again {
             level[i] += 1;
             after[i] = if level[i] > LEVELS {
                 before[i].clone()
@@ -244,6 +247,7 @@ fn keep_clear(
             };
             segs[i] = segments(&after[i]);
         }
+        repair::refresh(&mut rows, &segs, &again, patch);
     }
 }
 
