@@ -77,13 +77,8 @@ pub fn check(graph: &PatchGraph, motion: &[PatchMotion], period_s: f64) -> Check
         let origin = graph.world_from_patch(graph.patches[p].cell);
         for tr in &m.trajectories {
             let (first, last) = (tr.points[0].t, tr.points[tr.points.len() - 1].t);
-            for w in tr.points.windows(2) {
-                let seg = Segment {
-                    p0: origin + w[0].pos,
-                    t0: w[0].t,
-                    p1: origin + w[1].pos,
-                    t1: w[1].t,
-                };
+            let world = tr.points.iter().map(|p| (origin + p.pos, p.t));
+            for seg in geometry::pieces(world) {
                 pieces.push(Piece {
                     seg,
                     walker,

@@ -8,7 +8,7 @@
 
 use crowd_core::PatchGraph;
 use crowd_core::patterns::{Crossing, Way, border_point};
-use crowd_core::trajectories::{PatchMotion, Trajectory};
+use crowd_core::trajectories::{PatchMotion, Trajectory, position_at};
 use glam::DVec2;
 use rayon::prelude::*;
 
@@ -86,19 +86,9 @@ impl Tally {
         // Frames every FRAME_S from the entry, as a player samples the path.
         let (t0, t1) = (pts[0].t, pts[pts.len() - 1].t);
         let frames = ((t1 - t0) / FRAME_S).floor() as usize;
-        let mut k = 0;
-        let mut at = |t: f64| {
-            while k + 2 < pts.len() && pts[k + 1].t <= t {
-                k += 1;
-            }
-            let (a, b) = (pts[k], pts[k + 1]);
-            if b.t > a.t {
-                a.pos + (b.pos - a.pos) * ((t - a.t) / (b.t - a.t)).clamp(0.0, 1.0)
-            } else {
-                b.pos
-            }
-        };
-        let samples: Vec<DVec2> = (0..=frames).map(|i| at(t0 + i as f64 * FRAME_S)).collect();
+        let samples: Vec<DVec2> = (0..=frames)
+            .map(|i| position_at(pts, t0 + i as f64 * FRAME_S))
+            .collect();
         for w in samples.windows(3) {
             let (v1, v2) = ((w[1] - w[0]) / FRAME_S, (w[2] - w[1]) / FRAME_S);
             self.vertex(v1, v2, FRAME_S);

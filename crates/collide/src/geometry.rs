@@ -44,6 +44,20 @@ impl Segment {
     }
 }
 
+/// The straight pieces between consecutive `(position, time)` points of a path.
+pub fn pieces(points: impl IntoIterator<Item = (DVec2, f64)>) -> Vec<Segment> {
+    let points: Vec<(DVec2, f64)> = points.into_iter().collect();
+    points
+        .windows(2)
+        .map(|w| Segment {
+            p0: w[0].0,
+            t0: w[0].1,
+            p1: w[1].0,
+            t1: w[1].1,
+        })
+        .collect()
+}
+
 /// The smallest distance between walkers on `a` and `b` during the time both exist, and when
 /// it happens; `None` when they never coexist. Analytic: with w the offset at the start of the
 /// common interval and dv the relative velocity, the distance |w + dv t| is smallest at

@@ -99,19 +99,13 @@ impl Path {
 
     /// The straight pieces of the path, in time order.
     pub fn segments(&self) -> Vec<Segment> {
-        let mut points = Vec::with_capacity(self.free.len() + 2);
-        points.push((self.entry.pos, self.entry.t));
-        points.extend(self.free.iter().map(|f| (f.pos, f.t)));
-        points.push((self.exit.pos, self.exit.t));
-        points
-            .windows(2)
-            .map(|w| Segment {
-                p0: w[0].0,
-                t0: w[0].1,
-                p1: w[1].0,
-                t1: w[1].1,
-            })
-            .collect()
+        let (entry, exit) = ((self.entry.pos, self.entry.t), (self.exit.pos, self.exit.t));
+        let free = self.free.iter().map(|f| (f.pos, f.t));
+        crate::geometry::pieces(
+            std::iter::once(entry)
+                .chain(free)
+                .chain(std::iter::once(exit)),
+        )
     }
 
     pub fn span(&self) -> (f64, f64) {

@@ -82,6 +82,19 @@ impl Trajectory {
     }
 }
 
+/// Position at time `t` on the polyline through `points` (held at its ends outside its span).
+pub fn position_at(points: &[ControlPoint], t: f64) -> DVec2 {
+    let k = points
+        .partition_point(|p| p.t <= t)
+        .clamp(1, points.len() - 1);
+    let (a, b) = (points[k - 1], points[k]);
+    if b.t > a.t {
+        a.pos + (b.pos - a.pos) * ((t - a.t) / (b.t - a.t)).clamp(0.0, 1.0)
+    } else {
+        b.pos
+    }
+}
+
 /// Everything that moves or stands in one patch.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct PatchMotion {

@@ -2,7 +2,7 @@
 //! spline through them, sampled again more finely where it bends.
 
 use crate::spline::Spline;
-use crowd_core::trajectories::{ControlPoint, PointKind, Trajectory};
+use crowd_core::trajectories::{ControlPoint, PointKind, Trajectory, position_at};
 use glam::DVec2;
 
 /// What the curve of one trajectory may do.
@@ -66,17 +66,6 @@ pub fn smooth(
     )
 }
 
-/// Position on the polyline `pts` at time `t`.
-fn polyline_at(pts: &[ControlPoint], t: f64) -> DVec2 {
-    let k = pts.partition_point(|p| p.t <= t).clamp(1, pts.len() - 1);
-    let (a, b) = (pts[k - 1], pts[k]);
-    if b.t > a.t {
-        a.pos + (b.pos - a.pos) * ((t - a.t) / (b.t - a.t)).clamp(0.0, 1.0)
-    } else {
-        b.pos
-    }
-}
-
 /// Smooths the moving piece `pts` (no pause inside) and appends its points after the first.
 fn piece(
     pts: &[ControlPoint],
@@ -97,7 +86,7 @@ fn piece(
             }
         })
         .collect();
-    let tack_p: Vec<DVec2> = tack_t.iter().map(|&t| polyline_at(pts, t)).collect();
+    let tack_p: Vec<DVec2> = tack_t.iter().map(|&t| position_at(pts, t)).collect();
     let spline = Spline::clamped(tack_t.clone(), tack_p, v0, v1);
 
     // Times to sample: the tacks, a step from either end, every multiple of the period, and
@@ -128,7 +117,7 @@ fn piece(
         |p: DVec2| p.x >= 0.0 && p.y >= 0.0 && p.x <= limits.side_m && p.y <= limits.side_m;
     for &t in &times[1..times.len() - 1] {
         let is_split = splits.iter().any(|&s| (s - t).abs() < 1e-9);
-        let on_line = polyline_at(pts, t);
+        let on_line = position_at(pts, t);
         let p = on_line + limits.blend * (spline.at(t) - on_line);
         let kept = p.distance(on_line) <= limits.max_displacement_m && inside(p);
         if kept {
@@ -143,7 +132,7 @@ fn piece(
             if is_split {
                 // A character still passes the period here: keep the mark, on the old path.
                 out.push(ControlPoint {
-                    pos: polyline_at(pts, t),
+                    pos: position_at(pts, t),
                     t,
                     kind: PointKind::Split,
                 });

@@ -178,15 +178,7 @@ fn smooth_patch(
 
 /// The straight pieces of a trajectory.
 pub fn segments(tr: &Trajectory) -> Vec<Segment> {
-    tr.points
-        .windows(2)
-        .map(|w| Segment {
-            p0: w[0].pos,
-            t0: w[0].t,
-            p1: w[1].pos,
-            t1: w[1].t,
-        })
-        .collect()
+    crowd_collide::geometry::pieces(tr.points.iter().map(|p| (p.pos, p.t)))
 }
 
 /// Who an encounter is between, whatever the period shift.
