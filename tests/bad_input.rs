@@ -284,6 +284,25 @@ fn an_edited_graph_file_is_refused_not_trusted() {
 }
 
 #[test]
+fn a_graph_file_with_patches_out_of_order_is_refused() {
+    let (_dir, out) = build_shared_scene("bands", "graph");
+    let graph = out.join("graph.ron");
+    let text = std::fs::read_to_string(&graph).unwrap();
+    let broken = text.replacen("cell: (col: 1, row: 0)", "cell: (col: 0, row: 0)", 1);
+    assert_ne!(text, broken);
+    std::fs::write(&graph, broken).unwrap();
+    let err = crowd_err(&["inspect", s(&graph)]);
+    assert_has(
+        &err,
+        &[
+            "graph.ron",
+            "is inconsistent",
+            "patch 1 does not follow patch 0",
+        ],
+    );
+}
+
+#[test]
 fn patterns_of_another_graph_are_refused() {
     let (_dir, out) = build_shared_scene("bands", "optimize");
     let (_other, lanes) = build_shared_scene("lanes", "graph");

@@ -256,12 +256,6 @@ fn smoothing_keeps_boundary_points_exact_and_never_brings_a_pair_closer_than_sta
     };
     let before = load("collided.ron", crowd_collide::STAGE, crowd_collide::VERSION);
     let after = load("smoothed.ron", crowd_smooth::STAGE, crowd_smooth::VERSION);
-    let by_cell = graph
-        .patches
-        .iter()
-        .enumerate()
-        .map(|(i, p)| (p.cell, i))
-        .collect();
     let mut smoothed = 0;
     for (p, (b, a)) in before.iter().zip(&after).enumerate() {
         for (tb, ta) in b.trajectories.iter().zip(&a.trajectories) {
@@ -269,7 +263,7 @@ fn smoothing_keeps_boundary_points_exact_and_never_brings_a_pair_closer_than_sta
             assert_eq!(tb.points.last(), ta.points.last());
             smoothed += (tb != ta) as usize;
         }
-        let obstacles = crowd_collide::obstacles_near(&graph, &by_cell, p);
+        let obstacles = crowd_collide::obstacles_near(&graph, p);
         let patch = crowd_collide::repair::Patch {
             side_m: graph.world.patch_side_m,
             period_s: 20.0,

@@ -6,6 +6,7 @@
 //! is on screen; weighting its vertices by the time around them instead would spread a corner
 //! over seconds and reward coarse paths. Percentiles are over frames, so by time.
 
+use crowd_collide::geometry::Segment;
 use crowd_core::PatchGraph;
 use crowd_core::patterns::{Crossing, Way, border_point};
 use crowd_core::trajectories::{PatchMotion, Trajectory, position_at};
@@ -168,11 +169,14 @@ pub fn figures(
                 pos_err = pos_err.max(end.pos.distance(here.pos));
                 let dt = (end.t - crossing.t).rem_euclid(period_s);
                 time_err = time_err.max(dt.min(period_s - dt));
-                let v = if entry {
-                    (next.pos - end.pos) / (next.t - end.t)
-                } else {
-                    (end.pos - next.pos) / (end.t - next.t)
-                };
+                let (a, b) = if entry { (end, next) } else { (next, end) };
+                let v = Segment {
+                    p0: a.pos,
+                    t0: a.t,
+                    p1: b.pos,
+                    t1: b.t,
+                }
+                .velocity();
                 let slot = if entry { &mut entered } else { &mut left };
                 slot[c as usize].0 += 1;
                 slot[c as usize].1 = v;

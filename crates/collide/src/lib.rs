@@ -31,11 +31,7 @@ pub struct PatchReport {
 /// The static obstacles a walker of patch `p` can touch: its own, and those of the eight
 /// neighbours that come within a diameter of its square, in `p`'s local metres (a walker near a
 /// border must keep clear of a wall just across it too).
-pub fn obstacles_near(
-    graph: &PatchGraph,
-    by_cell: &std::collections::HashMap<crowd_core::patch_graph::Cell, usize>,
-    p: usize,
-) -> Vec<crowd_core::Rect> {
+pub fn obstacles_near(graph: &PatchGraph, p: usize) -> Vec<crowd_core::Rect> {
     let side = graph.world.patch_side_m;
     let reach = 2.0 * graph.radius_m;
     let cell = graph.patches[p].cell;
@@ -50,7 +46,7 @@ pub fn obstacles_near(
                 col: c as u32,
                 row: r as u32,
             };
-            let Some(&q) = by_cell.get(&neighbour) else {
+            let Some(q) = graph.patch_at(neighbour) else {
                 continue;
             };
             let offset = glam::DVec2::new(dc as f64, dr as f64) * side;
@@ -125,17 +121,11 @@ pub fn collide(
     progress: &dyn crowd_core::Progress,
 ) -> (Vec<PatchMotion>, Vec<PatchReport>) {
     progress.begin("collide", motion.len() as u64);
-    let by_cell: std::collections::HashMap<crowd_core::patch_graph::Cell, usize> = graph
-        .patches
-        .iter()
-        .enumerate()
-        .map(|(i, p)| (p.cell, i))
-        .collect();
     motion
         .par_iter()
         .enumerate()
         .map(|(p, m)| {
-            let obstacles = obstacles_near(graph, &by_cell, p);
+            let obstacles = obstacles_near(graph, p);
             let patch = repair::Patch {
                 side_m: graph.world.patch_side_m,
                 period_s,

@@ -158,6 +158,14 @@ impl PatchGraph {
         &self.patches[id.0 as usize]
     }
 
+    /// The index of the patch in `cell`, if it was kept. Patches run row by row from the
+    /// south-west, so this is a binary search.
+    pub fn patch_at(&self, cell: Cell) -> Option<usize> {
+        self.patches
+            .binary_search_by_key(&(cell.row, cell.col), |p| (p.cell.row, p.cell.col))
+            .ok()
+    }
+
     /// Reads and checks `graph.ron`.
     pub fn load(path: &std::path::Path) -> crate::Result<PatchGraph> {
         let graph: PatchGraph = crate::files::read_ron(path)?;
@@ -192,6 +200,15 @@ impl PatchGraph {
                     "patch {i} lies outside the {} x {} cells",
                     w.cols, w.rows
                 )));
+            }
+            if i > 0 {
+                let before = self.patches[i - 1].cell;
+                if (before.row, before.col) >= (p.cell.row, p.cell.col) {
+                    return Err(bad(format!(
+                        "patch {i} does not follow patch {} row by row from the south-west",
+                        i - 1
+                    )));
+                }
             }
             if p.component as usize >= self.components.len() {
                 return Err(bad(format!("patch {i} names component {}", p.component)));

@@ -11,7 +11,6 @@ use crowd_core::{MergedMaps, PatchGraph};
 use draw::{Canvas, colormap};
 use glam::{DVec2, Vec2};
 use image::{Rgb, RgbImage};
-use std::collections::HashMap;
 
 const BACKGROUND: Rgb<u8> = Rgb([250, 250, 250]);
 const EMPTY: Rgb<u8> = Rgb([236, 236, 236]);
@@ -127,12 +126,6 @@ pub fn render_graph(graph: &PatchGraph) -> RgbImage {
             margin + (w.rows - 1 - cell.row) * px,
         )
     };
-    let by_cell: HashMap<Cell, usize> = graph
-        .patches
-        .iter()
-        .enumerate()
-        .map(|(i, p)| (p.cell, i))
-        .collect();
     let max_density = graph
         .patches
         .iter()
@@ -150,8 +143,8 @@ pub fn render_graph(graph: &PatchGraph) -> RgbImage {
         for col in 0..w.cols {
             let cell = Cell { col, row };
             let (x, y) = origin(cell);
-            let colour = match by_cell.get(&cell) {
-                Some(&i) => colormap((graph.patches[i].walker_density / max_density) as f32),
+            let colour = match graph.patch_at(cell) {
+                Some(i) => colormap((graph.patches[i].walker_density / max_density) as f32),
                 None => EMPTY,
             };
             canvas.fill(x, y, px, px, colour);
@@ -220,10 +213,12 @@ pub fn render_graph(graph: &PatchGraph) -> RgbImage {
             let (nc, nr) = (p.cell.col as i64 + dc, p.cell.row as i64 + dr);
             let kept = nc >= 0
                 && nr >= 0
-                && by_cell.contains_key(&Cell {
-                    col: nc as u32,
-                    row: nr as u32,
-                });
+                && graph
+                    .patch_at(Cell {
+                        col: nc as u32,
+                        row: nr as u32,
+                    })
+                    .is_some();
             if !kept {
                 canvas.thick_line(a, c, 2, COMPONENT_EDGE);
             }

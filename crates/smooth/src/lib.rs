@@ -60,18 +60,12 @@ pub fn smooth(
         tolerance_m: s.tolerance_m,
         blend: 1.0,
     };
-    let by_cell: HashMap<_, _> = graph
-        .patches
-        .iter()
-        .enumerate()
-        .map(|(i, p)| (p.cell, i))
-        .collect();
     let velocities = crossing_velocities(crossings.len(), motion);
     let results: Vec<(PatchMotion, [u64; 3])> = motion
         .par_iter()
         .enumerate()
         .map(|(p, m)| {
-            let obstacles = crowd_collide::obstacles_near(graph, &by_cell, p);
+            let obstacles = crowd_collide::obstacles_near(graph, p);
             let patch = repair::Patch {
                 side_m: limits.side_m,
                 period_s: limits.period_s,
@@ -114,11 +108,13 @@ pub fn crossing_velocities(count: usize, motion: &[PatchMotion]) -> Vec<DVec2> {
     for tr in motion.iter().flat_map(|m| &m.trajectories) {
         let p = &tr.points;
         let piece = |a: &ControlPoint, b: &ControlPoint| {
-            if b.t > a.t {
-                (b.pos - a.pos) / (b.t - a.t)
-            } else {
-                DVec2::ZERO
+            Segment {
+                p0: a.pos,
+                t0: a.t,
+                p1: b.pos,
+                t1: b.t,
             }
+            .velocity()
         };
         if let Some(v) = sum.get_mut(tr.entry as usize) {
             *v += 0.5 * piece(&p[0], &p[1]);
