@@ -15,7 +15,7 @@ use crowd_core::config::PipelineFile;
 use crowd_core::files::{self, Header};
 use crowd_core::maps::MergeFile;
 use crowd_core::patterns::{Crossing, Patterns};
-use crowd_core::trajectories::{PatchMotion, TrajectoriesFile};
+use crowd_core::trajectories::{PatchMotion, TrajectoriesFile, check_motion};
 use crowd_core::{Hash, MergedMaps, PatchGraph};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -80,10 +80,12 @@ pub fn build(pipeline_path: &Path, options: &BuildOptions, ui: &Ui) -> Result<Ve
     let merge_path = out.join(MERGE_FILE);
     let layers = crowd_merge::read_layers(&pipeline)?;
     let hash = crowd_merge::input_hash(&pipeline, &layers);
-    let fresh = !options.force
-        && is_current(&merge_path, MergeFile::STAGE, MergeFile::VERSION, hash)
-        && MergeFile::load(&merge_path).is_ok();
-    let mut merged: Option<(Vec<u8>, MergedMaps)> = None;
+    let (stage1, version1) = (MergeFile::STAGE, MergeFile::VERSION);
+    let current = up_to_date(options.force, &merge_path, stage1, version1, hash, || {
+        MergeFile::load(&merge_path)
+    });
+    let fresh = current.is_some();
+    let mut merged: Option<(Vec<u8>, MergedMaps)> = current.map(|(bytes, (_, maps))| (bytes, maps));
     outcomes.push(stage(
         ui,
         "merge",
@@ -109,10 +111,7 @@ pub fn build(pipeline_path: &Path, options: &BuildOptions, ui: &Ui) -> Result<Ve
 
     // Stage 2: graph.
     let graph_path = out.join(GRAPH_FILE);
-    let merge_bytes = match &merged {
-        Some((bytes, _)) => bytes.clone(),
-        None => files::read_bytes(&merge_path)?,
-    };
+    let (merge_bytes, maps) = merged.expect("merge was built or is up to date");
     let hash = crowd_graph::input_hash(&merge_bytes, &crowd_graph::inputs(&pipeline));
     let fresh =
         !options.force && is_current(&graph_path, PatchGraph::STAGE, PatchGraph::VERSION, hash);
@@ -125,10 +124,6 @@ pub fn build(pipeline_path: &Path, options: &BuildOptions, ui: &Ui) -> Result<Ve
         &mut timings,
         || {
             let bar = ui.stage_bar("graph");
-            let maps = match merged.take() {
-                Some((_, maps)) => maps,
-                None => MergeFile::load(&merge_path)?.1,
-            };
             let graph = crowd_graph::build(&pipeline, &merge_path, &merge_bytes, &maps, &bar)?;
             let bytes = files::to_ron(&graph).into_bytes();
             built_graph = Some((bytes.clone(), graph));
@@ -136,6 +131,7 @@ pub fn build(pipeline_path: &Path, options: &BuildOptions, ui: &Ui) -> Result<Ve
             Ok(())
         },
     )?);
+    drop(maps);
     if options.until == Some(Stage::Graph) {
         return finish(&out, pending, &timings, outcomes);
     }
@@ -151,9 +147,16 @@ pub fn build(pipeline_path: &Path, options: &BuildOptions, ui: &Ui) -> Result<Ve
     let patterns_path = out.join(PATTERNS_FILE);
     let inputs = crowd_optimize::inputs(&pipeline);
     let hash = crowd_optimize::input_hash(&graph_bytes, &inputs);
-    let fresh = !options.force
-        && is_current(&patterns_path, Patterns::STAGE, Patterns::VERSION, hash)
-        && Patterns::load(&patterns_path).is_ok();
+    let (stage3, version3) = (Patterns::STAGE, Patterns::VERSION);
+    let current = up_to_date(
+        options.force,
+        &patterns_path,
+        stage3,
+        version3,
+        hash,
+        || Patterns::load(&patterns_path),
+    );
+    let fresh = current.is_some();
     let mut built_patterns: Option<(Vec<u8>, Patterns, Vec<Crossing>)> = None;
     outcomes.push(stage(
         ui,
@@ -173,11 +176,12 @@ pub fn build(pipeline_path: &Path, options: &BuildOptions, ui: &Ui) -> Result<Ve
     if options.until == Some(Stage::Optimize) {
         return finish(&out, pending, &timings, outcomes);
     }
-    let (patterns_bytes, patterns, crossings) = match built_patterns {
-        Some(built) => built,
-        None => {
-            let (p, c) = Patterns::load_for(&patterns_path, &graph)?;
-            (files::read_bytes(&patterns_path)?, p, c)
+    let (patterns_bytes, patterns, crossings) = match (built_patterns, current) {
+        (Some(built), _) => built,
+        (None, current) => {
+            let (bytes, (p, c)) = current.expect("optimize was built or is up to date");
+            crowd_core::patterns::check_crossings(&patterns_path, &graph, &p, &c)?;
+            (bytes, p, c)
         }
     };
 
@@ -186,9 +190,15 @@ pub fn build(pipeline_path: &Path, options: &BuildOptions, ui: &Ui) -> Result<Ve
     let inputs = crowd_match::inputs(&pipeline);
     let hash = crowd_match::input_hash(&graph_bytes, &patterns_bytes, &inputs);
     let (stage4, version4) = (TrajectoriesFile::STAGE, TrajectoriesFile::VERSION);
-    let fresh = !options.force
-        && is_current(&trajectories_path, stage4, version4, hash)
-        && TrajectoriesFile::load(&trajectories_path).is_ok();
+    let current = up_to_date(
+        options.force,
+        &trajectories_path,
+        stage4,
+        version4,
+        hash,
+        || TrajectoriesFile::load_stage(&trajectories_path, stage4, version4),
+    );
+    let fresh = current.is_some();
     let mut built_motion: Option<(Vec<u8>, Vec<crowd_core::trajectories::PatchMotion>)> = None;
     outcomes.push(stage(
         ui,
@@ -214,13 +224,12 @@ pub fn build(pipeline_path: &Path, options: &BuildOptions, ui: &Ui) -> Result<Ve
     if options.until == Some(Stage::Match) {
         return finish(&out, pending, &timings, outcomes);
     }
-    let (trajectories_bytes, motion) = match built_motion {
-        Some(built) => built,
-        None => {
-            let patches = graph.patches.len();
-            let (_, motion) =
-                TrajectoriesFile::load_for(&trajectories_path, stage4, version4, patches)?;
-            (files::read_bytes(&trajectories_path)?, motion)
+    let (trajectories_bytes, motion) = match (built_motion, current) {
+        (Some(built), _) => built,
+        (None, current) => {
+            let (bytes, (_, motion)) = current.expect("match was built or is up to date");
+            check_motion(&trajectories_path, graph.patches.len(), &motion)?;
+            (bytes, motion)
         }
     };
 
@@ -229,9 +238,15 @@ pub fn build(pipeline_path: &Path, options: &BuildOptions, ui: &Ui) -> Result<Ve
     let inputs = collide_inputs(&pipeline);
     let hash = crowd_collide::input_hash(&graph_bytes, &trajectories_bytes, &inputs);
     let (stage5, version5) = (crowd_collide::STAGE, crowd_collide::VERSION);
-    let fresh = !options.force
-        && is_current(&collided_path, stage5, version5, hash)
-        && TrajectoriesFile::load_stage(&collided_path, stage5, version5).is_ok();
+    let current = up_to_date(
+        options.force,
+        &collided_path,
+        stage5,
+        version5,
+        hash,
+        || TrajectoriesFile::load_stage(&collided_path, stage5, version5),
+    );
+    let fresh = current.is_some();
     let mut built_collided: Option<(Vec<u8>, TrajectoriesFile, Vec<PatchMotion>)> = None;
     outcomes.push(stage(
         ui,
@@ -250,13 +265,12 @@ pub fn build(pipeline_path: &Path, options: &BuildOptions, ui: &Ui) -> Result<Ve
     if options.until == Some(Stage::Collide) {
         return finish(&out, pending, &timings, outcomes);
     }
-    let (collided_bytes, collided, motion) = match built_collided {
-        Some(built) => built,
-        None => {
-            let patches = graph.patches.len();
-            let (file, motion) =
-                TrajectoriesFile::load_for(&collided_path, stage5, version5, patches)?;
-            (files::read_bytes(&collided_path)?, file, motion)
+    let (collided_bytes, collided, motion) = match (built_collided, current) {
+        (Some(built), _) => built,
+        (None, current) => {
+            let (bytes, (file, motion)) = current.expect("collide was built or is up to date");
+            check_motion(&collided_path, graph.patches.len(), &motion)?;
+            (bytes, file, motion)
         }
     };
 
@@ -265,9 +279,15 @@ pub fn build(pipeline_path: &Path, options: &BuildOptions, ui: &Ui) -> Result<Ve
     let inputs = smooth_inputs(&pipeline);
     let hash = crowd_smooth::input_hash(&graph_bytes, &patterns_bytes, &collided_bytes, &inputs);
     let (stage6, version6) = (crowd_smooth::STAGE, crowd_smooth::VERSION);
-    let fresh = !options.force
-        && is_current(&smoothed_path, stage6, version6, hash)
-        && TrajectoriesFile::load_stage(&smoothed_path, stage6, version6).is_ok();
+    let fresh = up_to_date(
+        options.force,
+        &smoothed_path,
+        stage6,
+        version6,
+        hash,
+        || TrajectoriesFile::load_stage(&smoothed_path, stage6, version6),
+    )
+    .is_some();
     outcomes.push(stage(
         ui,
         "smooth",
@@ -426,6 +446,24 @@ fn stage(
         stage: name,
         seconds: Some(seconds),
     })
+}
+
+/// The bytes and contents of a stage file that can be kept: not `force`d, built by this stage
+/// version from exactly `hash`, and readable whole (side files included). Loaded once, it both
+/// lets the stage be skipped and feeds the next one. `None`: build the stage.
+fn up_to_date<T>(
+    force: bool,
+    path: &Path,
+    stage: &str,
+    version: u32,
+    hash: Hash,
+    load: impl FnOnce() -> crowd_core::Result<T>,
+) -> Option<(Vec<u8>, T)> {
+    if force || !is_current(path, stage, version, hash) {
+        return None;
+    }
+    let value = load().ok()?;
+    Some((files::read_bytes(path).ok()?, value))
 }
 
 /// Whether the stage file at `path` was built by this stage version from exactly `hash`.
