@@ -17,38 +17,36 @@ pub fn fill_under_caps(weights: &[f64], caps: &[f64], total: f64) -> Result<Vec<
     if total <= 0.0 {
         return Ok(vec![0.0; weights.len()]);
     }
-    let painted: Vec<usize> = (0..weights.len()).filter(|&i| weights[i] > 0.0).collect();
-    let capacity: f64 = painted.iter().map(|&i| caps[i].max(0.0)).sum();
+    let cap = |i: usize| caps[i].max(0.0);
+    let mut order: Vec<usize> = (0..weights.len()).filter(|&i| weights[i] > 0.0).collect();
+    let capacity: f64 = order.iter().map(|&i| cap(i)).sum();
     if total > capacity * (1.0 + 1e-12) {
         return Err(capacity);
     }
-    let mut order = painted.clone();
     order.sort_by(|&a, &b| {
-        let ra = caps[a].max(0.0) / weights[a];
-        let rb = caps[b].max(0.0) / weights[b];
-        ra.total_cmp(&rb).then(a.cmp(&b))
+        (cap(a) / weights[a])
+            .total_cmp(&(cap(b) / weights[b]))
+            .then(a.cmp(&b))
     });
-    // Walk the saturation order: with the first `n` patches at their caps, the rest share
-    // what is left in proportion to their weights.
+    // Walk the saturation order: with the patches before `i` at their caps, the rest share
+    // what is left in proportion to their weights. If every patch saturates, total equals the
+    // capacity and k stays infinite (every patch at its cap).
     let mut saturated = 0.0;
     let mut free_weight: f64 = order.iter().map(|&i| weights[i]).sum();
     let mut k = f64::INFINITY;
-    for (n, &i) in order.iter().enumerate() {
+    for &i in &order {
         let candidate = (total - saturated) / free_weight;
-        if candidate * weights[i] <= caps[i].max(0.0) {
+        if candidate * weights[i] <= cap(i) {
             k = candidate;
             break;
         }
-        saturated += caps[i].max(0.0);
+        saturated += cap(i);
         free_weight -= weights[i];
-        if n + 1 == order.len() {
-            k = f64::INFINITY; // every patch at its cap: total == capacity
-        }
     }
     Ok((0..weights.len())
         .map(|i| {
             if weights[i] > 0.0 {
-                (k * weights[i]).min(caps[i].max(0.0))
+                (k * weights[i]).min(cap(i))
             } else {
                 0.0
             }
