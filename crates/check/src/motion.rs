@@ -140,8 +140,9 @@ pub fn figures(
 
     // Every crossing seen from both sides: where each end lies, and the velocity there.
     let side = graph.world.patch_side_m;
-    let mut entered = vec![(0u32, DVec2::ZERO, 0.0f64); crossings.len()];
-    let mut left = vec![(0u32, DVec2::ZERO, 0.0f64); crossings.len()];
+    // Per crossing: trajectories that enter (leave) by it, and the velocity there.
+    let mut entered = vec![(0u32, DVec2::ZERO); crossings.len()];
+    let mut left = vec![(0u32, DVec2::ZERO); crossings.len()];
     let (mut pos_err, mut time_err) = (0.0f64, 0.0f64);
     for (p, m) in motion.iter().enumerate() {
         for tr in &m.trajectories {
@@ -180,14 +181,13 @@ pub fn figures(
                 let slot = if entry { &mut entered } else { &mut left };
                 slot[c as usize].0 += 1;
                 slot[c as usize].1 = v;
-                slot[c as usize].2 = (next.t - end.t).abs();
             }
         }
     }
     let mut unmatched = 0;
     let mut jump = 0.0f64;
     // A border is a vertex of the character's world path like any other: its turn and change
-    // of speed count in the percentiles too.
+    // of speed count in the percentiles too, as the frame that straddles it.
     let mut tally = tally;
     for (e, l) in entered.iter().zip(&left) {
         if e.0 != 1 || l.0 != 1 {
