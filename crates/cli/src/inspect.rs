@@ -24,9 +24,9 @@ pub fn inspect(path: &Path) -> Result<String> {
             let (patterns, crossings) = Patterns::load(path)?;
             Ok(inspect_patterns(&patterns, &crossings))
         }
-        stage @ (TrajectoriesFile::STAGE | crowd_collide::STAGE) => Ok(inspect_trajectories(
-            &TrajectoriesFile::load_stage(path, stage, header.version)?.0,
-        )),
+        stage @ (TrajectoriesFile::STAGE | crowd_collide::STAGE | crowd_smooth::STAGE) => Ok(
+            inspect_trajectories(&TrajectoriesFile::load_stage(path, stage, header.version)?.0),
+        ),
         other => bail!(
             "{}: `crowd inspect` does not know `{other}` files",
             path.display()
@@ -48,7 +48,7 @@ pub fn render(path: &Path, out: &Path, patch: Option<u32>) -> Result<&'static st
                 crowd_render::PATTERNS_LEGEND,
             )
         }
-        stage @ (TrajectoriesFile::STAGE | crowd_collide::STAGE) => {
+        stage @ (TrajectoriesFile::STAGE | crowd_collide::STAGE | crowd_smooth::STAGE) => {
             let graph = PatchGraph::load(&beside(GRAPH_FILE))?;
             let (patterns, crossings) = Patterns::load_for(&beside(PATTERNS_FILE), &graph)?;
             let patches = graph.patches.len();
@@ -334,6 +334,14 @@ fn inspect_trajectories(t: &TrajectoriesFile) -> String {
         for (p, margin) in c.unconverged.iter().take(10) {
             let _ = writeln!(s, "  patch #{p}: {margin:.3} m closer than allowed");
         }
+    }
+    if let Some(m) = &t.smoothing {
+        let _ = writeln!(
+            s,
+            "smoothing:  {} trajectories smoothed, {} kept as polylines (their curve came too \
+             close to someone), {} curve points dropped for straying too far",
+            m.smoothed, m.kept_straight, m.dropped_points
+        );
     }
     let _ = writeln!(
         s,
