@@ -282,6 +282,12 @@ fn smoothing_keeps_boundary_points_exact_and_never_brings_a_pair_closer_than_sta
         assert!(worst(a) >= worst(b) - 1e-9, "patch {p}");
     }
     assert!(smoothed * 2 > after.iter().map(|m| m.trajectories.len()).sum::<usize>());
+    let smoothed = out.join("smoothed.ron");
+    let text = String::from_utf8(crowd_ok(&["inspect", s(&smoothed)]).stdout).unwrap();
+    assert!(text.contains("trajectories smoothed"), "{text}");
+    let picture = out.join("patch.png");
+    crowd_ok(&["render", s(&smoothed), "-o", s(&picture)]);
+    assert!(image::open(&picture).is_ok());
     crowd_ok(&["check", s(&out)]);
     let json: serde_json::Value =
         serde_json::from_slice(&crowd_ok(&["report", s(&out), "--json"]).stdout).unwrap();
