@@ -6,7 +6,7 @@ use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
 use crowd_core::PatchGraph;
 use crowd_core::config::PipelineFile;
-use crowd_core::files::read_bytes;
+use crowd_core::files::{read_bytes, write_all};
 use crowd_core::patterns::Patterns;
 use crowd_core::trajectories::TrajectoriesFile;
 use std::path::PathBuf;
@@ -166,14 +166,6 @@ fn stage_files(
 fn graph_beside(stage_file: &std::path::Path) -> Result<(Vec<u8>, PatchGraph)> {
     let path = stage_file.with_file_name(GRAPH_FILE);
     Ok((read_bytes(&path)?, PatchGraph::load(&path)?))
-}
-
-/// Writes a stage's encoded files, each atomically, in order.
-fn write_all(writes: &[(PathBuf, Vec<u8>)]) -> Result<()> {
-    for (path, bytes) in writes {
-        crowd_core::files::write_atomic(path, bytes)?;
-    }
-    Ok(())
 }
 
 pub fn run(cli: Cli) -> Result<()> {

@@ -12,7 +12,7 @@
 use crate::ui::Ui;
 use anyhow::Result;
 use crowd_core::config::PipelineFile;
-use crowd_core::files::{self, Header};
+use crowd_core::files::{self, Header, Writes};
 use crowd_core::maps::MergeFile;
 use crowd_core::patterns::{Crossing, Patterns};
 use crowd_core::trajectories::{PatchMotion, TrajectoriesFile, check_motion};
@@ -62,7 +62,7 @@ pub struct StageOutcome {
 
 /// Files to write once every stage has succeeded, in order.
 #[derive(Default)]
-struct Pending(Vec<(PathBuf, Vec<u8>)>);
+struct Pending(Writes);
 
 /// Runs every stage of the pipeline at `pipeline_path`.
 pub fn build(pipeline_path: &Path, options: &BuildOptions, ui: &Ui) -> Result<Vec<StageOutcome>> {
@@ -313,9 +313,6 @@ pub fn build(pipeline_path: &Path, options: &BuildOptions, ui: &Ui) -> Result<Ve
     finish(&out, pending, &timings, outcomes)
 }
 
-/// Encoded stage files, in the order they are written.
-pub type Writes = Vec<(PathBuf, Vec<u8>)>;
-
 /// Stage 3 in memory, with a progress bar: what `crowd build` and `crowd optimize` both run.
 pub fn optimize_stage(
     graph: &PatchGraph,
@@ -408,9 +405,7 @@ fn finish(
     timings: &BTreeMap<String, f64>,
     outcomes: Vec<StageOutcome>,
 ) -> Result<Vec<StageOutcome>> {
-    for (path, bytes) in &pending.0 {
-        files::write_atomic(path, bytes)?;
-    }
+    files::write_all(&pending.0)?;
     files::write_atomic(&out.join(TIMINGS_FILE), files::to_ron(timings).as_bytes())?;
     Ok(outcomes)
 }

@@ -87,6 +87,18 @@ impl SideFile {
     }
 }
 
+/// Encoded stage files not yet written, in the order they are to be written (a side file
+/// before the RON file that names it).
+pub type Writes = Vec<(std::path::PathBuf, Vec<u8>)>;
+
+/// Writes every file of `writes` atomically, in order.
+pub fn write_all(writes: &[(std::path::PathBuf, Vec<u8>)]) -> Result<()> {
+    for (path, bytes) in writes {
+        write_atomic(path, bytes)?;
+    }
+    Ok(())
+}
+
 /// Writes `bytes` to `path` through a temporary file in the same folder and a rename.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     let name = path

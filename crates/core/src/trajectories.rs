@@ -283,7 +283,7 @@ pub fn encode_file(
     motion: &[PatchMotion],
     collisions: Option<CollisionSummary>,
     smoothing: Option<SmoothingSummary>,
-) -> (TrajectoriesFile, Vec<(std::path::PathBuf, Vec<u8>)>) {
+) -> (TrajectoriesFile, crate::files::Writes) {
     let bytes = encode_motion(motion);
     let (side, record) = SideFile::beside(out, &bytes);
     let file = TrajectoriesFile {

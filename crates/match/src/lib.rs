@@ -289,7 +289,7 @@ pub fn encode(
     hash: crowd_core::Hash,
 ) -> (
     crowd_core::trajectories::TrajectoriesFile,
-    Vec<(std::path::PathBuf, Vec<u8>)>,
+    crowd_core::files::Writes,
 ) {
     use crowd_core::trajectories::TrajectoriesFile;
     let header =

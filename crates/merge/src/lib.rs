@@ -21,7 +21,7 @@ use crowd_core::config::PipelineFile;
 use crowd_core::files::{self, Header, SideFile};
 use crowd_core::maps::{LayerRecord, MapsSummary, MergeFile, MergedMaps};
 use crowd_core::{Hash, Hasher, Progress, Result};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 /// The hash of everything stage 1 reads: layer contents, kinds, weights, scale and settings.
 /// Paths are left out on purpose: moving a layer file does not make the build stale.
@@ -52,7 +52,7 @@ pub fn summarize(maps: &MergedMaps) -> MapsSummary {
 /// Stage 1's files, encoded but not yet written: the side file first, then the RON that names it.
 pub struct Encoded {
     pub file: MergeFile,
-    pub writes: Vec<(PathBuf, Vec<u8>)>,
+    pub writes: files::Writes,
 }
 
 impl Encoded {
@@ -63,10 +63,7 @@ impl Encoded {
 
     /// Writes every file atomically, side file first.
     pub fn write(&self) -> Result<()> {
-        for (path, bytes) in &self.writes {
-            files::write_atomic(path, bytes)?;
-        }
-        Ok(())
+        files::write_all(&self.writes)
     }
 }
 

@@ -440,10 +440,7 @@ pub fn encode(
     outcome: &Outcome,
     inputs: &Inputs,
     hash: crowd_core::Hash,
-) -> (
-    crowd_core::patterns::Patterns,
-    Vec<(std::path::PathBuf, Vec<u8>)>,
-) {
+) -> (crowd_core::patterns::Patterns, crowd_core::files::Writes) {
     use crowd_core::files::{Header, SideFile};
     let bytes = crowd_core::patterns::encode_crossings(&outcome.crossings);
     let (side, record) = SideFile::beside(out, &bytes);

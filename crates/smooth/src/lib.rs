@@ -250,7 +250,7 @@ pub fn encode(
     hash: Hash,
 ) -> (
     crowd_core::trajectories::TrajectoriesFile,
-    Vec<(std::path::PathBuf, Vec<u8>)>,
+    crowd_core::files::Writes,
 ) {
     let header = crowd_core::files::Header::new(STAGE, VERSION, hash);
     crowd_core::trajectories::encode_file(
