@@ -5,16 +5,16 @@
 /// Entries propose. Returns the exit of every entry.
 pub fn gale_shapley(n: usize, score: &[f64]) -> Vec<usize> {
     debug_assert_eq!(score.len(), n * n);
-    // Each entry's proposal list, best first.
-    let lists: Vec<Vec<usize>> = (0..n)
-        .map(|i| {
-            let mut list: Vec<usize> = (0..n).collect();
-            let row = &score[i * n..(i + 1) * n];
-            list.sort_by(|&a, &b| row[a].total_cmp(&row[b]).then(a.cmp(&b)));
-            list
-        })
-        .collect();
-    let mut next = vec![0usize; n];
+    // Scores are never negative, so their bits order like the numbers: a pair's place in a
+    // proposal list is a plain integer, the exit's index breaking ties.
+    debug_assert!(score.iter().all(|&s| s >= 0.0));
+    let key = |i: usize, o: usize| ((score[i * n + o].to_bits() as u128) << 32) | o as u128;
+    // Most entries propose once or twice: those proposals scan the row for the next key, and
+    // only an entry refused more often sorts its whole list.
+    const SCANNED: usize = 3;
+    let mut last = vec![0u128; n];
+    let mut made = vec![0usize; n];
+    let mut sorted: Vec<Vec<u128>> = vec![Vec::new(); n];
     let mut partner_of_exit: Vec<Option<usize>> = vec![None; n];
     let mut free: std::collections::VecDeque<usize> = (0..n).collect();
     let prefers = |o: usize, i: usize, j: usize| {
@@ -23,8 +23,23 @@ pub fn gale_shapley(n: usize, score: &[f64]) -> Vec<usize> {
         si < sj || (si == sj && i < j)
     };
     while let Some(i) = free.pop_front() {
-        let o = lists[i][next[i]];
-        next[i] += 1;
+        let k = made[i];
+        let next = if k < SCANNED {
+            (0..n)
+                .map(|o| key(i, o))
+                .filter(|&x| k == 0 || x > last[i])
+                .min()
+        } else {
+            if sorted[i].is_empty() {
+                sorted[i] = (0..n).map(|o| key(i, o)).collect();
+                sorted[i].sort_unstable();
+            }
+            sorted[i].get(k).copied()
+        };
+        let next = next.expect("an entry is free only while some exit has not refused it");
+        last[i] = next;
+        made[i] += 1;
+        let o = (next & 0xffff_ffff) as usize;
         match partner_of_exit[o] {
             None => partner_of_exit[o] = Some(i),
             Some(j) if prefers(o, i, j) => {

@@ -7,9 +7,13 @@
 //! groups nearby optima of a component, finds minimum-cost circular paths through each group
 //! (petgraph A*) and removes (maxima) or adds (minima) one crossing per step of the path, so
 //! parity always holds. The loop keeps the best state and stops when E has not improved by
-//! more than `tolerance` in `patience` steps (converged) or at `max_iterations` (not).
+//! more than `tolerance` in `patience` steps (converged) or at `max_iterations` (not). A
+//! [`polish`] (exact local search over small cycles, each change kept only if E falls) then
+//! finishes what the loop's signed error cannot see, such as sideways traffic through a
+//! directed patch; its rounds count as iterations in the log.
 
 pub mod mutate;
+pub mod polish;
 pub mod regression;
 pub mod retime;
 pub mod search;
@@ -38,6 +42,8 @@ const GROUP_SIZE: usize = 3;
 const RETIME_EVERY: u32 = 20;
 /// Re-timing changes durations, so density: the last one leaves the loop time to settle.
 const RETIME_UNTIL: u32 = 60;
+/// Rounds of [`polish`] at most, after the loop.
+const POLISH_ROUNDS: u32 = 40;
 
 /// Everything stage 3 decides.
 pub struct Outcome {
@@ -189,6 +195,18 @@ pub fn optimize(
     state.crossings = best.1;
     state.remeasure_all();
     enforce_rho_max(&mut state, rho_max);
+    polish::polish(
+        &mut state,
+        rho_max,
+        POLISH_ROUNDS,
+        settings.tolerance,
+        seed,
+        |state| {
+            iterations += 1;
+            log.push(figures(state, iterations));
+        },
+    );
+
     let error = scene_error(graph, &state.requested, &state.measured, rho_max);
     let worst = worst_patches(graph, &state.requested, &state.measured, rho_max, 10);
     let mut crossings: Vec<Crossing> = state.crossings.into_iter().flatten().collect();

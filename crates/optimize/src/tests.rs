@@ -73,3 +73,33 @@ fn the_same_seed_gives_the_same_crossings() {
     let run = || optimize(&graph, &settings, &MatchSettings::default(), 20.0, 7, &()).crossings;
     assert_eq!(run(), run());
 }
+
+/// The polish keeps its own running totals of the error: after it, they must agree with a
+/// scene measured from scratch, and no round may raise E.
+#[test]
+fn the_polish_never_raises_e_and_its_figures_match_a_fresh_measurement() {
+    let graph = scene(300);
+    let matching = MatchSettings::default();
+    let regression = regression::fit(8.0, 20.0, &matching, 60, 3);
+    let mut state = State::new(&graph, &matching, 20.0, stander_counts(&graph));
+    let mut rng = ChaCha8Rng::seed_from_u64(3);
+    start(&mut state, &regression, 0.35, &mut rng);
+    let e = |state: &State| scene_error(&graph, &state.requested, &state.measured, 0.35).e;
+    let mut rounds = vec![e(&state)];
+    let done = polish::polish(&mut state, 0.35, 10, 0.0, 3, |s| rounds.push(e(s)));
+    assert!(done.kept > 0, "{done:?}");
+    assert!(
+        rounds.windows(2).all(|w| w[1] <= w[0] + 1e-12),
+        "{rounds:?}"
+    );
+    let polished = state.measured.clone();
+    state.remeasure_all();
+    assert_eq!(polished, state.measured);
+    assert!(parity_holds(&state));
+    assert!(state.measured.iter().all(|m| m.density <= 0.35 + 1e-9));
+}
+
+fn parity_holds(state: &State) -> bool {
+    let all: Vec<Crossing> = state.crossings.iter().flatten().copied().collect();
+    parity(state.graph, &all).iter().all(|&b| b == 0)
+}
