@@ -1,4 +1,10 @@
 //! A walker's path with boundary points that cannot move: the type has no way to move them.
+//!
+//! Neither can the ends of its border bands: from a boundary point to its band end the walker
+//! walks straight at the crossing velocity, as stage 4 drew it from the patterns. The path's
+//! [`Path::segments`] add the band pieces the walker walks in the neighbouring patch (its
+//! ghosts: the same straight walk before the entry and after the exit), so that the encounters
+//! of this patch include everyone near its borders.
 
 use crate::geometry::Segment;
 use crowd_core::trajectories::{ControlPoint, PointKind, Trajectory};
@@ -35,7 +41,11 @@ pub struct Free {
 pub struct Path {
     entry: Anchor,
     exit: Anchor,
-    /// Sorted by time, strictly between the anchors' times.
+    /// The fixed points of the entry's border band (split points on it, then its end), if
+    /// the trajectory has one; likewise the exit's (its start, then split points).
+    entry_band: Vec<(Anchor, PointKind)>,
+    exit_band: Vec<(Anchor, PointKind)>,
+    /// Sorted by time, strictly between the band ends' times.
     pub free: Vec<Free>,
     pub entry_crossing: u32,
     pub exit_crossing: u32,
@@ -43,17 +53,25 @@ pub struct Path {
 
 impl Path {
     pub fn from_trajectory(tr: &Trajectory) -> Path {
-        let (first, last) = (tr.points[0], tr.points[tr.points.len() - 1]);
+        let n = tr.points.len();
+        let (first, last) = (tr.points[0], tr.points[n - 1]);
+        let anchor = |p: &ControlPoint| Anchor { pos: p.pos, t: p.t };
+        let (e, x) = crowd_core::trajectories::band_ends(&tr.points);
+        let fixed = |range: std::ops::Range<usize>| -> Vec<(Anchor, PointKind)> {
+            tr.points[range]
+                .iter()
+                .map(|p| (anchor(p), p.kind))
+                .collect()
+        };
+        let entry_band = e.map_or_else(Vec::new, |e| fixed(1..e + 1));
+        let exit_band = x.map_or_else(Vec::new, |x| fixed(x..n - 1));
+        let inner = e.map_or(1, |e| e + 1)..x.unwrap_or(n - 1);
         Path {
-            entry: Anchor {
-                pos: first.pos,
-                t: first.t,
-            },
-            exit: Anchor {
-                pos: last.pos,
-                t: last.t,
-            },
-            free: tr.points[1..tr.points.len() - 1]
+            entry: anchor(&first),
+            exit: anchor(&last),
+            entry_band,
+            exit_band,
+            free: tr.points[inner]
                 .iter()
                 .map(|p| Free {
                     pos: p.pos,
@@ -67,21 +85,20 @@ impl Path {
     }
 
     pub fn to_trajectory(&self) -> Trajectory {
-        let mut points = vec![ControlPoint {
-            pos: self.entry.pos,
-            t: self.entry.t,
-            kind: PointKind::Entry,
-        }];
+        let fixed = |a: &Anchor, kind| ControlPoint {
+            pos: a.pos,
+            t: a.t,
+            kind,
+        };
+        let mut points = vec![fixed(&self.entry, PointKind::Entry)];
+        points.extend(self.entry_band.iter().map(|(a, k)| fixed(a, *k)));
         points.extend(self.free.iter().map(|f| ControlPoint {
             pos: f.pos,
             t: f.t,
             kind: f.kind,
         }));
-        points.push(ControlPoint {
-            pos: self.exit.pos,
-            t: self.exit.t,
-            kind: PointKind::Exit,
-        });
+        points.extend(self.exit_band.iter().map(|(a, k)| fixed(a, *k)));
+        points.push(fixed(&self.exit, PointKind::Exit));
         Trajectory {
             entry: self.entry_crossing,
             exit: self.exit_crossing,
@@ -97,19 +114,36 @@ impl Path {
         self.exit
     }
 
-    /// The straight pieces of the path, in time order.
+    /// The straight pieces of the path in time order, with the band pieces it walks in the
+    /// neighbouring patches before its entry and after its exit (see [`ghosts`]).
     pub fn segments(&self) -> Vec<Segment> {
-        let (entry, exit) = ((self.entry.pos, self.entry.t), (self.exit.pos, self.exit.t));
-        let free = self.free.iter().map(|f| (f.pos, f.t));
-        crate::geometry::pieces(
-            std::iter::once(entry)
-                .chain(free)
-                .chain(std::iter::once(exit)),
+        let at = |a: &Anchor| (a.pos, a.t);
+        let mut points = Vec::with_capacity(self.free.len() + 6);
+        points.push(at(&self.entry));
+        points.extend(self.entry_band.iter().map(|(a, _)| at(a)));
+        points.extend(self.free.iter().map(|f| (f.pos, f.t)));
+        points.extend(self.exit_band.iter().map(|(a, _)| at(a)));
+        points.push(at(&self.exit));
+        ghosts(
+            &points,
+            self.entry_band.last().map(|(a, _)| at(a)),
+            self.exit_band.first().map(|(a, _)| at(a)),
         )
     }
 
+    /// The part of the path that may change: between the band ends (or the anchors, for a path
+    /// without bands).
     pub fn span(&self) -> (f64, f64) {
-        (self.entry.t, self.exit.t)
+        let (start, end) = self.fixed_ends();
+        (start.t, end.t)
+    }
+
+    /// Where the changeable part starts and ends.
+    fn fixed_ends(&self) -> (Anchor, Anchor) {
+        (
+            self.entry_band.last().map_or(self.entry, |b| b.0),
+            self.exit_band.first().map_or(self.exit, |b| b.0),
+        )
     }
 
     pub fn position(&self, t: f64) -> DVec2 {
@@ -128,18 +162,20 @@ impl Path {
             .map_or(0.0, |s| s.velocity().length())
     }
 
-    /// The pause the walker is in at time `t`, as the indices of its two pause points.
+    /// The pause the walker is in at time `t`, as the indices of its two pause points (with
+    /// only points at the same place between them: split points, where a pause passes the
+    /// period).
     pub fn pause_at(&self, t: f64) -> Option<(usize, usize)> {
-        self.free
-            .windows(2)
-            .position(|w| {
-                w[0].kind == PointKind::Pause
-                    && w[1].kind == PointKind::Pause
-                    && w[0].pos == w[1].pos
-                    && w[0].t <= t
-                    && t <= w[1].t
-            })
-            .map(|i| (i, i + 1))
+        let f = &self.free;
+        (0..f.len()).find_map(|i| {
+            if f[i].kind != PointKind::Pause || f[i].t > t {
+                return None;
+            }
+            let j = (i + 1..f.len())
+                .take_while(|&j| f[j].pos == f[i].pos)
+                .find(|&j| f[j].kind == PointKind::Pause)?;
+            (t <= f[j].t).then_some((i, j))
+        })
     }
 
     /// Whether the walker can be moved at time `t`: not within `window` of an anchor.
@@ -179,14 +215,23 @@ impl Path {
     /// shortest way past the obstacles grown by `radius`, see `crowd_match::route`), keeping the
     /// times of the points it has: the corners share the piece's time by length.
     pub fn reroute(&mut self, obstacles: &[crowd_core::Rect], radius: f64, side: f64) {
+        // Only the patch's own obstacles: off the border bands, a walker is a radius or more
+        // from any wall across a border already.
+        let obstacles: Vec<crowd_core::Rect> = obstacles
+            .iter()
+            .filter(|o| o.max.x > 0.0 && o.max.y > 0.0 && o.min.x < side && o.min.y < side)
+            .copied()
+            .collect();
         if obstacles.is_empty() {
             return;
         }
+        let obstacles = &obstacles[..];
+        let (start, end) = self.fixed_ends();
         let mut points: Vec<(DVec2, f64, Option<PointKind>)> =
             Vec::with_capacity(self.free.len() + 2);
-        points.push((self.entry.pos, self.entry.t, None));
+        points.push((start.pos, start.t, None));
         points.extend(self.free.iter().map(|f| (f.pos, f.t, Some(f.kind))));
-        points.push((self.exit.pos, self.exit.t, None));
+        points.push((end.pos, end.t, None));
         let mut free = Vec::with_capacity(self.free.len());
         for w in points.windows(2) {
             let ((p0, t0, _), (p1, t1, kind1)) = (w[0], w[1]);
@@ -197,8 +242,10 @@ impl Path {
                 for c in corners.windows(2).take(corners.len() - 2) {
                     walked += c[0].distance(c[1]);
                     let t = t0 + (t1 - t0) * walked / length.max(1e-12);
+                    // Out of the border bands, like every free point.
+                    let edge = DVec2::splat(radius + 1e-3);
                     free.push(Free {
-                        pos: c[1],
+                        pos: c[1].clamp(edge, DVec2::splat(side) - edge),
                         t,
                         kind: PointKind::Detour,
                     });
@@ -224,6 +271,14 @@ impl Path {
             return None;
         }
         let t = t.clamp(t0 + window, t1 - window);
+        // A pause's ends stay where the pause is: a bend at the same moment would be a jump.
+        if self
+            .free
+            .iter()
+            .any(|f| f.kind == PointKind::Pause && (f.t - t).abs() < 0.05)
+        {
+            return None;
+        }
         if let Some(i) = self
             .free
             .iter()
@@ -267,4 +322,41 @@ fn nearest_allowed(
             })
             .find(|&p| allowed(p))
     })
+}
+
+/// The straight pieces through `points` (a trajectory's, in time order), with the band pieces
+/// the walker walks in the neighbouring patches: given where the entry's band ends, the same
+/// straight walk continued as far back before the entry; likewise after the exit.
+pub fn ghosts(
+    points: &[(DVec2, f64)],
+    entry_band: Option<(DVec2, f64)>,
+    exit_band: Option<(DVec2, f64)>,
+) -> Vec<Segment> {
+    let mut out = Vec::with_capacity(points.len() + 1);
+    if let (Some(&(p0, t0)), Some((p1, t1))) = (points.first(), entry_band) {
+        out.push(Segment {
+            p0: p0 - (p1 - p0),
+            t0: t0 - (t1 - t0),
+            p1: p0,
+            t1: t0,
+        });
+    }
+    out.extend(crate::geometry::pieces(points.iter().copied()));
+    if let (Some(&(p1, t1)), Some((p0, t0))) = (points.last(), exit_band) {
+        out.push(Segment {
+            p0: p1,
+            t0: t1,
+            p1: p1 + (p1 - p0),
+            t1: t1 + (t1 - t0),
+        });
+    }
+    out
+}
+
+/// The straight pieces of a trajectory with its ghosts (see [`ghosts`]).
+pub fn trajectory_segments(tr: &Trajectory) -> Vec<Segment> {
+    let (e, x) = crowd_core::trajectories::band_ends(&tr.points);
+    let at = |i: usize| (tr.points[i].pos, tr.points[i].t);
+    let points: Vec<(DVec2, f64)> = tr.points.iter().map(|p| (p.pos, p.t)).collect();
+    ghosts(&points, e.map(at), x.map(at))
 }

@@ -20,6 +20,16 @@ pub struct Patch<'a> {
     pub standers: &'a [DVec2],
 }
 
+impl Patch<'_> {
+    /// The nearest place to `p` out of the border bands: a walker is within a radius of a
+    /// border only on its own band pieces, so two patches' walkers off their bands are always
+    /// a diameter apart.
+    pub fn keep_inside(&self, p: DVec2) -> DVec2 {
+        let edge = self.radius_m + 1e-3;
+        p.clamp(DVec2::splat(edge), DVec2::splat(self.side_m - edge))
+    }
+}
+
 /// Who is too close to walker `a`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Other {
@@ -184,6 +194,11 @@ pub fn remove_collisions(
     max_iterations: u32,
     rng: &mut ChaCha8Rng,
 ) -> Outcome {
+    for path in paths.iter_mut() {
+        for f in &mut path.free {
+            f.pos = patch.keep_inside(f.pos);
+        }
+    }
     let mut segs: Vec<Vec<Segment>> = paths.iter().map(Path::segments).collect();
     let mut rows = rows(&segs, patch);
     let worst = |rows: &[Vec<Encounter>]| {
@@ -285,8 +300,7 @@ fn push_apart(
         _ => need - e.distance,
     };
     let push = (missing + 0.05).max(0.1 * need);
-    let edge = 0.02;
-    let keep_inside = |p: DVec2| p.clamp(DVec2::splat(edge), DVec2::splat(patch.side_m - edge));
+    let keep_inside = |p: DVec2| patch.keep_inside(p);
     let clear = |p: DVec2| {
         !patch
             .obstacles
@@ -349,10 +363,19 @@ fn relocate_pause(paths: &mut [Path], p: usize, (i, j): (usize, usize), patch: &
         }
     }
     let clearance = |q: DVec2| {
+        // Distance from the nearest wall plus a radius, as if the wall were a walker's centre
+        // a radius away from it; a spot inside or within a radius of a wall is never chosen.
         let walls = patch
             .obstacles
             .iter()
-            .map(|o| (q.clamp(o.min, o.max) - q).length() + r)
+            .map(|o| {
+                let d = (q.clamp(o.min, o.max) - q).length();
+                if d < r + 0.05 {
+                    f64::NEG_INFINITY
+                } else {
+                    d + r
+                }
+            })
             .fold(f64::INFINITY, f64::min);
         others.iter().map(|o| o.distance(q)).fold(walls, f64::min)
     };
@@ -368,10 +391,14 @@ fn relocate_pause(paths: &mut [Path], p: usize, (i, j): (usize, usize), patch: &
         .get(j + 1)
         .map_or((path.exit().pos(), path.exit().t()), |f| (f.pos, f.t));
     // The pause may start later and end sooner to leave time for the walk (a time move).
+    // Points inside the pause (where it passes the period) keep their times: the walker must
+    // be there by the first of them and stay until the last.
+    let inner = (i + 1 < j).then(|| (path.free[i + 1].t, path.free[j - 1].t));
     let times = |q: DVec2| {
         let start = t0.max(before.1 + before.0.distance(q) / WALK_SPEED);
         let end = t1.min(after.1 - q.distance(after.0) / WALK_SPEED);
-        (start <= end).then_some((start, end))
+        let holds = inner.is_none_or(|(a, b)| start <= a && end >= b);
+        (start <= end && holds).then_some((start, end))
     };
     let reachable = |q: DVec2| times(q).is_some();
     let margin = r + 0.3;
@@ -390,15 +417,10 @@ fn relocate_pause(paths: &mut [Path], p: usize, (i, j): (usize, usize), patch: &
     }
     let (start, end) = times(best.1).expect("a reachable spot");
     let path = &mut paths[p];
-    path.free[i] = crate::path::Free {
-        pos: best.1,
-        t: start,
-        ..path.free[i]
-    };
-    path.free[j] = crate::path::Free {
-        pos: best.1,
-        t: end,
-        ..path.free[j]
-    };
+    for f in &mut path.free[i..=j] {
+        f.pos = best.1;
+    }
+    path.free[i].t = start;
+    path.free[j].t = end;
     true
 }

@@ -26,11 +26,16 @@ pub enum PointKind {
     Detour,
     /// A point of the smoothed curve (added by the smooth stage).
     Sample,
+    /// Where the border band ends: between a boundary point and this one the walker moves at
+    /// its crossing's velocity, as the pattern fixes it, so that the characters of two
+    /// neighbouring patches near their border are known to both (stage 4 sets it; no later
+    /// stage moves it).
+    Band,
 }
 
 impl PointKind {
     /// Every kind, in code order.
-    pub const ALL: [PointKind; 8] = [
+    pub const ALL: [PointKind; 9] = [
         PointKind::Entry,
         PointKind::Exit,
         PointKind::Split,
@@ -39,6 +44,7 @@ impl PointKind {
         PointKind::Bend,
         PointKind::Detour,
         PointKind::Sample,
+        PointKind::Band,
     ];
 
     fn code(self) -> u8 {
@@ -53,6 +59,29 @@ impl PointKind {
     pub fn is_boundary(self) -> bool {
         matches!(self, PointKind::Entry | PointKind::Exit)
     }
+
+    /// Fixed by the patterns: boundary points and the ends of their border bands.
+    pub fn is_fixed(self) -> bool {
+        self.is_boundary() || self == PointKind::Band
+    }
+}
+
+/// The indices of the points that end the entry's border band and start the exit's, if the
+/// trajectory has them: the first [`PointKind::Band`] point with only split points before it,
+/// and the last with only split points after it.
+pub fn band_ends(points: &[ControlPoint]) -> (Option<usize>, Option<usize>) {
+    let n = points.len();
+    if n < 4 {
+        return (None, None);
+    }
+    let entry = (1..n - 1)
+        .find(|&i| points[i].kind != PointKind::Split)
+        .filter(|&i| points[i].kind == PointKind::Band);
+    let exit = (1..n - 1)
+        .rev()
+        .find(|&i| points[i].kind != PointKind::Split)
+        .filter(|&i| points[i].kind == PointKind::Band && Some(i) != entry);
+    (entry, exit)
 }
 
 /// A point of a trajectory in patch-local metres and unwrapped time: times grow from the entry

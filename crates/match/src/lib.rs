@@ -31,6 +31,8 @@ pub struct Endpoint {
     /// Time in [0, period).
     pub t: f64,
     pub side: Side,
+    /// The crossing's velocity (world axes; into the patch for an entry, out for an exit).
+    pub velocity: DVec2,
 }
 
 /// What the matching of one patch needs to know about it.
@@ -109,6 +111,7 @@ pub fn endpoints(
                 pos: here.pos,
                 t: c.t,
                 side: here.side,
+                velocity: c.velocity,
             }
         })
         .collect()

@@ -137,11 +137,57 @@ pub fn plan(entry: &Endpoint, exit: &Endpoint, ctx: &PatchContext) -> Trajectory
     // The exit is reached exactly `total` after the entry, whatever the rounding on the way.
     let last = points.len() - 1;
     points[last].t = entry.t + total;
+    let points = with_bands(points, entry, exit, ctx.radius_m);
     Trajectory {
         entry: entry.crossing,
         exit: exit.crossing,
         points: split_at_periods(points, ctx.period_s),
     }
+}
+
+/// How long a walker crossing at `velocity` takes to get `depth` away from the border of
+/// `side`.
+pub fn band_time(side: crowd_core::patterns::Side, velocity: DVec2, depth: f64) -> f64 {
+    depth / velocity.dot(side.inward()).abs().max(1e-6)
+}
+
+/// The walker's first and last `depth` metres from the border, walked straight at the crossing
+/// velocity (the band pieces, fixed by the patterns; see [`PointKind::Band`]): a [`PointKind::Band`]
+/// point where each ends, and the points of the line in between kept. A line too short to
+/// hold both bands keeps none (stage 3's spacing never makes one).
+pub fn with_bands(
+    points: Vec<ControlPoint>,
+    entry: &Endpoint,
+    exit: &Endpoint,
+    depth: f64,
+) -> Vec<ControlPoint> {
+    let (first, last) = (points[0], points[points.len() - 1]);
+    let (te, tx) = (
+        band_time(entry.side, entry.velocity, depth),
+        band_time(exit.side, exit.velocity, depth),
+    );
+    if last.t - first.t <= te + tx + 1e-6 {
+        return points;
+    }
+    let start = ControlPoint {
+        pos: first.pos + entry.velocity * te,
+        t: first.t + te,
+        kind: PointKind::Band,
+    };
+    let end = ControlPoint {
+        pos: last.pos - exit.velocity * tx,
+        t: last.t - tx,
+        kind: PointKind::Band,
+    };
+    let mut out = Vec::with_capacity(points.len() + 2);
+    out.extend([first, start]);
+    out.extend(
+        points[1..points.len() - 1]
+            .iter()
+            .filter(|p| p.t > start.t + 1e-9 && p.t < end.t - 1e-9),
+    );
+    out.extend([end, last]);
+    out
 }
 
 /// Inserts a split point wherever the trajectory passes a multiple of the period.
@@ -192,6 +238,15 @@ mod tests {
             pos: DVec2::new(x, y),
             t,
             side,
+            velocity: side.inward() * 1.33,
+        }
+    }
+
+    /// An exit: its crossing velocity leaves the patch.
+    fn exit_point(x: f64, y: f64, t: f64, side: Side) -> Endpoint {
+        Endpoint {
+            velocity: -side.inward() * 1.33,
+            ..point(x, y, t, side)
         }
     }
 
@@ -200,14 +255,35 @@ mod tests {
         let s = MatchSettings::default();
         let tr = plan(
             &point(0.0, 4.0, 17.0, Side::West),
-            &point(8.0, 4.0, 3.0, Side::East),
+            &exit_point(8.0, 4.0, 3.0, Side::East),
             &ctx(&s),
         );
         let kinds: Vec<_> = tr.points.iter().map(|p| p.kind).collect();
-        assert_eq!(kinds, [PointKind::Entry, PointKind::Split, PointKind::Exit]);
-        assert_eq!(tr.points[1].t, 20.0);
-        assert!((tr.points[1].pos.x - 8.0 * 3.0 / 6.0).abs() < 1e-9);
-        assert_eq!(tr.points[2].t, 23.0);
+        use PointKind::*;
+        assert_eq!(kinds, [Entry, Band, Split, Band, Exit]);
+        assert_eq!(tr.points[2].t, 20.0);
+        assert!((tr.points[2].pos.x - 8.0 * 3.0 / 6.0).abs() < 1e-9);
+        assert_eq!(tr.points[4].t, 23.0);
+    }
+
+    #[test]
+    fn the_first_and_last_radius_are_walked_at_the_crossing_velocity() {
+        let s = MatchSettings::default();
+        let (entry, exit) = (
+            point(0.0, 2.0, 1.0, Side::West),
+            exit_point(5.0, 8.0, 9.0, Side::North),
+        );
+        let tr = plan(&entry, &exit, &ctx(&s));
+        let p = &tr.points;
+        let n = p.len();
+        assert_eq!(
+            (p[1].kind, p[n - 2].kind),
+            (PointKind::Band, PointKind::Band)
+        );
+        let v = |a: &ControlPoint, b: &ControlPoint| (b.pos - a.pos) / (b.t - a.t);
+        assert!((v(&p[0], &p[1]) - entry.velocity).length() < 1e-9);
+        assert!((v(&p[n - 2], &p[n - 1]) - exit.velocity).length() < 1e-9);
+        assert!((p[1].pos.x - 0.3).abs() < 1e-9 && (p[n - 2].pos.y - 7.7).abs() < 1e-9);
     }
 
     #[test]
@@ -216,7 +292,7 @@ mod tests {
         // 8 m in 1 s: 8 m/s. With one more period: 8 m in 21 s, too slow, so it pauses.
         let tr = plan(
             &point(0.0, 4.0, 5.0, Side::West),
-            &point(8.0, 4.0, 6.0, Side::East),
+            &exit_point(8.0, 4.0, 6.0, Side::East),
             &ctx(&s),
         );
         assert!((tr.duration() - 21.0).abs() < 1e-9);
@@ -241,7 +317,7 @@ mod tests {
         let s = MatchSettings::default();
         let tr = plan(
             &point(0.0, 2.0, 1.0, Side::West),
-            &point(0.0, 6.0, 9.0, Side::West),
+            &exit_point(0.0, 6.0, 9.0, Side::West),
             &ctx(&s),
         );
         let turn = tr

@@ -53,7 +53,10 @@ pub fn route(from: DVec2, to: DVec2, obstacles: &[Rect], clearance: f64, side: f
     if !blocked(from, to) {
         return vec![from, to];
     }
-    let inside = |p: DVec2| p.x >= 0.0 && p.y >= 0.0 && p.x <= side && p.y <= side;
+    // Corners stay out of the border bands (a clearance deep), where only the walkers
+    // crossing that border go.
+    let (lo, hi) = (clearance, side - clearance);
+    let inside = |p: DVec2| p.x >= lo && p.y >= lo && p.x <= hi && p.y <= hi;
     let mut nodes = vec![from, to];
     for o in obstacles {
         let g = grown(o, clearance + 0.05);

@@ -10,7 +10,10 @@ use rand_chacha::ChaCha8Rng;
 /// one of 32 random candidates farthest from the standers and obstacles already there.
 pub fn place(count: u32, ctx: &PatchContext, radius: f64, seed: u64) -> Vec<DVec2> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let margin = radius + 0.2;
+    // Clear of the border bands on both sides of every border (a radius deep, walked by the
+    // characters crossing it) by a diameter and a little: what stands in one patch never
+    // touches a walker of the next.
+    let margin = 3.0 * radius + 0.1;
     let mut placed: Vec<DVec2> = Vec::with_capacity(count as usize);
     for _ in 0..count {
         let best = (0..32)

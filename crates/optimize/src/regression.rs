@@ -44,6 +44,7 @@ pub fn fit(
             pos,
             t: rng.random_range(0.0..period_s),
             side,
+            velocity: side.inward() * settings.comfort_speed,
         }
     };
     let mut samples = Vec::new();
@@ -56,6 +57,7 @@ pub fn fit(
                 .iter()
                 .map(|e| {
                     let mut x = random_point(&mut rng);
+                    x.velocity = -x.velocity;
                     x.t =
                         (e.t + e.pos.distance(x.pos) / settings.comfort_speed).rem_euclid(period_s);
                     x

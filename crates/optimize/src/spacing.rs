@@ -1,6 +1,8 @@
 //! Where a new crossing may go: on an open interval, clear of the patch corners, and far enough
 //! in space or time from the other crossings of its border that the two characters never come
 //! closer than the sum of their radii near the border.
+//!
+//! The rule between two crossings is `crowd_core::spacing::CrossingRule` (band pieces apart).
 
 use crowd_core::patterns::{Crossing, Way};
 use crowd_core::{Interval, PatchGraph};
@@ -9,19 +11,18 @@ pub struct Spacing {
     /// Per border, the stretches where a crossing may be (open intervals shrunk by a radius
     /// and a margin, and kept clear of the corners).
     pub usable: Vec<Vec<Interval>>,
-    /// Closest distance between two characters near a border: 2r + margin.
-    pub gap: f64,
-    /// Depth inside the patch within which two characters crossing a border in opposite ways
-    /// must not meet; deeper, the collide stage can still bend their paths.
-    pub meet_depth: f64,
+    /// The rule between two crossings of one border.
+    pub rule: crowd_core::spacing::CrossingRule,
+    /// Per border, the unit vector across it.
+    pub normals: Vec<glam::DVec2>,
 }
 
 impl Spacing {
     pub fn new(graph: &PatchGraph) -> Spacing {
         let r = graph.radius_m;
         let side = graph.world.patch_side_m;
-        let edge = r + 0.1;
-        let corner = r + 0.4;
+        let rule = crowd_core::spacing::CrossingRule::new(r);
+        let (edge, corner) = (rule.edge, rule.corner);
         let usable = graph
             .borders
             .iter()
@@ -38,8 +39,15 @@ impl Spacing {
             .collect();
         Spacing {
             usable,
-            gap: 2.0 * r + 0.1,
-            meet_depth: 1.5,
+            rule,
+            normals: graph
+                .borders
+                .iter()
+                .map(|b| match b.axis {
+                    crowd_core::BorderAxis::Vertical => glam::DVec2::X,
+                    crowd_core::BorderAxis::Horizontal => glam::DVec2::Y,
+                })
+                .collect(),
         }
     }
 
@@ -53,17 +61,8 @@ impl Spacing {
 
     /// Whether two crossings of one border keep their characters apart near it.
     pub fn compatible(&self, a: &Crossing, b: &Crossing, period: f64) -> bool {
-        if (a.s - b.s).abs() >= self.gap {
-            return true;
-        }
-        let dt = (a.t - b.t).abs().rem_euclid(period);
-        let dt = dt.min(period - dt);
-        let speed = a.velocity.length().min(b.velocity.length());
-        if a.way == b.way {
-            speed * dt >= self.gap
-        } else {
-            speed * dt / 2.0 >= self.meet_depth
-        }
+        self.rule
+            .compatible(a, b, self.normals[a.border as usize], period)
     }
 
     /// Whether `c` fits among `others`.

@@ -117,6 +117,7 @@ impl<'a> State<'a> {
                     pos: here.pos,
                     t: c.t,
                     side: here.side,
+                    velocity: c.velocity,
                 };
                 if c.way == link.way {
                     exits.push(e);

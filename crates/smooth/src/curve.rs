@@ -16,6 +16,8 @@ pub struct Limits {
     pub tolerance_m: f64,
     /// Share of the way from the polyline to the curve (1: the curve).
     pub blend: f64,
+    /// Depth of the border bands (the character radius): curve points stay out of them.
+    pub band_m: f64,
 }
 
 /// Time from a border point to the sample that fixes the velocity there: the polyline's first
@@ -36,10 +38,13 @@ pub fn smooth(
     limits: &Limits,
 ) -> (Trajectory, u64) {
     let pts = &tr.points;
-    let last = pts.len() - 1;
-    let mut out = vec![pts[0]];
+    // The band pieces at either end stay as they are: straight, at the crossing velocity.
+    let (entry_band, exit_band) = crowd_core::trajectories::band_ends(pts);
+    let first = entry_band.unwrap_or(0);
+    let last = exit_band.unwrap_or(pts.len() - 1);
+    let mut out = pts[..=first].to_vec();
     let mut dropped = 0;
-    let mut i = 0;
+    let mut i = first;
     while i < last {
         if pts[i + 1].pos == pts[i].pos {
             // Standing still: kept as it is.
@@ -51,11 +56,12 @@ pub fn smooth(
         while j < last && pts[j + 1].pos != pts[j].pos {
             j += 1;
         }
-        let v0 = if i == 0 { v_entry } else { DVec2::ZERO };
+        let v0 = if i == first { v_entry } else { DVec2::ZERO };
         let v1 = if j == last { v_exit } else { DVec2::ZERO };
         dropped += piece(&pts[i..=j], v0, v1, limits, &mut out);
         i = j;
     }
+    out.extend_from_slice(&pts[last + 1..]);
     (
         Trajectory {
             entry: tr.entry,
@@ -113,8 +119,9 @@ fn piece(
     }
 
     let mut dropped = 0;
-    let inside =
-        |p: DVec2| p.x >= 0.0 && p.y >= 0.0 && p.x <= limits.side_m && p.y <= limits.side_m;
+    // Out of the border bands, as stage 5 keeps every free point.
+    let (lo, hi) = (limits.band_m, limits.side_m - limits.band_m);
+    let inside = |p: DVec2| p.x >= lo && p.y >= lo && p.x <= hi && p.y <= hi;
     for &t in &times[1..times.len() - 1] {
         let is_split = splits.iter().any(|&s| (s - t).abs() < 1e-9);
         let on_line = position_at(pts, t);
@@ -179,6 +186,7 @@ mod tests {
             max_displacement_m: 0.6,
             tolerance_m: 0.01,
             blend: 1.0,
+            band_m: 0.3,
         }
     }
 
@@ -189,21 +197,24 @@ mod tests {
             exit: 1,
             points: vec![
                 cp(0.0, 2.0, 1.0, PointKind::Entry),
+                cp(0.3, 2.0, 1.0 + 0.3 / 1.3, PointKind::Band),
                 cp(4.0, 3.0, 4.0, PointKind::Bend),
+                cp(7.7, 2.0, 7.0 - 0.3 / 1.3, PointKind::Band),
                 cp(8.0, 2.0, 7.0, PointKind::Exit),
             ],
         };
         let v = DVec2::new(1.3, 0.0);
         let (s, _) = smooth(&tr, v, v, &limits());
-        assert_eq!(s.points.first(), tr.points.first());
-        assert_eq!(s.points.last(), tr.points.last());
-        assert!(s.points.len() > 8);
-        assert!(s.points.windows(2).all(|w| w[1].t > w[0].t));
-        // The first and last chords run at the crossing velocity.
-        let chord = |a: &ControlPoint, b: &ControlPoint| (b.pos - a.pos) / (b.t - a.t);
-        assert!((chord(&s.points[0], &s.points[1]) - v).length() < 0.1);
         let n = s.points.len();
-        assert!((chord(&s.points[n - 2], &s.points[n - 1]) - v).length() < 0.1);
+        // The border bands stay exactly as they were.
+        assert_eq!(s.points[..2], tr.points[..2]);
+        assert_eq!(s.points[n - 2..], tr.points[3..]);
+        assert!(n > 8);
+        assert!(s.points.windows(2).all(|w| w[1].t > w[0].t));
+        // The curve leaves and reaches the bands at the crossing velocity.
+        let chord = |a: &ControlPoint, b: &ControlPoint| (b.pos - a.pos) / (b.t - a.t);
+        assert!((chord(&s.points[1], &s.points[2]) - v).length() < 0.1);
+        assert!((chord(&s.points[n - 3], &s.points[n - 2]) - v).length() < 0.1);
     }
 
     #[test]

@@ -59,6 +59,7 @@ pub fn smooth(
         max_displacement_m: s.max_displacement_m.unwrap_or(2.0 * graph.radius_m),
         tolerance_m: s.tolerance_m,
         blend: 1.0,
+        band_m: graph.radius_m,
     };
     let velocities = crossing_velocities(crossings.len(), motion);
     let results: Vec<(PatchMotion, [u64; 3])> = motion
@@ -173,8 +174,10 @@ fn smooth_patch(
 }
 
 /// The straight pieces of a trajectory.
+/// The straight pieces of a trajectory, with the band pieces it walks in the neighbouring
+/// patches (see `crowd_collide::path::ghosts`).
 pub fn segments(tr: &Trajectory) -> Vec<Segment> {
-    crowd_collide::geometry::pieces(tr.points.iter().map(|p| (p.pos, p.t)))
+    crowd_collide::path::trajectory_segments(tr)
 }
 
 /// Who an encounter is between, whatever the period shift.
