@@ -164,18 +164,94 @@ impl Path {
 
     /// The pause the walker is in at time `t`, as the indices of its two pause points (with
     /// only points at the same place between them: split points, where a pause passes the
-    /// period).
+    /// period). A moment within 0.05 s of the pause counts: closest approaches are often
+    /// found at its ends, to within rounding.
     pub fn pause_at(&self, t: f64) -> Option<(usize, usize)> {
+        const NEAR: f64 = 0.05;
         let f = &self.free;
         (0..f.len()).find_map(|i| {
-            if f[i].kind != PointKind::Pause || f[i].t > t {
+            if f[i].kind != PointKind::Pause || f[i].t > t + NEAR {
                 return None;
             }
             let j = (i + 1..f.len())
-                .take_while(|&j| f[j].pos == f[i].pos)
+                .take_while(|&j| f[j].pos.distance(f[i].pos) < 1e-9)
                 .find(|&j| f[j].kind == PointKind::Pause)?;
-            (t <= f[j].t).then_some((i, j))
+            (t <= f[j].t + NEAR).then_some((i, j))
         })
+    }
+
+    /// Moves the pause `(i, j)` (see [`Path::pause_at`]) whole by `force`, if `allowed`
+    /// accepts where it ends, as [`Path::push_at`] moves one point.
+    pub fn push_pause(
+        &mut self,
+        (i, j): (usize, usize),
+        force: DVec2,
+        keep_inside: impl Fn(DVec2) -> DVec2,
+        allowed: impl Fn(DVec2) -> bool,
+    ) -> bool {
+        let target = keep_inside(self.free[i].pos + force);
+        match nearest_allowed(target, &keep_inside, &allowed) {
+            Some(target) => {
+                for f in &mut self.free[i..=j] {
+                    f.pos = target;
+                }
+                true
+            }
+            None => false,
+        }
+    }
+
+    /// Steps aside during the pause `(i, j)`: the part of the pause from time `t` on (or up to
+    /// `t`, when `t` is in its first half) moves by `force`, with a short walk from one spot to
+    /// the other, so the walker waits at two spots. A pause too short to split moves whole
+    /// ([`Path::push_pause`]). Returns whether anything moved.
+    pub fn split_pause(
+        &mut self,
+        (i, j): (usize, usize),
+        t: f64,
+        force: DVec2,
+        keep_inside: impl Fn(DVec2) -> DVec2,
+        allowed: impl Fn(DVec2) -> bool,
+    ) -> bool {
+        let (t0, t1, here) = (self.free[i].t, self.free[j].t, self.free[i].pos);
+        let Some(there) = nearest_allowed(keep_inside(here + force), &keep_inside, &allowed) else {
+            return false;
+        };
+        let walk = (here.distance(there) / 1.0).max(0.2);
+        let later = t - t0 >= t1 - t;
+        if t1 - t0 < 2.0 * walk + 2.0 {
+            return self.push_pause((i, j), force, keep_inside, allowed);
+        }
+        // Each part keeps at least a second, and the walk between them fits.
+        let cut = if later {
+            t.clamp(t0 + walk + 1.0, t1 - 1.0)
+        } else {
+            t.clamp(t0 + 1.0, t1 - walk - 1.0)
+        };
+        let (a, b) = if later {
+            (cut - walk, cut)
+        } else {
+            (cut, cut + walk)
+        };
+        let (pos_a, pos_b) = if later { (here, there) } else { (there, here) };
+        for f in &mut self.free[i..=j] {
+            // A split point in the walk goes where the walker is then.
+            f.pos = if f.t <= a {
+                pos_a
+            } else if f.t >= b {
+                pos_b
+            } else {
+                pos_a.lerp(pos_b, (f.t - a) / (b - a))
+            };
+        }
+        let at = self.free.partition_point(|f| f.t < a);
+        let pause = |pos, t| Free {
+            pos,
+            t,
+            kind: PointKind::Pause,
+        };
+        self.free.splice(at..at, [pause(pos_a, a), pause(pos_b, b)]);
+        true
     }
 
     /// Whether the walker can be moved at time `t`: not within `window` of an anchor.
@@ -215,17 +291,9 @@ impl Path {
     /// shortest way past the obstacles grown by `radius`, see `crowd_match::route`), keeping the
     /// times of the points it has: the corners share the piece's time by length.
     pub fn reroute(&mut self, obstacles: &[crowd_core::Rect], radius: f64, side: f64) {
-        // Only the patch's own obstacles: off the border bands, a walker is a radius or more
-        // from any wall across a border already.
-        let obstacles: Vec<crowd_core::Rect> = obstacles
-            .iter()
-            .filter(|o| o.max.x > 0.0 && o.max.y > 0.0 && o.min.x < side && o.min.y < side)
-            .copied()
-            .collect();
         if obstacles.is_empty() {
             return;
         }
-        let obstacles = &obstacles[..];
         let (start, end) = self.fixed_ends();
         let mut points: Vec<(DVec2, f64, Option<PointKind>)> =
             Vec::with_capacity(self.free.len() + 2);

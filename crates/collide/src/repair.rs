@@ -21,6 +21,24 @@ pub struct Patch<'a> {
 }
 
 impl Patch<'_> {
+    /// What a walker's path is routed round (`Path::reroute`): the patch's own obstacles (off
+    /// the border bands, a walker is a radius or more from any wall across a border already)
+    /// and every stander as a square of half-side r (a path a radius clear of the square is a
+    /// diameter clear of the stander).
+    pub fn walls(&self) -> Vec<Rect> {
+        let side = self.side_m;
+        let r = DVec2::splat(self.radius_m);
+        self.obstacles
+            .iter()
+            .filter(|o| o.max.x > 0.0 && o.max.y > 0.0 && o.min.x < side && o.min.y < side)
+            .copied()
+            .chain(self.standers.iter().map(|&s| Rect {
+                min: s - r,
+                max: s + r,
+            }))
+            .collect()
+    }
+
     /// The nearest place to `p` out of the border bands: a walker is within a radius of a
     /// border only on its own band pieces, so two patches' walkers off their bands are always
     /// a diameter apart.
@@ -199,6 +217,7 @@ pub fn remove_collisions(
             f.pos = patch.keep_inside(f.pos);
         }
     }
+    let walls = patch.walls();
     let mut segs: Vec<Vec<Segment>> = paths.iter().map(Path::segments).collect();
     let mut rows = rows(&segs, patch);
     let worst = |rows: &[Vec<Encounter>]| {
@@ -225,7 +244,7 @@ pub fn remove_collisions(
         iterations += 1;
         let touched = push_apart(paths, patch, &w, rng);
         for &p in &touched {
-            paths[p].reroute(patch.obstacles, patch.radius_m, patch.side_m);
+            paths[p].reroute(&walls, patch.radius_m, patch.side_m);
         }
         for &p in &touched {
             segs[p] = paths[p].segments();
@@ -318,14 +337,17 @@ fn push_apart(
         }
         // A walker caught pausing moves its whole pause to the clearest spot for its duration:
         // pushing one moment of a long pause only makes it zigzag.
-        if let Some(pause) = paths[p].pause_at(t)
-            && relocate_pause(paths, p, pause, patch)
-        {
+        let phi = rng.random_range(-0.5..0.5);
+        let force = DVec2::from_angle(phi).rotate(d) * push * share;
+        if let Some(pause) = paths[p].pause_at(t) {
+            // Else the walker steps aside for the part of the pause around the encounter (a
+            // bend inside it would end the pause).
+            if !relocate_pause(paths, p, pause, patch) {
+                paths[p].split_pause(pause, t, force, keep_inside, clear);
+            }
             touched.push(p);
             continue;
         }
-        let phi = rng.random_range(-0.5..0.5);
-        let force = DVec2::from_angle(phi).rotate(d) * push * share;
         // Moved or not, a new free point may have been added: the row is recomputed.
         paths[p].push_at(t, force, window, keep_inside, clear);
         touched.push(p);
@@ -400,7 +422,21 @@ fn relocate_pause(paths: &mut [Path], p: usize, (i, j): (usize, usize), patch: &
         let holds = inner.is_none_or(|(a, b)| start <= a && end >= b);
         (start <= end && holds).then_some((start, end))
     };
-    let reachable = |q: DVec2| times(q).is_some();
+    // ... and in a straight line, clear of every wall (never into a part a wall cuts off).
+    let clear_walk = |a: DVec2, b: DVec2| {
+        let walk = Segment {
+            p0: a,
+            t0: 0.0,
+            p1: b,
+            t1: 1.0,
+        };
+        patch
+            .obstacles
+            .iter()
+            .all(|o| geometry::to_rect(&walk, o.min, o.max).0 >= r)
+    };
+    let reachable =
+        |q: DVec2| times(q).is_some() && clear_walk(before.0, q) && clear_walk(q, after.0);
     let margin = r + 0.3;
     let n = 9;
     let best = (0..n * n)
@@ -411,6 +447,12 @@ fn relocate_pause(paths: &mut [Path], p: usize, (i, j): (usize, usize), patch: &
         .filter(|&q| reachable(q))
         .map(|q| (clearance(q), q))
         .max_by(|a, b| a.0.total_cmp(&b.0));
+    if std::env::var("RDEBUG").is_ok() {
+        eprintln!(
+            "relocate p{p} ({i},{j}) t {t0:.3}-{t1:.3} here {here:?} c {:.3} best {best:?} before {before:?} after {after:?} inner {inner:?}",
+            clearance(here)
+        );
+    }
     let Some(best) = best else { return false };
     if best.0 <= clearance(here) + 1e-9 {
         return false;

@@ -73,6 +73,33 @@ fn endpoint(side: u8, s: f64) -> DVec2 {
     }
 }
 
+fn inward(side: u8) -> DVec2 {
+    match side % 4 {
+        0 => DVec2::X,
+        1 => DVec2::NEG_X,
+        2 => DVec2::Y,
+        _ => DVec2::NEG_Y,
+    }
+}
+
+/// A straight walk with its border bands, as stage 4 draws it: the first and last 0.3 m
+/// straight across the border at 1.3 m/s.
+fn banded(side_in: u8, s_in: f64, t: f64, side_out: u8, s_out: f64, t_out: f64) -> Path {
+    let (e, x) = (endpoint(side_in, s_in), endpoint(side_out, s_out));
+    let band = 0.3 / 1.3;
+    let point = |pos, t, kind| ControlPoint { pos, t, kind };
+    Path::from_trajectory(&Trajectory {
+        entry: 0,
+        exit: 0,
+        points: vec![
+            point(e, t, PointKind::Entry),
+            point(e + inward(side_in) * 0.3, t + band, PointKind::Band),
+            point(x + inward(side_out) * 0.3, t_out - band, PointKind::Band),
+            point(x, t_out, PointKind::Exit),
+        ],
+    })
+}
+
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(24))]
 
@@ -85,9 +112,15 @@ proptest! {
     ) {
         let mut paths: Vec<Path> = walkers
             .iter()
-            .map(|&(se, s_in, t, sx, s_out, dt)| line(endpoint(se, s_in), t, endpoint(sx + 1, s_out), t + dt))
+            .map(|&(se, s_in, t, sx, s_out, dt)| banded(se, s_in, t, sx + 1, s_out, t + dt))
             .collect();
         let before: Vec<_> = paths.iter().map(|p| (p.entry(), p.exit())).collect();
+        let ends = |p: &Path| {
+            let t = p.to_trajectory();
+            let n = t.points.len();
+            [t.points[0], t.points[1], t.points[n - 2], t.points[n - 1]]
+        };
+        let bands: Vec<_> = paths.iter().map(ends).collect();
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         let out = remove_collisions(&mut paths, &patch(), 3000, &mut rng);
         for (p, (entry, exit)) in paths.iter().zip(&before) {
@@ -95,6 +128,14 @@ proptest! {
             prop_assert_eq!(p.exit(), *exit);
             let t = p.to_trajectory();
             prop_assert!(t.points.windows(2).all(|w| w[1].t >= w[0].t));
+        }
+        // Nor do the border bands.
+        for (p, b) in paths.iter().zip(&bands) {
+            prop_assert_eq!(ends(p), *b);
+            // Every other point stays out of the bands.
+            for q in &p.free {
+                prop_assert!(q.pos.min_element() >= 0.3 && q.pos.max_element() <= 7.7);
+            }
         }
         if out.worst.is_none() {
             for i in 0..paths.len() {
@@ -132,4 +173,61 @@ fn a_piece_that_cuts_through_an_obstacle_is_sent_round_it() {
         );
         s += 0.01;
     }
+}
+
+#[test]
+fn a_pause_that_passes_the_period_is_one_pause() {
+    // Stage 4 splits a pause at the period; the split point's position may differ in the last
+    // bit from the pause's.
+    let spot = DVec2::new(4.0, 4.0);
+    let point = |pos, t, kind| ControlPoint { pos, t, kind };
+    let path = Path::from_trajectory(&Trajectory {
+        entry: 0,
+        exit: 0,
+        points: vec![
+            point(DVec2::new(0.0, 4.0), 15.0, PointKind::Entry),
+            point(spot, 18.0, PointKind::Pause),
+            point(spot + DVec2::new(1e-15, 0.0), 20.0, PointKind::Split),
+            point(spot, 26.0, PointKind::Pause),
+            point(DVec2::new(8.0, 4.0), 29.0, PointKind::Exit),
+        ],
+    });
+    assert_eq!(path.pause_at(22.0), Some((0, 2)));
+    assert_eq!(
+        path.pause_at(17.99),
+        Some((0, 2)),
+        "an end, to within rounding"
+    );
+    assert_eq!(path.pause_at(16.0), None);
+}
+
+#[test]
+fn stepping_aside_leaves_two_pauses_and_keeps_time_running_forward() {
+    let spot = DVec2::new(4.0, 4.0);
+    let point = |pos, t, kind| ControlPoint { pos, t, kind };
+    let mut path = Path::from_trajectory(&Trajectory {
+        entry: 0,
+        exit: 0,
+        points: vec![
+            point(DVec2::new(0.0, 4.0), 0.0, PointKind::Entry),
+            point(spot, 3.0, PointKind::Pause),
+            point(spot, 13.0, PointKind::Pause),
+            point(DVec2::new(8.0, 4.0), 16.0, PointKind::Exit),
+        ],
+    });
+    let inside = |p: DVec2| p.clamp(DVec2::splat(0.31), DVec2::splat(7.69));
+    assert!(path.split_pause((0, 1), 10.0, DVec2::new(0.0, 0.5), inside, |_| true));
+    let t = path.to_trajectory();
+    assert!(t.points.windows(2).all(|w| w[1].t > w[0].t));
+    let pauses: Vec<_> = t
+        .points
+        .iter()
+        .filter(|p| p.kind == PointKind::Pause)
+        .collect();
+    assert_eq!(pauses.len(), 4);
+    assert_eq!((pauses[0].pos, pauses[1].pos), (spot, spot));
+    assert_eq!(pauses[2].pos, pauses[3].pos);
+    assert_eq!(pauses[3].pos, spot + DVec2::new(0.0, 0.5));
+    assert_eq!((pauses[0].t, pauses[3].t), (3.0, 13.0));
+    assert!(path.pause_at(12.0).is_some() && path.pause_at(4.0).is_some());
 }

@@ -109,6 +109,27 @@ fn an_obstacle_closes_part_of_a_border() {
 }
 
 #[test]
+fn a_wall_across_a_patch_closes_the_border_of_the_part_it_cuts_off() {
+    // A one-pixel wall across the south-west patch from its west to its east edge, one metre
+    // above its south edge: the strip below it opens only east (1 m), the part above east
+    // (2 m) and north (4 m). The strip's opening closes, so no walker can come in below the
+    // wall and leave above it.
+    let g = build(&maps(8, 8, |x, y| x < 4 && y == 6), 10);
+    let east = g
+        .borders
+        .iter()
+        .find(|b| b.a.0 == 0 && b.axis == BorderAxis::Vertical)
+        .unwrap();
+    assert_eq!(
+        east.open,
+        vec![Interval {
+            start: 2.0,
+            end: 4.0
+        }]
+    );
+}
+
+#[test]
 fn an_opening_narrower_than_a_character_is_closed() {
     // The border x = 4 is walled but for one 0.5 m pixel: too narrow for a 0.6 m character.
     let mut m = maps(16, 8, |x, y| (7..9).contains(&x) && y != 3);

@@ -201,8 +201,14 @@ fn split_at_periods(points: Vec<ControlPoint>, period: f64) -> Vec<ControlPoint>
             let at = k * period;
             if at > a.t + 1e-9 {
                 let f = (at - a.t) / (b.t - a.t);
+                // A pause stays exactly in place (lerp would round it by an ulp).
+                let pos = if a.pos == b.pos {
+                    a.pos
+                } else {
+                    a.pos.lerp(b.pos, f)
+                };
                 out.push(ControlPoint {
-                    pos: a.pos.lerp(b.pos, f),
+                    pos,
                     t: at,
                     kind: PointKind::Split,
                 });
