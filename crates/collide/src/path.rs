@@ -244,13 +244,16 @@ impl Path {
                 pos_a.lerp(pos_b, (f.t - a) / (b - a))
             };
         }
-        let at = self.free.partition_point(|f| f.t < a);
         let pause = |pos, t| Free {
             pos,
             t,
             kind: PointKind::Pause,
         };
-        self.free.splice(at..at, [pause(pos_a, a), pause(pos_b, b)]);
+        // Each in its place in time (a split point of the walk lies between them).
+        for (pos, t) in [(pos_b, b), (pos_a, a)] {
+            let at = self.free.partition_point(|f| f.t < t);
+            self.free.insert(at, pause(pos, t));
+        }
         true
     }
 

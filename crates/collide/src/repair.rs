@@ -447,12 +447,6 @@ fn relocate_pause(paths: &mut [Path], p: usize, (i, j): (usize, usize), patch: &
         .filter(|&q| reachable(q))
         .map(|q| (clearance(q), q))
         .max_by(|a, b| a.0.total_cmp(&b.0));
-    if std::env::var("RDEBUG").is_ok() {
-        eprintln!(
-            "relocate p{p} ({i},{j}) t {t0:.3}-{t1:.3} here {here:?} c {:.3} best {best:?} before {before:?} after {after:?} inner {inner:?}",
-            clearance(here)
-        );
-    }
     let Some(best) = best else { return false };
     if best.0 <= clearance(here) + 1e-9 {
         return false;

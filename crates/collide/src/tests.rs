@@ -231,3 +231,34 @@ fn stepping_aside_leaves_two_pauses_and_keeps_time_running_forward() {
     assert_eq!((pauses[0].t, pauses[3].t), (3.0, 13.0));
     assert!(path.pause_at(12.0).is_some() && path.pause_at(4.0).is_some());
 }
+
+#[test]
+fn stepping_aside_across_the_period_keeps_the_split_point_on_the_walk() {
+    let spot = DVec2::new(4.0, 4.0);
+    let point = |pos, t, kind| ControlPoint { pos, t, kind };
+    let mut path = Path::from_trajectory(&Trajectory {
+        entry: 0,
+        exit: 0,
+        points: vec![
+            point(DVec2::new(0.0, 4.0), 6.0, PointKind::Entry),
+            point(spot, 9.0, PointKind::Pause),
+            point(spot, 20.0, PointKind::Split),
+            point(spot, 21.2, PointKind::Pause),
+            point(DVec2::new(8.0, 4.0), 24.0, PointKind::Exit),
+        ],
+    });
+    let inside = |p: DVec2| p.clamp(DVec2::splat(0.31), DVec2::splat(7.69));
+    assert!(path.split_pause((0, 2), 21.1, DVec2::new(0.0, 0.5), inside, |_| true));
+    let t = path.to_trajectory();
+    assert!(
+        t.points.windows(2).all(|w| w[1].t >= w[0].t),
+        "{:?}",
+        t.points
+    );
+    let split = t
+        .points
+        .iter()
+        .find(|p| p.kind == PointKind::Split)
+        .unwrap();
+    assert!((split.pos - path.position(20.0)).length() < 1e-9);
+}
