@@ -28,6 +28,9 @@ impl Anchor {
     }
 }
 
+/// The fastest a walker walks to or from a pause that moved, m/s (stage 4's max speed).
+const PAUSE_WALK_MAX: f64 = 1.8;
+
 /// A control point between the anchors, free to move in space (its time stays).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Free {
@@ -190,15 +193,46 @@ impl Path {
         allowed: impl Fn(DVec2) -> bool,
     ) -> bool {
         let target = keep_inside(self.free[i].pos + force);
-        match nearest_allowed(target, &keep_inside, &allowed) {
-            Some(target) => {
-                for f in &mut self.free[i..=j] {
-                    f.pos = target;
-                }
-                true
-            }
-            None => false,
+        let Some(target) = nearest_allowed(target, &keep_inside, &allowed) else {
+            return false;
+        };
+        // The walks to and from the new spot keep to the speed limit: the pause starts later
+        // and ends sooner if it must, but never past a point inside it.
+        let (prev, next) = self.neighbours(i, j);
+        let t0 = self.free[i]
+            .t
+            .max(prev.1 + prev.0.distance(target) / PAUSE_WALK_MAX);
+        let t1 = self.free[j]
+            .t
+            .min(next.1 - next.0.distance(target) / PAUSE_WALK_MAX);
+        let inner_ok = (i + 1 < j)
+            .then(|| (self.free[i + 1].t, self.free[j - 1].t))
+            .is_none_or(|(a, b)| t0 <= a && t1 >= b);
+        if t0 >= t1 || !inner_ok {
+            return false;
         }
+        for f in &mut self.free[i..=j] {
+            f.pos = target;
+        }
+        self.free[i].t = t0;
+        self.free[j].t = t1;
+        true
+    }
+
+    /// The points just before free point `i` and just after free point `j` (a band end or an
+    /// anchor where there is no free point).
+    fn neighbours(&self, i: usize, j: usize) -> ((DVec2, f64), (DVec2, f64)) {
+        let (start, end) = self.fixed_ends();
+        let prev = if i == 0 {
+            (start.pos, start.t)
+        } else {
+            (self.free[i - 1].pos, self.free[i - 1].t)
+        };
+        let next = self
+            .free
+            .get(j + 1)
+            .map_or((end.pos, end.t), |f| (f.pos, f.t));
+        (prev, next)
     }
 
     /// Steps aside during the pause `(i, j)`: the part of the pause from time `t` on (or up to
@@ -233,6 +267,22 @@ impl Path {
         } else {
             (cut, cut + walk)
         };
+        // The walk to or from the part that moves keeps to the speed limit.
+        let (prev, next) = self.neighbours(i, j);
+        let (mut t0, mut t1) = (t0, t1);
+        if later {
+            t1 = t1.min(next.1 - next.0.distance(there) / PAUSE_WALK_MAX);
+            if t1 < b + 0.5 || self.free[i..j].iter().any(|f| f.t > t1) {
+                return false;
+            }
+        } else {
+            t0 = t0.max(prev.1 + prev.0.distance(there) / PAUSE_WALK_MAX);
+            if t0 > a - 0.5 || self.free[i + 1..=j].iter().any(|f| f.t < t0) {
+                return false;
+            }
+        }
+        self.free[i].t = t0;
+        self.free[j].t = t1;
         let (pos_a, pos_b) = if later { (here, there) } else { (there, here) };
         for f in &mut self.free[i..=j] {
             // A split point in the walk goes where the walker is then.
@@ -261,6 +311,49 @@ impl Path {
     pub fn movable_at(&self, t: f64, window: f64) -> bool {
         let (t0, t1) = self.span();
         t - t0 >= window && t1 - t >= window
+    }
+
+    /// Makes the walker reach where it is at time `t` `dt` seconds later (or sooner, for a
+    /// negative `dt`): a time move, the walker slowing down or hurrying up along the same path
+    /// (Ramirez's pushes move points in space only; two walkers whose paths cross can often
+    /// only pass one after the other). The move is cut short so that the walker never walks
+    /// faster than `max_speed` and its points keep their order; split points and pauses keep
+    /// their times. Returns whether anything moved.
+    pub fn retime_at(&mut self, t: f64, dt: f64, window: f64, max_speed: f64) -> bool {
+        let (start, end) = self.fixed_ends();
+        let Some(point) = self.free_point_at(t, window) else {
+            return false;
+        };
+        if matches!(point.kind, PointKind::Split | PointKind::Pause) {
+            return false;
+        }
+        let (pos, t0) = (point.pos, point.t);
+        let i = self
+            .free
+            .iter()
+            .position(|f| f.t == t0 && f.pos == pos)
+            .expect("the point just found");
+        let prev = if i == 0 {
+            (start.pos, start.t)
+        } else {
+            (self.free[i - 1].pos, self.free[i - 1].t)
+        };
+        let next = self
+            .free
+            .get(i + 1)
+            .map_or((end.pos, end.t), |f| (f.pos, f.t));
+        // Earliest and latest times that keep the order and the speed limit on both pieces.
+        let lo = (prev.1 + prev.0.distance(pos) / max_speed).max(prev.1 + 0.05);
+        let hi = (next.1 - next.0.distance(pos) / max_speed).min(next.1 - 0.05);
+        if lo > hi {
+            return false;
+        }
+        let moved = (t0 + dt).clamp(lo, hi);
+        if (moved - t0).abs() < 1e-6 {
+            return false;
+        }
+        self.free[i].t = moved;
+        true
     }
 
     /// Moves the walker at time `t` by `force` (the free point at `t`, see

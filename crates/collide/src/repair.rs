@@ -10,6 +10,8 @@ use rand_chacha::ChaCha8Rng;
 
 /// Walking speed to and from a moved pause, m/s (the comfort speed).
 const WALK_SPEED: f64 = 1.33;
+/// The fastest a time move lets a walker walk, m/s (stage 4's `match.max_speed`).
+const MAX_SPEED: f64 = 1.8;
 
 /// What a patch holds besides its walkers.
 pub struct Patch<'a> {
@@ -326,6 +328,13 @@ fn push_apart(
             .iter()
             .any(|o| (p.clamp(o.min, o.max) - p).length() < r)
     };
+    // A third of the time, a walker of the pair first tries to pass earlier or later instead.
+    if let Some((b, tb)) = other_walker
+        && rng.random_bool(1.0 / 3.0)
+        && let Some(p) = time_move(paths, patch, e, (b, tb), push, window)
+    {
+        return vec![p];
+    }
     let mut moves = vec![(e.a, e.t, dir, share_a)];
     if let Some((b, tb)) = other_walker {
         moves.push((b, tb, -dir, 1.0 - share_a));
@@ -355,6 +364,44 @@ fn push_apart(
     touched.sort_unstable();
     touched.dedup();
     touched
+}
+
+/// The best time move for the pair of `e` (either walker reaching the point of the encounter
+/// `push` metres' walk earlier or later), applied if it leaves the two farther apart than
+/// they are; returns the walker it moved.
+fn time_move(
+    paths: &mut [Path],
+    patch: &Patch,
+    e: &Encounter,
+    (b, tb): (usize, f64),
+    push: f64,
+    window: f64,
+) -> Option<usize> {
+    let a = e.a;
+    let mut best: Option<(f64, usize, Path)> = None;
+    for (p, t) in [(a, e.t), (b, tb)] {
+        let speed = paths[p].speed(t).max(0.3);
+        for sign in [1.0, -1.0] {
+            let mut moved = paths[p].clone();
+            if !moved.retime_at(t, sign * push / speed, window, MAX_SPEED) {
+                continue;
+            }
+            let (sa, sb) = if p == a {
+                (moved.segments(), paths[b].segments())
+            } else {
+                (paths[a].segments(), moved.segments())
+            };
+            let segs = if a == b { vec![sa] } else { vec![sa, sb] };
+            let distance =
+                pair(&segs, 0, (a != b) as usize, patch).map_or(f64::INFINITY, |x| x.distance);
+            if distance > e.distance + 1e-3 && best.as_ref().is_none_or(|x| distance > x.0) {
+                best = Some((distance, p, moved));
+            }
+        }
+    }
+    let (_, p, moved) = best?;
+    paths[p] = moved;
+    Some(p)
 }
 
 /// Moves the pause `(i, j)` of walker `p` to the spot of the patch that stays farthest from

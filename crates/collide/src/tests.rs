@@ -262,3 +262,19 @@ fn stepping_aside_across_the_period_keeps_the_split_point_on_the_walk() {
         .unwrap();
     assert!((split.pos - path.position(20.0)).length() < 1e-9);
 }
+
+#[test]
+fn a_time_move_keeps_the_path_and_the_speed_limit() {
+    let mut path = line(DVec2::new(0.0, 4.0), 0.0, DVec2::new(8.0, 4.0), 8.0);
+    // Asked to arrive 5 s later at the middle: cut short where the rest would pass 1.8 m/s.
+    assert!(path.retime_at(4.0, 5.0, 0.25, 1.8));
+    let t = path.to_trajectory();
+    assert!(t.points.windows(2).all(|w| w[1].t > w[0].t));
+    for w in t.points.windows(2) {
+        let v = w[0].pos.distance(w[1].pos) / (w[1].t - w[0].t);
+        assert!(v <= 1.8 + 1e-9, "{v}");
+    }
+    let middle = t.points.iter().find(|p| p.kind == PointKind::Bend).unwrap();
+    assert_eq!(middle.pos, DVec2::new(4.0, 4.0));
+    assert!(middle.t > 4.0);
+}
