@@ -82,7 +82,7 @@ pub struct Outcome {
 }
 
 /// The closest encounter of walkers `a` and `b` (or `a` with its own copies a period or more
-/// later when `a == b`), if they ever coexist within reach of each other.
+/// later when `a == b`), if they ever coexist within reach (2r) of each other.
 fn pair(segs: &[Vec<Segment>], a: usize, b: usize, patch: &Patch) -> Option<Encounter> {
     let period = patch.period_s;
     let (sa, sb) = (&segs[a], &segs[b]);
@@ -109,7 +109,14 @@ fn pair(segs: &[Vec<Segment>], a: usize, b: usize, patch: &Patch) -> Option<Enco
         let (mut i, mut j) = (0, 0);
         while i < sa.len() && j < sb.len() {
             let x = sb[j].shifted(shift);
-            if let Some((d, t)) = geometry::closest(&sa[i], &x)
+            // Two pieces whose boxes are farther apart than the closest so far (or than reach)
+            // cannot bring it down: most pairs end here, without the exact approach.
+            let limit = best.map_or(reach, |(bd, _, _)| bd.min(reach));
+            let (lo_a, hi_a) = (sa[i].p0.min(sa[i].p1), sa[i].p0.max(sa[i].p1));
+            let (lo_b, hi_b) = (x.p0.min(x.p1), x.p0.max(x.p1));
+            let gap = (lo_b - hi_a).max(lo_a - hi_b).max(glam::DVec2::ZERO);
+            if gap.length_squared() <= limit * limit
+                && let Some((d, t)) = geometry::closest(&sa[i], &x)
                 && best.is_none_or(|(bd, _, _)| d < bd)
             {
                 best = Some((d, t, shift));
