@@ -255,6 +255,26 @@ fn crowd_check_reports_collisions_and_clearance_for_the_tiled_world() {
     }
 }
 
+/// The tiled world's claim on the scenes that build in seconds: every patch converges, and
+/// then nobody overlaps anybody anywhere (across borders too, thanks to the border bands), and
+/// velocities do not jump at borders.
+#[test]
+fn bands_and_center_flow_are_collision_free_in_the_tiled_world() {
+    for name in ["bands", "center-flow"] {
+        let (_dir, out) = build_shared_scene(name, "smooth");
+        crowd_ok(&["check", s(&out)]);
+        let json: serde_json::Value =
+            serde_json::from_slice(&crowd_ok(&["report", s(&out), "--json"]).stdout).unwrap();
+        assert_eq!(json["unconverged_patches"], 0, "{name}: {json}");
+        assert_eq!(json["collisions"], 0, "{name}: {json}");
+        assert!(json["min_clearance_m"].as_f64().unwrap() >= -1e-6, "{name}");
+        assert!(
+            json["max_border_velocity_jump"].as_f64().unwrap() < 1e-6,
+            "{name}"
+        );
+    }
+}
+
 #[test]
 fn smoothing_keeps_boundary_points_exact_and_never_brings_a_pair_closer_than_stage_5_left_it() {
     let (_dir, out) = build_shared_scene("bands", "smooth");

@@ -109,7 +109,7 @@ pub fn with_restarts(
 }
 
 /// Attempts per patch (see [`with_restarts`]).
-pub const RESTARTS: u32 = 4;
+pub const RESTARTS: u32 = 6;
 
 /// Removes collisions in every patch, in parallel; deterministic for a seed.
 pub fn collide(

@@ -30,6 +30,11 @@ impl Anchor {
 
 /// The fastest a walker walks to or from a pause that moved, m/s (stage 4's max speed).
 const PAUSE_WALK_MAX: f64 = 1.8;
+/// The fastest a push may make a walker walk, m/s: above stage 4's limit, since a bend near a
+/// band end often needs a short hurried piece (3 m/s tripled the stalled patches of `ring`),
+/// but no more than a brief run (without a cap, a point pushed again and again ran off at
+/// 20 m/s).
+const PUSH_SPEED_MAX: f64 = 4.0;
 
 /// A control point between the anchors, free to move in space (its time stays).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -366,18 +371,33 @@ impl Path {
         keep_inside: impl Fn(DVec2) -> DVec2,
         allowed: impl Fn(DVec2) -> bool,
     ) -> bool {
-        match self.free_point_at(t, window) {
-            Some(point) => {
-                // A push towards the border slides along it instead; a push into an obstacle
-                // stops at the nearest place clear of it.
-                let target = keep_inside(point.pos + force);
-                match nearest_allowed(target, &keep_inside, &allowed) {
-                    Some(target) => {
-                        point.pos = target;
-                        true
-                    }
-                    None => false,
-                }
+        let Some(point) = self.free_point_at(t, window) else {
+            return false;
+        };
+        let (pos, t0) = (point.pos, point.t);
+        let i = self
+            .free
+            .iter()
+            .position(|f| f.t == t0 && f.pos == pos)
+            .expect("the point just found");
+        // Nor may it make the walker walk faster than [`PUSH_SPEED_MAX`] to or from the point
+        // (or faster than it already did): pushes on one point add up.
+        let (prev, next) = self.neighbours(i, i);
+        let speed = |a: (DVec2, f64), b: (DVec2, f64)| a.0.distance(b.0) / (b.1 - a.1).max(1e-9);
+        let limits = (
+            speed(prev, (pos, t0)).max(PUSH_SPEED_MAX),
+            speed((pos, t0), next).max(PUSH_SPEED_MAX),
+        );
+        let walkable = |p: DVec2| {
+            speed(prev, (p, t0)) <= limits.0 + 1e-9 && speed((p, t0), next) <= limits.1 + 1e-9
+        };
+        // A push towards the border slides along it instead; a push into an obstacle stops at
+        // the nearest place clear of it.
+        let target = keep_inside(pos + force);
+        match nearest_allowed(target, &keep_inside, &|p| allowed(p) && walkable(p)) {
+            Some(target) => {
+                self.free[i].pos = target;
+                true
             }
             None => false,
         }

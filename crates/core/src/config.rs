@@ -197,7 +197,7 @@ pub struct CollideSettings {
 impl Default for CollideSettings {
     fn default() -> Self {
         CollideSettings {
-            max_iterations: 4_000,
+            max_iterations: 12_000,
         }
     }
 }
