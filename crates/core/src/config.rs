@@ -218,7 +218,7 @@ pub struct SmoothSettings {
 impl Default for SmoothSettings {
     fn default() -> Self {
         SmoothSettings {
-            tack_spacing_s: 1.0,
+            tack_spacing_s: 3.0,
             max_displacement_m: None,
             tolerance_m: 0.01,
         }

@@ -12,6 +12,7 @@
 //! finishes what the loop's signed error cannot see, such as sideways traffic through a
 //! directed patch; its rounds count as iterations in the log.
 
+pub mod align;
 pub mod mutate;
 pub mod polish;
 pub mod regression;
@@ -206,6 +207,7 @@ pub fn optimize(
             log.push(figures(state, iterations));
         },
     );
+    align::align(&mut state);
 
     let error = scene_error(graph, &state.requested, &state.measured, rho_max);
     let worst = worst_patches(graph, &state.requested, &state.measured, rho_max, 10);

@@ -103,3 +103,21 @@ fn parity_holds(state: &State) -> bool {
     let all: Vec<Crossing> = state.crossings.iter().flatten().copied().collect();
     parity(state.graph, &all).iter().all(|&b| b == 0)
 }
+
+/// Turning crossing velocities towards their lines changes neither the matching nor what it
+/// measures (densities, directions), and never the spacing of a border.
+#[test]
+fn aligning_velocities_keeps_spacing_and_measurements() {
+    let graph = scene(300);
+    let matching = MatchSettings::default();
+    let regression = regression::fit(8.0, 20.0, &matching, 60, 5);
+    let mut state = State::new(&graph, &matching, 20.0, stander_counts(&graph));
+    let mut rng = ChaCha8Rng::seed_from_u64(5);
+    start(&mut state, &regression, 0.35, &mut rng);
+    let before = state.measured.clone();
+    let turned = align::align(&mut state);
+    assert!(turned > 0);
+    state.remeasure_all();
+    assert_eq!(before, state.measured);
+    assert!(spacing::all_spaced(&state.spacing, &state.crossings, 20.0));
+}
