@@ -331,8 +331,19 @@ fn inspect_trajectories(t: &TrajectoriesFile) -> String {
             c.unconverged.len(),
             c.min_margin_m
         );
-        for (p, margin) in c.unconverged.iter().take(10) {
-            let _ = writeln!(s, "  patch #{p}: {margin:.3} m closer than allowed");
+        for st in c.unconverged.iter().take(10) {
+            use crowd_core::trajectories::StallWith;
+            let with = match st.with {
+                StallWith::Walker(b) if b == st.walker => "itself a period later".to_string(),
+                StallWith::Walker(b) => format!("walker {b}"),
+                StallWith::Stander(k) => format!("stander {k}"),
+                StallWith::Obstacle(k) => format!("obstacle {k}"),
+            };
+            let _ = writeln!(
+                s,
+                "  patch #{}: {:.3} m closer than allowed: walker {} and {with} at t = {:.2} s",
+                st.patch, st.margin_m, st.walker, st.t_s
+            );
         }
     }
     if let Some(m) = &t.smoothing {

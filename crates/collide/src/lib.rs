@@ -26,6 +26,8 @@ pub struct PatchReport {
     pub converged: bool,
     /// Smallest distance minus the clearance needed, over every pair (negative: a collision).
     pub worst_margin_m: f64,
+    /// The pair left too close, when the patch did not converge.
+    pub stall: Option<crowd_core::trajectories::Stall>,
 }
 
 /// The static obstacles a walker of patch `p` can touch: its own, and those of the eight
@@ -108,6 +110,22 @@ pub fn with_restarts(
     }
 }
 
+/// The file's record of a patch left with encounter `w`.
+fn stall(patch: usize, w: &repair::Encounter) -> crowd_core::trajectories::Stall {
+    use crowd_core::trajectories::{Stall, StallWith};
+    Stall {
+        patch: patch as u32,
+        margin_m: w.margin,
+        walker: w.a as u32,
+        with: match w.other {
+            repair::Other::Walker { b, .. } => StallWith::Walker(b as u32),
+            repair::Other::Stander(s) => StallWith::Stander(s as u32),
+            repair::Other::Obstacle(o) => StallWith::Obstacle(o as u32),
+        },
+        t_s: w.t,
+    }
+}
+
 /// Attempts per patch (see [`with_restarts`]).
 pub const RESTARTS: u32 = 6;
 
@@ -144,6 +162,7 @@ pub fn collide(
                 iterations: outcome.iterations,
                 converged: outcome.worst.is_none(),
                 worst_margin_m: outcome.worst.map_or(0.0, |w| w.margin),
+                stall: outcome.worst.map(|w| stall(p, &w)),
             };
             let motion = PatchMotion {
                 standers: m.standers.clone(),
@@ -156,7 +175,7 @@ pub fn collide(
 
 /// The stage name in `collided.ron`'s header.
 pub const STAGE: &str = "collide";
-pub const VERSION: u32 = 1;
+pub const VERSION: u32 = 2;
 
 /// What stage 5 reads of a pipeline besides its input files.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
@@ -196,11 +215,7 @@ pub fn encode(
     let collisions = Some(CollisionSummary {
         iterations: reports.iter().map(|r| r.iterations as u64).sum(),
         min_margin_m: reports.iter().map(|r| r.worst_margin_m).fold(0.0, f64::min),
-        unconverged: reports
-            .iter()
-            .filter(|r| !r.converged)
-            .map(|r| (r.patch, r.worst_margin_m))
-            .collect(),
+        unconverged: reports.iter().filter_map(|r| r.stall).collect(),
     });
     crowd_core::trajectories::encode_file(
         out,

@@ -353,8 +353,30 @@ pub struct CollisionSummary {
     pub iterations: u64,
     /// Smallest distance minus needed clearance over all patches (negative: a collision left).
     pub min_margin_m: f64,
-    /// Patches that hit the iteration cap, with their worst margin.
-    pub unconverged: Vec<(u32, f64)>,
+    /// Patches that hit the iteration cap, with their worst pair.
+    pub unconverged: Vec<Stall>,
+}
+
+/// A patch that stage 5 could not clear, and its worst pair there.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Stall {
+    pub patch: u32,
+    /// Distance minus the clearance the pair needs (negative).
+    pub margin_m: f64,
+    /// The walker (its trajectory's index in the patch) and who it comes too close to.
+    pub walker: u32,
+    pub with: StallWith,
+    /// When, in the walker's unwrapped time.
+    pub t_s: f64,
+}
+
+/// Who a stalled walker comes too close to.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub enum StallWith {
+    /// Another walker of the patch (its trajectory's index), or the same one a period later.
+    Walker(u32),
+    Stander(u32),
+    Obstacle(u32),
 }
 
 /// The smooth stage's figures.
