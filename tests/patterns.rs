@@ -302,7 +302,11 @@ fn smoothing_keeps_boundary_points_exact_and_never_brings_a_pair_closer_than_sta
             standers: &b.standers,
         };
         let worst = |m: &crowd_core::trajectories::PatchMotion| {
-            let segs: Vec<_> = m.trajectories.iter().map(crowd_smooth::segments).collect();
+            let segs: Vec<_> = m
+                .trajectories
+                .iter()
+                .map(crowd_collide::path::trajectory_segments)
+                .collect();
             crowd_collide::repair::rows(&segs, &patch)
                 .iter()
                 .flatten()

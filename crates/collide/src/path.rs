@@ -28,8 +28,9 @@ impl Anchor {
     }
 }
 
-/// The fastest a walker walks to or from a pause that moved, m/s (stage 4's max speed).
-const PAUSE_WALK_MAX: f64 = 1.8;
+/// The fastest stage 5 lets a walker walk to or from a moved pause, or in a time move, m/s
+/// (stage 4's `match.max_speed`).
+pub const MAX_WALK_SPEED: f64 = 1.8;
 /// The fastest a push may make a walker walk, m/s: above stage 4's limit, since a bend near a
 /// band end often needs a short hurried piece (3 m/s tripled the stalled patches of `ring`),
 /// but no more than a brief run (without a cap, a point pushed again and again ran off at
@@ -206,10 +207,10 @@ impl Path {
         let (prev, next) = self.neighbours(i, j);
         let t0 = self.free[i]
             .t
-            .max(prev.1 + prev.0.distance(target) / PAUSE_WALK_MAX);
+            .max(prev.1 + prev.0.distance(target) / MAX_WALK_SPEED);
         let t1 = self.free[j]
             .t
-            .min(next.1 - next.0.distance(target) / PAUSE_WALK_MAX);
+            .min(next.1 - next.0.distance(target) / MAX_WALK_SPEED);
         let inner_ok = (i + 1 < j)
             .then(|| (self.free[i + 1].t, self.free[j - 1].t))
             .is_none_or(|(a, b)| t0 <= a && t1 >= b);
@@ -276,12 +277,12 @@ impl Path {
         let (prev, next) = self.neighbours(i, j);
         let (mut t0, mut t1) = (t0, t1);
         if later {
-            t1 = t1.min(next.1 - next.0.distance(there) / PAUSE_WALK_MAX);
+            t1 = t1.min(next.1 - next.0.distance(there) / MAX_WALK_SPEED);
             if t1 < b + 0.5 || self.free[i..j].iter().any(|f| f.t > t1) {
                 return false;
             }
         } else {
-            t0 = t0.max(prev.1 + prev.0.distance(there) / PAUSE_WALK_MAX);
+            t0 = t0.max(prev.1 + prev.0.distance(there) / MAX_WALK_SPEED);
             if t0 > a - 0.5 || self.free[i + 1..=j].iter().any(|f| f.t < t0) {
                 return false;
             }
@@ -325,28 +326,14 @@ impl Path {
     /// faster than `max_speed` and its points keep their order; split points and pauses keep
     /// their times. Returns whether anything moved.
     pub fn retime_at(&mut self, t: f64, dt: f64, window: f64, max_speed: f64) -> bool {
-        let (start, end) = self.fixed_ends();
-        let Some(point) = self.free_point_at(t, window) else {
+        let Some(i) = self.free_point_at(t, window) else {
             return false;
         };
-        if matches!(point.kind, PointKind::Split | PointKind::Pause) {
+        let Free { pos, t: t0, kind } = self.free[i];
+        if matches!(kind, PointKind::Split | PointKind::Pause) {
             return false;
         }
-        let (pos, t0) = (point.pos, point.t);
-        let i = self
-            .free
-            .iter()
-            .position(|f| f.t == t0 && f.pos == pos)
-            .expect("the point just found");
-        let prev = if i == 0 {
-            (start.pos, start.t)
-        } else {
-            (self.free[i - 1].pos, self.free[i - 1].t)
-        };
-        let next = self
-            .free
-            .get(i + 1)
-            .map_or((end.pos, end.t), |f| (f.pos, f.t));
+        let (prev, next) = self.neighbours(i, i);
         // Earliest and latest times that keep the order and the speed limit on both pieces.
         let lo = (prev.1 + prev.0.distance(pos) / max_speed).max(prev.1 + 0.05);
         let hi = (next.1 - next.0.distance(pos) / max_speed).min(next.1 - 0.05);
@@ -371,15 +358,10 @@ impl Path {
         keep_inside: impl Fn(DVec2) -> DVec2,
         allowed: impl Fn(DVec2) -> bool,
     ) -> bool {
-        let Some(point) = self.free_point_at(t, window) else {
+        let Some(i) = self.free_point_at(t, window) else {
             return false;
         };
-        let (pos, t0) = (point.pos, point.t);
-        let i = self
-            .free
-            .iter()
-            .position(|f| f.t == t0 && f.pos == pos)
-            .expect("the point just found");
+        let (pos, t0) = (self.free[i].pos, self.free[i].t);
         // Nor may it make the walker walk faster than [`PUSH_SPEED_MAX`] to or from the point
         // (or faster than it already did): pushes on one point add up.
         let (prev, next) = self.neighbours(i, i);
@@ -446,10 +428,11 @@ impl Path {
         self.free = free;
     }
 
-    /// The free point at time `t`: an existing one within `window` seconds, or a new one on
-    /// the path. Near an anchor (anchors never move) the point is taken `window` away from it;
-    /// `None` only when the whole path is shorter than two windows.
-    pub fn free_point_at(&mut self, t: f64, window: f64) -> Option<&mut Free> {
+    /// The index of the free point at time `t`: an existing one within `window` seconds, or a
+    /// new one on the path. Near an anchor or band end (they never move) the point is taken
+    /// `window` away from it; `None` when the changeable part is shorter than two windows or
+    /// `t` is at a pause's end.
+    pub fn free_point_at(&mut self, t: f64, window: f64) -> Option<usize> {
         let (t0, t1) = self.span();
         if t1 - t0 <= 2.0 * window {
             return None;
@@ -471,7 +454,7 @@ impl Path {
             .min_by(|a, b| (a.1.t - t).abs().total_cmp(&(b.1.t - t).abs()))
             .map(|(i, _)| i)
         {
-            return Some(&mut self.free[i]);
+            return Some(i);
         }
         let pos = self.position(t);
         let at = self.free.partition_point(|f| f.t < t);
@@ -483,7 +466,7 @@ impl Path {
                 kind: PointKind::Bend,
             },
         );
-        Some(&mut self.free[at])
+        Some(at)
     }
 }
 

@@ -10,8 +10,6 @@ use rand_chacha::ChaCha8Rng;
 
 /// Walking speed to and from a moved pause, m/s (the comfort speed).
 const WALK_SPEED: f64 = 1.33;
-/// The fastest a time move lets a walker walk, m/s (stage 4's `match.max_speed`).
-const MAX_SPEED: f64 = 1.8;
 
 /// What a patch holds besides its walkers.
 pub struct Patch<'a> {
@@ -251,7 +249,7 @@ pub fn remove_collisions(
             };
         }
         iterations += 1;
-        let touched = push_apart(paths, patch, &w, rng);
+        let touched = push_apart(paths, &segs, patch, &w, rng);
         for &p in &touched {
             paths[p].reroute(&walls, patch.radius_m, patch.side_m);
         }
@@ -268,6 +266,7 @@ pub fn remove_collisions(
 /// enter an obstacle. Returns the walkers whose paths changed.
 fn push_apart(
     paths: &mut [Path],
+    segs: &[Vec<Segment>],
     patch: &Patch,
     e: &Encounter,
     rng: &mut ChaCha8Rng,
@@ -338,7 +337,7 @@ fn push_apart(
     // A third of the time, a walker of the pair first tries to pass earlier or later instead.
     if let Some((b, tb)) = other_walker
         && rng.random_bool(1.0 / 3.0)
-        && let Some(p) = time_move(paths, patch, e, (b, tb), push, window)
+        && let Some(p) = time_move(paths, segs, patch, e, (b, tb), push, window)
     {
         return vec![p];
     }
@@ -378,6 +377,7 @@ fn push_apart(
 /// they are; returns the walker it moved.
 fn time_move(
     paths: &mut [Path],
+    segs: &[Vec<Segment>],
     patch: &Patch,
     e: &Encounter,
     (b, tb): (usize, f64),
@@ -390,17 +390,18 @@ fn time_move(
         let speed = paths[p].speed(t).max(0.3);
         for sign in [1.0, -1.0] {
             let mut moved = paths[p].clone();
-            if !moved.retime_at(t, sign * push / speed, window, MAX_SPEED) {
+            if !moved.retime_at(t, sign * push / speed, window, crate::path::MAX_WALK_SPEED) {
                 continue;
             }
+            // Only the moved walker's pieces change; the other's are the row's own.
             let (sa, sb) = if p == a {
-                (moved.segments(), paths[b].segments())
+                (moved.segments(), segs[b].clone())
             } else {
-                (paths[a].segments(), moved.segments())
+                (segs[a].clone(), moved.segments())
             };
-            let segs = if a == b { vec![sa] } else { vec![sa, sb] };
+            let two = if a == b { vec![sa] } else { vec![sa, sb] };
             let distance =
-                pair(&segs, 0, (a != b) as usize, patch).map_or(f64::INFINITY, |x| x.distance);
+                pair(&two, 0, (a != b) as usize, patch).map_or(f64::INFINITY, |x| x.distance);
             if distance > e.distance + 1e-3 && best.as_ref().is_none_or(|x| distance > x.0) {
                 best = Some((distance, p, moved));
             }

@@ -7,22 +7,7 @@ use glam::DVec2;
 use proptest::prelude::*;
 
 fn line(e: DVec2, te: f64, x: DVec2, tx: f64) -> Path {
-    Path::from_trajectory(&Trajectory {
-        entry: 0,
-        exit: 0,
-        points: vec![
-            ControlPoint {
-                pos: e,
-                t: te,
-                kind: PointKind::Entry,
-            },
-            ControlPoint {
-                pos: x,
-                t: tx,
-                kind: PointKind::Exit,
-            },
-        ],
-    })
+    path_through(&[(e, te, PointKind::Entry), (x, tx, PointKind::Exit)])
 }
 
 fn patch() -> Patch<'static> {
@@ -82,22 +67,34 @@ fn inward(side: u8) -> DVec2 {
     }
 }
 
+/// A path through `points` (place, time, kind), entry first and exit last.
+fn path_through(points: &[(DVec2, f64, PointKind)]) -> Path {
+    Path::from_trajectory(&Trajectory {
+        entry: 0,
+        exit: 0,
+        points: points
+            .iter()
+            .map(|&(pos, t, kind)| ControlPoint { pos, t, kind })
+            .collect(),
+    })
+}
+
+/// Keeps a place out of the border bands of an 8 m patch (as `Patch::keep_inside` does).
+fn out_of_bands(p: DVec2) -> DVec2 {
+    p.clamp(DVec2::splat(0.31), DVec2::splat(7.69))
+}
+
 /// A straight walk with its border bands, as stage 4 draws it: the first and last 0.3 m
 /// straight across the border at 1.3 m/s.
 fn banded(side_in: u8, s_in: f64, t: f64, side_out: u8, s_out: f64, t_out: f64) -> Path {
     let (e, x) = (endpoint(side_in, s_in), endpoint(side_out, s_out));
     let band = 0.3 / 1.3;
-    let point = |pos, t, kind| ControlPoint { pos, t, kind };
-    Path::from_trajectory(&Trajectory {
-        entry: 0,
-        exit: 0,
-        points: vec![
-            point(e, t, PointKind::Entry),
-            point(e + inward(side_in) * 0.3, t + band, PointKind::Band),
-            point(x + inward(side_out) * 0.3, t_out - band, PointKind::Band),
-            point(x, t_out, PointKind::Exit),
-        ],
-    })
+    path_through(&[
+        (e, t, PointKind::Entry),
+        (e + inward(side_in) * 0.3, t + band, PointKind::Band),
+        (x + inward(side_out) * 0.3, t_out - band, PointKind::Band),
+        (x, t_out, PointKind::Exit),
+    ])
 }
 
 proptest! {
@@ -180,18 +177,13 @@ fn a_pause_that_passes_the_period_is_one_pause() {
     // Stage 4 splits a pause at the period; the split point's position may differ in the last
     // bit from the pause's.
     let spot = DVec2::new(4.0, 4.0);
-    let point = |pos, t, kind| ControlPoint { pos, t, kind };
-    let path = Path::from_trajectory(&Trajectory {
-        entry: 0,
-        exit: 0,
-        points: vec![
-            point(DVec2::new(0.0, 4.0), 15.0, PointKind::Entry),
-            point(spot, 18.0, PointKind::Pause),
-            point(spot + DVec2::new(1e-15, 0.0), 20.0, PointKind::Split),
-            point(spot, 26.0, PointKind::Pause),
-            point(DVec2::new(8.0, 4.0), 29.0, PointKind::Exit),
-        ],
-    });
+    let path = path_through(&[
+        (DVec2::new(0.0, 4.0), 15.0, PointKind::Entry),
+        (spot, 18.0, PointKind::Pause),
+        (spot + DVec2::new(1e-15, 0.0), 20.0, PointKind::Split),
+        (spot, 26.0, PointKind::Pause),
+        (DVec2::new(8.0, 4.0), 29.0, PointKind::Exit),
+    ]);
     assert_eq!(path.pause_at(22.0), Some((0, 2)));
     assert_eq!(
         path.pause_at(17.99),
@@ -204,19 +196,13 @@ fn a_pause_that_passes_the_period_is_one_pause() {
 #[test]
 fn stepping_aside_leaves_two_pauses_and_keeps_time_running_forward() {
     let spot = DVec2::new(4.0, 4.0);
-    let point = |pos, t, kind| ControlPoint { pos, t, kind };
-    let mut path = Path::from_trajectory(&Trajectory {
-        entry: 0,
-        exit: 0,
-        points: vec![
-            point(DVec2::new(0.0, 4.0), 0.0, PointKind::Entry),
-            point(spot, 3.0, PointKind::Pause),
-            point(spot, 13.0, PointKind::Pause),
-            point(DVec2::new(8.0, 4.0), 16.0, PointKind::Exit),
-        ],
-    });
-    let inside = |p: DVec2| p.clamp(DVec2::splat(0.31), DVec2::splat(7.69));
-    assert!(path.split_pause((0, 1), 10.0, DVec2::new(0.0, 0.5), inside, |_| true));
+    let mut path = path_through(&[
+        (DVec2::new(0.0, 4.0), 0.0, PointKind::Entry),
+        (spot, 3.0, PointKind::Pause),
+        (spot, 13.0, PointKind::Pause),
+        (DVec2::new(8.0, 4.0), 16.0, PointKind::Exit),
+    ]);
+    assert!(path.split_pause((0, 1), 10.0, DVec2::new(0.0, 0.5), out_of_bands, |_| true));
     let t = path.to_trajectory();
     assert!(t.points.windows(2).all(|w| w[1].t > w[0].t));
     let pauses: Vec<_> = t
@@ -235,20 +221,14 @@ fn stepping_aside_leaves_two_pauses_and_keeps_time_running_forward() {
 #[test]
 fn stepping_aside_across_the_period_keeps_the_split_point_on_the_walk() {
     let spot = DVec2::new(4.0, 4.0);
-    let point = |pos, t, kind| ControlPoint { pos, t, kind };
-    let mut path = Path::from_trajectory(&Trajectory {
-        entry: 0,
-        exit: 0,
-        points: vec![
-            point(DVec2::new(0.0, 4.0), 6.0, PointKind::Entry),
-            point(spot, 9.0, PointKind::Pause),
-            point(spot, 20.0, PointKind::Split),
-            point(spot, 21.2, PointKind::Pause),
-            point(DVec2::new(8.0, 4.0), 24.0, PointKind::Exit),
-        ],
-    });
-    let inside = |p: DVec2| p.clamp(DVec2::splat(0.31), DVec2::splat(7.69));
-    assert!(path.split_pause((0, 2), 21.1, DVec2::new(0.0, 0.5), inside, |_| true));
+    let mut path = path_through(&[
+        (DVec2::new(0.0, 4.0), 6.0, PointKind::Entry),
+        (spot, 9.0, PointKind::Pause),
+        (spot, 20.0, PointKind::Split),
+        (spot, 21.2, PointKind::Pause),
+        (DVec2::new(8.0, 4.0), 24.0, PointKind::Exit),
+    ]);
+    assert!(path.split_pause((0, 2), 21.1, DVec2::new(0.0, 0.5), out_of_bands, |_| true));
     let t = path.to_trajectory();
     assert!(
         t.points.windows(2).all(|w| w[1].t >= w[0].t),

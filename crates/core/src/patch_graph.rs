@@ -92,6 +92,16 @@ pub struct Border {
     pub open: Vec<Interval>,
 }
 
+impl Border {
+    /// The unit vector across the border, from patch `a` to patch `b` (east or north).
+    pub fn across(&self) -> glam::DVec2 {
+        match self.axis {
+            BorderAxis::Vertical => glam::DVec2::X,
+            BorderAxis::Horizontal => glam::DVec2::Y,
+        }
+    }
+}
+
 /// The world grid the patches are cut from.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct World {

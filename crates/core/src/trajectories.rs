@@ -59,11 +59,6 @@ impl PointKind {
     pub fn is_boundary(self) -> bool {
         matches!(self, PointKind::Entry | PointKind::Exit)
     }
-
-    /// Fixed by the patterns: boundary points and the ends of their border bands.
-    pub fn is_fixed(self) -> bool {
-        self.is_boundary() || self == PointKind::Band
-    }
 }
 
 /// The indices of the points that end the entry's border band and start the exit's, if the

@@ -59,6 +59,16 @@ pub struct Outcome {
     pub converged: bool,
 }
 
+/// A patch's two error terms: requested minus measured density, and, if the patch asks for a
+/// direction, 1 - cos of the angle between the requested and the measured one. Every figure
+/// of E is built from these.
+pub fn patch_terms(patch: &crowd_core::Patch, requested: f64, m: &Measured) -> (f64, Option<f64>) {
+    let direction = patch
+        .direction
+        .map(|d| 1.0 - d.dir.dot(m.direction.unwrap_or(DVec2::ZERO)));
+    (requested - m.density, direction)
+}
+
 /// E_rho, E_d and E (Crowd Art eq. 4-6) of measured patches.
 pub fn scene_error(
     graph: &PatchGraph,
@@ -67,19 +77,16 @@ pub fn scene_error(
     rho_max: f64,
 ) -> SceneError {
     let n = measured.len().max(1) as f64;
-    let squares: f64 = requested
-        .iter()
-        .zip(measured)
-        .map(|(r, m)| (r - m.density).powi(2))
-        .sum();
-    let e_rho = (squares / n).sqrt() / rho_max;
-    let (mut sum, mut count) = (0.0, 0usize);
-    for (p, m) in graph.patches.iter().zip(measured) {
-        if let Some(d) = p.direction {
-            sum += 1.0 - d.dir.dot(m.direction.unwrap_or(DVec2::ZERO));
+    let (mut squares, mut sum, mut count) = (0.0, 0.0, 0usize);
+    for (p, (&r, m)) in graph.patches.iter().zip(requested.iter().zip(measured)) {
+        let (density, direction) = patch_terms(p, r, m);
+        squares += density.powi(2);
+        if let Some(d) = direction {
+            sum += d;
             count += 1;
         }
     }
+    let e_rho = (squares / n).sqrt() / rho_max;
     let e_d = if count > 0 { sum / count as f64 } else { 0.0 };
     SceneError {
         e_rho,
@@ -102,10 +109,8 @@ pub fn worst_patches(
         .iter()
         .zip(requested.iter().zip(measured))
         .map(|(p, (&r, m))| {
-            let direction_error = p
-                .direction
-                .map(|d| 1.0 - d.dir.dot(m.direction.unwrap_or(DVec2::ZERO)));
-            let size = (r - m.density).abs() / rho_max + direction_error.unwrap_or(0.0);
+            let (density, direction_error) = patch_terms(p, r, m);
+            let size = density.abs() / rho_max + direction_error.unwrap_or(0.0);
             let e = PatchError {
                 patch: p.id,
                 cell: p.cell,

@@ -20,7 +20,6 @@
 use crate::mutate::{self, Step};
 use crate::state::State;
 use crowd_core::patterns::{Crossing, Measured};
-use glam::DVec2;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
@@ -100,11 +99,8 @@ impl Totals {
 /// A patch's squared density error and, if it asks for a direction, its direction error (the
 /// two terms of `scene_error`).
 fn own_error(state: &State, p: usize, m: &Measured) -> (f64, Option<f64>) {
-    let sq = (state.requested[p] - m.density).powi(2);
-    let dir = state.graph.patches[p]
-        .direction
-        .map(|d| 1.0 - d.dir.dot(m.direction.unwrap_or(DVec2::ZERO)));
-    (sq, dir)
+    let (density, direction) = crate::patch_terms(&state.graph.patches[p], state.requested[p], m);
+    (density.powi(2), direction)
 }
 
 /// The best try for one patch so far: its E, and what the touched borders and patches become.

@@ -40,14 +40,7 @@ impl Spacing {
         Spacing {
             usable,
             rule,
-            normals: graph
-                .borders
-                .iter()
-                .map(|b| match b.axis {
-                    crowd_core::BorderAxis::Vertical => glam::DVec2::X,
-                    crowd_core::BorderAxis::Horizontal => glam::DVec2::Y,
-                })
-                .collect(),
+            normals: graph.borders.iter().map(|b| b.across()).collect(),
         }
     }
 

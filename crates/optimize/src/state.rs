@@ -2,9 +2,9 @@
 //! direction, kept up to date patch by patch.
 
 use crate::spacing::Spacing;
+use crowd_core::PatchGraph;
 use crowd_core::config::MatchSettings;
 use crowd_core::patterns::{Crossing, Measured, Way};
-use crowd_core::{BorderAxis, PatchGraph};
 use crowd_match::{Endpoint, PatchContext};
 use glam::DVec2;
 use rayon::prelude::*;
@@ -148,10 +148,7 @@ impl<'a> State<'a> {
 
     /// Unit vector across a border in the way of the crossing.
     pub fn normal(&self, border: usize, way: Way) -> DVec2 {
-        let n = match self.graph.borders[border].axis {
-            BorderAxis::Vertical => DVec2::X,
-            BorderAxis::Horizontal => DVec2::Y,
-        };
+        let n = self.graph.borders[border].across();
         if way == Way::AToB { n } else { -n }
     }
 

@@ -74,16 +74,22 @@ fn the_same_seed_gives_the_same_crossings() {
     assert_eq!(run(), run());
 }
 
+/// The optimiser's start on `graph` (regression and balanced crossings), for seed `seed`.
+fn started<'a>(graph: &'a PatchGraph, matching: &'a MatchSettings, seed: u64) -> State<'a> {
+    let regression = regression::fit(8.0, 20.0, matching, 60, seed);
+    let mut state = State::new(graph, matching, 20.0, stander_counts(graph));
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    start(&mut state, &regression, 0.35, &mut rng);
+    state
+}
+
 /// The polish keeps its own running totals of the error: after it, they must agree with a
 /// scene measured from scratch, and no round may raise E.
 #[test]
 fn the_polish_never_raises_e_and_its_figures_match_a_fresh_measurement() {
     let graph = scene(300);
     let matching = MatchSettings::default();
-    let regression = regression::fit(8.0, 20.0, &matching, 60, 3);
-    let mut state = State::new(&graph, &matching, 20.0, stander_counts(&graph));
-    let mut rng = ChaCha8Rng::seed_from_u64(3);
-    start(&mut state, &regression, 0.35, &mut rng);
+    let mut state = started(&graph, &matching, 3);
     let e = |state: &State| scene_error(&graph, &state.requested, &state.measured, 0.35).e;
     let mut rounds = vec![e(&state)];
     let done = polish::polish(&mut state, 0.35, 10, 0.0, 3, |s| rounds.push(e(s)));
@@ -110,10 +116,7 @@ fn parity_holds(state: &State) -> bool {
 fn aligning_velocities_keeps_spacing_and_measurements() {
     let graph = scene(300);
     let matching = MatchSettings::default();
-    let regression = regression::fit(8.0, 20.0, &matching, 60, 5);
-    let mut state = State::new(&graph, &matching, 20.0, stander_counts(&graph));
-    let mut rng = ChaCha8Rng::seed_from_u64(5);
-    start(&mut state, &regression, 0.35, &mut rng);
+    let mut state = started(&graph, &matching, 5);
     let before = state.measured.clone();
     let turned = align::align(&mut state);
     assert!(turned > 0);

@@ -12,6 +12,7 @@ pub mod curve;
 pub mod spline;
 
 use crowd_collide::geometry::Segment;
+use crowd_collide::path::trajectory_segments;
 use crowd_collide::repair::{self, Encounter, Other};
 use crowd_core::config::SmoothSettings;
 use crowd_core::patterns::Crossing;
@@ -100,10 +101,12 @@ pub fn smooth(
 /// straight pieces that meet there (the walker's last piece in the patch it leaves and first
 /// piece in the patch it enters). Both sides use the same vector, so the join is C1.
 ///
-/// Not the velocity stage 3 planned for the crossing (across the border at the comfort speed):
-/// held to that, a curve whose line walks slower or slantwise runs ahead of or behind it by up
-/// to half a metre near the border, and on `ring` 9,172 of 12,944 curves broke a clearance and
-/// had to ship as polylines.
+/// Where both pieces are border bands (every trajectory stage 4 draws long enough to hold
+/// them), that mean is the crossing's own velocity, and the curve starts after the band. For
+/// a trajectory without bands, the mean of its lines is what keeps the curve near them: held
+/// to the planned velocity instead, curves ran up to half a metre ahead of or behind their
+/// lines near the border (before the bands, 9,172 of 12,944 `ring` curves then broke a
+/// clearance).
 pub fn crossing_velocities(count: usize, motion: &[PatchMotion]) -> Vec<DVec2> {
     let mut sum = vec![DVec2::ZERO; count];
     for tr in motion.iter().flat_map(|m| &m.trajectories) {
@@ -174,12 +177,6 @@ fn smooth_patch(
 }
 
 /// The straight pieces of a trajectory.
-/// The straight pieces of a trajectory, with the band pieces it walks in the neighbouring
-/// patches (see `crowd_collide::path::ghosts`).
-pub fn segments(tr: &Trajectory) -> Vec<Segment> {
-    crowd_collide::path::trajectory_segments(tr)
-}
-
 /// Who an encounter is between, whatever the period shift.
 fn key(e: &Encounter) -> (usize, u8, usize) {
     match e.other {
@@ -202,13 +199,13 @@ fn keep_clear(
     patch: &repair::Patch,
     curve_at: impl Fn(usize, u32) -> Trajectory,
 ) -> Vec<Trajectory> {
-    let old_segs: Vec<Vec<Segment>> = before.iter().map(segments).collect();
+    let old_segs: Vec<Vec<Segment>> = before.iter().map(trajectory_segments).collect();
     let old: HashMap<_, f64> = repair::rows(&old_segs, patch)
         .iter()
         .flatten()
         .map(|e| (key(e), e.margin))
         .collect();
-    let mut segs: Vec<Vec<Segment>> = after.iter().map(segments).collect();
+    let mut segs: Vec<Vec<Segment>> = after.iter().map(trajectory_segments).collect();
     // Only the rows of walkers that changed are measured again.
     let mut rows = repair::rows(&segs, patch);
     let mut level = vec![0u32; before.len()];
@@ -236,7 +233,7 @@ fn keep_clear(
             } else {
                 curve_at(i, level[i])
             };
-            segs[i] = segments(&after[i]);
+            segs[i] = trajectory_segments(&after[i]);
         }
         repair::refresh(&mut rows, &segs, &again, patch);
     }
