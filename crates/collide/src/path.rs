@@ -227,7 +227,7 @@ impl Path {
 
     /// The points just before free point `i` and just after free point `j` (a band end or an
     /// anchor where there is no free point).
-    fn neighbours(&self, i: usize, j: usize) -> ((DVec2, f64), (DVec2, f64)) {
+    pub fn neighbours(&self, i: usize, j: usize) -> ((DVec2, f64), (DVec2, f64)) {
         let (start, end) = self.fixed_ends();
         let prev = if i == 0 {
             (start.pos, start.t)

@@ -457,16 +457,10 @@ fn relocate_pause(paths: &mut [Path], p: usize, (i, j): (usize, usize), patch: &
         others.iter().map(|o| o.distance(q)).fold(walls, f64::min)
     };
     // Only spots the walker can reach and leave without walking faster than it may.
+    // From where the walker comes and to where it goes: the band ends, not the border points,
+    // when the pause is the first or last thing it does in the patch.
     let path = &paths[p];
-    let before = if i == 0 {
-        (path.entry().pos(), path.entry().t())
-    } else {
-        (path.free[i - 1].pos, path.free[i - 1].t)
-    };
-    let after = path
-        .free
-        .get(j + 1)
-        .map_or((path.exit().pos(), path.exit().t()), |f| (f.pos, f.t));
+    let (before, after) = path.neighbours(i, j);
     // The pause may start later and end sooner to leave time for the walk (a time move).
     // Points inside the pause (where it passes the period) keep their times: the walker must
     // be there by the first of them and stay until the last.
