@@ -10,6 +10,7 @@
 pub mod geometry;
 pub mod path;
 pub mod repair;
+pub mod replan;
 
 use crowd_core::PatchGraph;
 use crowd_core::trajectories::PatchMotion;
@@ -102,8 +103,13 @@ pub fn with_restarts(
             break;
         }
     }
-    let (chosen, outcome) = best.expect("at least one attempt");
+    let (chosen, mut outcome) = best.expect("at least one attempt");
     *paths = chosen;
+    if outcome.worst.is_some() {
+        let rescued = replan::rescue(paths, patch, RESCUE_ROUNDS, RESCUE_PUSHES, rng);
+        used += rescued.iterations;
+        outcome = rescued;
+    }
     repair::Outcome {
         iterations: used,
         ..outcome
@@ -128,6 +134,10 @@ fn stall(patch: usize, w: &repair::Encounter) -> crowd_core::trajectories::Stall
 
 /// Attempts per patch (see [`with_restarts`]).
 pub const RESTARTS: u32 = 6;
+/// Walkers planned anew in a patch still stalled after the restarts, at most
+/// ([`replan::rescue`]), and the pushes after each.
+pub const RESCUE_ROUNDS: u32 = 40;
+pub const RESCUE_PUSHES: u32 = 400;
 
 /// Removes collisions in every patch, in parallel; deterministic for a seed.
 pub fn collide(

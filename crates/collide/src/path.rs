@@ -148,7 +148,7 @@ impl Path {
     }
 
     /// Where the changeable part starts and ends.
-    fn fixed_ends(&self) -> (Anchor, Anchor) {
+    pub fn fixed_ends(&self) -> (Anchor, Anchor) {
         (
             self.entry_band.last().map_or(self.entry, |b| b.0),
             self.exit_band.first().map_or(self.exit, |b| b.0),

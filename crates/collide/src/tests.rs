@@ -258,3 +258,77 @@ fn a_time_move_keeps_the_path_and_the_speed_limit() {
     assert_eq!(middle.pos, DVec2::new(4.0, 4.0));
     assert!(middle.t > 4.0);
 }
+
+/// Eight walkers asked to cross the centre of the patch at the same moment from every side.
+fn crossroads() -> Vec<Path> {
+    (0..8u8)
+        .map(|k| {
+            let s = if k < 4 { 3.2 } else { 4.8 };
+            banded(k % 4, s, 1.0 + 0.05 * k as f64, (k % 4) ^ 1, 8.0 - s, 7.0)
+        })
+        .collect()
+}
+
+#[test]
+fn planning_alone_clears_a_crossroads_where_everyone_meets_at_once() {
+    let mut paths = crossroads();
+    let before: Vec<_> = paths.iter().map(|p| (p.entry(), p.exit())).collect();
+    let mut rng = ChaCha8Rng::seed_from_u64(3);
+    assert!(
+        remove_collisions(&mut paths, &patch(), 0, &mut rng)
+            .worst
+            .is_some(),
+        "the straight lines collide"
+    );
+    // No pushes between the plans: every walker of a worst pair is planned round the rest.
+    let out = crate::replan::rescue(&mut paths, &patch(), 40, 0, &mut rng);
+    assert!(out.worst.is_none(), "{out:?}");
+    for (p, (entry, exit)) in paths.iter().zip(&before) {
+        assert_eq!((p.entry(), p.exit()), (*entry, *exit));
+        let t = p.to_trajectory();
+        assert!(
+            t.points.windows(2).all(|w| w[1].t > w[0].t),
+            "{:?}",
+            t.points
+        );
+        assert!(
+            p.free
+                .iter()
+                .all(|q| q.pos.min_element() >= 0.3 && q.pos.max_element() <= 7.7)
+        );
+    }
+    for i in 0..paths.len() {
+        for j in i + 1..paths.len() {
+            let d = sampled_distance(&paths[i], &paths[j], 20.0);
+            assert!(d >= 0.6 - 0.01, "walkers {i} and {j} come {d} apart");
+        }
+    }
+}
+
+#[test]
+fn a_planned_way_round_a_pausing_walker_keeps_its_split_point_at_the_period() {
+    // Walker 0 crosses the period (t = 20) on its way east; walker 1 pauses right on its line.
+    let mut paths = vec![
+        banded(0, 4.0, 16.0, 1, 4.0, 24.0),
+        path_through(&[
+            (DVec2::new(4.0, 0.0), 14.0, PointKind::Entry),
+            (DVec2::new(4.0, 0.3), 14.25, PointKind::Band),
+            (DVec2::new(4.0, 4.0), 17.0, PointKind::Pause),
+            (DVec2::new(4.0, 4.0), 23.0, PointKind::Pause),
+            (DVec2::new(4.0, 7.7), 25.75, PointKind::Band),
+            (DVec2::new(4.0, 8.0), 26.0, PointKind::Exit),
+        ]),
+    ];
+    let way = crate::replan::plan(&paths, 0, &patch(), crate::replan::STRICT).expect("a way");
+    paths[0].free = way;
+    assert!(sampled_distance(&paths[0], &paths[1], 20.0) >= 0.6);
+    let t = paths[0].to_trajectory();
+    let splits: Vec<_> = t
+        .points
+        .iter()
+        .filter(|p| p.kind == PointKind::Split)
+        .collect();
+    assert_eq!(splits.len(), 1);
+    assert_eq!(splits[0].t, 20.0);
+    assert!(t.points.windows(2).all(|w| w[1].t > w[0].t));
+}

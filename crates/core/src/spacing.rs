@@ -9,6 +9,11 @@
 use crate::patterns::Crossing;
 use glam::DVec2;
 
+/// How long past each end of its band piece a character is taken to walk on straight, s: a
+/// little more than the quarter second within which stage 5 never bends a path near a band
+/// end.
+pub const HOLD_S: f64 = 0.3;
+
 /// The spacing rule between two crossings of one border.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct CrossingRule {
@@ -61,10 +66,15 @@ impl CrossingRule {
 
     /// Whether the band pieces of two crossings of one border stay `gap` apart at all times
     /// (modulo the period). A piece is the character's straight walk at its crossing velocity
-    /// from `band` deep on one side to `band` deep on the other; the closest approach of two
-    /// such walks is analytic.
+    /// from `band` deep on one side to `band` deep on the other, continued straight for
+    /// [`HOLD_S`] beyond each end; the closest approach of two such walks is analytic.
+    ///
+    /// The continuation matters: stage 5 cannot bend a path within a quarter second of its
+    /// band's end, so two band ends reached a few milliseconds apart (one walker leaving its
+    /// band as another reaches its own) must already be apart. City patch 1251 stalled so,
+    /// with two bands leaning towards each other whose ends were 0.47 m apart 5 ms apart.
     pub fn bands_apart(&self, a: &Crossing, b: &Crossing, normal: DVec2, period: f64) -> bool {
-        let depth_time = |c: &Crossing| self.band / c.velocity.dot(normal).abs().max(1e-6);
+        let depth_time = |c: &Crossing| self.band / c.velocity.dot(normal).abs().max(1e-6) + HOLD_S;
         let (ta, tb) = (depth_time(a), depth_time(b));
         // s runs along the world axis the border lies on.
         let along = |c: &Crossing| DVec2::new(normal.y, normal.x) * c.s;

@@ -388,7 +388,7 @@ pub struct SmoothingSummary {
 
 impl TrajectoriesFile {
     pub const STAGE: &'static str = "match";
-    pub const VERSION: u32 = 1;
+    pub const VERSION: u32 = 2;
 
     pub fn load(path: &Path) -> Result<(TrajectoriesFile, Vec<PatchMotion>)> {
         Self::load_stage(path, Self::STAGE, Self::VERSION)
