@@ -307,7 +307,7 @@ fn smoothing_keeps_boundary_points_exact_and_never_brings_a_pair_closer_than_sta
                 .iter()
                 .map(crowd_collide::path::trajectory_segments)
                 .collect();
-            crowd_collide::repair::rows(&segs, &patch)
+            crowd_collide::repair::rows(&crowd_collide::repair::Tracks::new(segs), &patch)
                 .iter()
                 .flatten()
                 .map(|e| e.margin)

@@ -74,7 +74,10 @@ pub fn obstacles_near(graph: &PatchGraph, p: usize) -> Vec<crowd_core::Rect> {
 /// Restarts a stalled repair from the straight lines with fresh random pushes, [`RESTARTS`]
 /// attempts with doubling budgets that add up to `max_iterations`, and keeps the best attempt. The
 /// greedy repair of the paper can cycle (pushing one pair apart pushes another together);
-/// another draw of the small random rotations usually breaks the cycle.
+/// another draw of the small random rotations usually breaks the cycle. From the
+/// [`RESCUE_AFTER`]th attempt on, a patch still stalled is also rescued by planning
+/// ([`replan::rescue`]), which costs milliseconds where the later attempts' pushes cost
+/// seconds in a dense patch.
 pub fn with_restarts(
     paths: &mut Vec<Path>,
     patch: &repair::Patch,
@@ -85,6 +88,7 @@ pub fn with_restarts(
     // Budgets double from try to try: most stalls clear on a cheap second draw, the rest get
     // room. They add up to `max_iterations`.
     let unit = (max_iterations / ((1 << RESTARTS) - 1)).max(1);
+    let margin = |o: &repair::Outcome| o.worst.map_or(f64::INFINITY, |w| w.margin);
     let mut best: Option<(Vec<Path>, repair::Outcome)> = None;
     let mut used = 0;
     for k in 0..RESTARTS {
@@ -92,7 +96,6 @@ pub fn with_restarts(
         let mut attempt = start.clone();
         let outcome = repair::remove_collisions(&mut attempt, patch, per_try, rng);
         used += outcome.iterations;
-        let margin = |o: &repair::Outcome| o.worst.map_or(f64::INFINITY, |w| w.margin);
         if best
             .as_ref()
             .is_none_or(|(_, b)| margin(&outcome) > margin(b))
@@ -102,14 +105,23 @@ pub fn with_restarts(
         if outcome.worst.is_none() {
             break;
         }
+        if k + 1 >= RESCUE_AFTER {
+            let (mut rescued, _) = best.clone().expect("an attempt");
+            let outcome = replan::rescue(&mut rescued, patch, RESCUE_ROUNDS, RESCUE_PUSHES, rng);
+            used += outcome.iterations;
+            if best
+                .as_ref()
+                .is_none_or(|(_, b)| margin(&outcome) > margin(b))
+            {
+                best = Some((rescued, outcome));
+            }
+            if outcome.worst.is_none() {
+                break;
+            }
+        }
     }
-    let (chosen, mut outcome) = best.expect("at least one attempt");
+    let (chosen, outcome) = best.expect("at least one attempt");
     *paths = chosen;
-    if outcome.worst.is_some() {
-        let rescued = replan::rescue(paths, patch, RESCUE_ROUNDS, RESCUE_PUSHES, rng);
-        used += rescued.iterations;
-        outcome = rescued;
-    }
     repair::Outcome {
         iterations: used,
         ..outcome
@@ -134,8 +146,9 @@ fn stall(patch: usize, w: &repair::Encounter) -> crowd_core::trajectories::Stall
 
 /// Attempts per patch (see [`with_restarts`]).
 pub const RESTARTS: u32 = 6;
-/// Walkers planned anew in a patch still stalled after the restarts, at most
-/// ([`replan::rescue`]), and the pushes after each.
+/// Attempts after which a stalled patch is rescued by planning too.
+pub const RESCUE_AFTER: u32 = 3;
+/// Walkers planned anew in a rescue, at most ([`replan::rescue`]), and the pushes after each.
 pub const RESCUE_ROUNDS: u32 = 40;
 pub const RESCUE_PUSHES: u32 = 400;
 

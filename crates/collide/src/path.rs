@@ -156,10 +156,10 @@ impl Path {
     }
 
     pub fn position(&self, t: f64) -> DVec2 {
-        self.segments()
-            .iter()
+        let segs = self.segments();
+        segs.iter()
             .find(|s| t <= s.t1)
-            .or(self.segments().last())
+            .or(segs.last())
             .map_or(self.entry.pos, |s| s.at(t.clamp(s.t0, s.t1)))
     }
 

@@ -79,18 +79,101 @@ pub struct Outcome {
     pub worst: Option<Encounter>,
 }
 
+/// Every walker's straight pieces (see [`Path::segments`]) with the box that holds them, kept
+/// together so that the broad phase of [`pair`] never measures a path twice, and the time span
+/// each changed over since the last [`refresh`].
+#[derive(Debug, Clone)]
+pub struct Tracks {
+    segs: Vec<Vec<Segment>>,
+    boxes: Vec<(DVec2, DVec2)>,
+    changed: Vec<Option<Span>>,
+}
+
+/// A time span `[start, end]`, s.
+type Span = (f64, f64);
+const ALWAYS: Span = (f64::NEG_INFINITY, f64::INFINITY);
+
+impl Tracks {
+    pub fn new(segs: Vec<Vec<Segment>>) -> Tracks {
+        let boxes = segs.iter().map(|s| bounds(s)).collect();
+        let changed = vec![None; segs.len()];
+        Tracks {
+            segs,
+            boxes,
+            changed,
+        }
+    }
+
+    /// Walker `p` now walks `segs`.
+    pub fn set(&mut self, p: usize, segs: Vec<Segment>) {
+        if let Some(span) = changed_span(&self.segs[p], &segs) {
+            self.changed[p] =
+                Some(self.changed[p].map_or(span, |c| (c.0.min(span.0), c.1.max(span.1))));
+        }
+        self.boxes[p] = bounds(&segs);
+        self.segs[p] = segs;
+    }
+
+    pub fn get(&self, p: usize) -> &[Segment] {
+        &self.segs[p]
+    }
+
+    pub fn len(&self) -> usize {
+        self.segs.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.segs.is_empty()
+    }
+}
+
+/// The time span over which two versions of a path differ: from the start of the first piece
+/// that differs to the end of the last (`None`: the same pieces).
+fn changed_span(old: &[Segment], new: &[Segment]) -> Option<Span> {
+    let n = old.len().min(new.len());
+    let head = (0..n).take_while(|&i| old[i] == new[i]).count();
+    if head == old.len() && head == new.len() {
+        return None;
+    }
+    let tail = (0..n - head)
+        .take_while(|&i| old[old.len() - 1 - i] == new[new.len() - 1 - i])
+        .count();
+    let first = |v: &[Segment]| v.get(head).map_or(f64::INFINITY, |s| s.t0);
+    let last = |v: &[Segment]| {
+        if v.len() > head + tail {
+            v[v.len() - 1 - tail].t1
+        } else {
+            f64::NEG_INFINITY
+        }
+    };
+    let (start, end) = (first(old).min(first(new)), last(old).max(last(new)));
+    Some((start.min(end), start.max(end)))
+}
+
 /// The closest encounter of walkers `a` and `b` (or `a` with its own copies a period or more
 /// later when `a == b`), if they ever coexist within reach (2r) of each other.
-fn pair(segs: &[Vec<Segment>], a: usize, b: usize, patch: &Patch) -> Option<Encounter> {
+fn pair(tracks: &Tracks, a: usize, b: usize, patch: &Patch) -> Option<Encounter> {
+    pair_in(tracks, a, b, patch, ALWAYS, ALWAYS)
+}
+
+/// [`pair`], over the pieces of `a` that overlap `wa` (in `a`'s time) and of `b` that overlap
+/// `wb` (in `b`'s own time) only.
+fn pair_in(
+    tracks: &Tracks,
+    a: usize,
+    b: usize,
+    patch: &Patch,
+    wa: Span,
+    wb: Span,
+) -> Option<Encounter> {
     let period = patch.period_s;
-    let (sa, sb) = (&segs[a], &segs[b]);
+    let (sa, sb) = (tracks.get(a), tracks.get(b));
     let (a0, a1) = (sa.first()?.t0, sa.last()?.t1);
     let (b0, b1) = (sb.first()?.t0, sb.last()?.t1);
     // Broad phase: walkers whose whole paths stay farther apart than they need never meet.
     let reach = 2.0 * patch.radius_m;
-    let (amin, amax) = bounds(sa);
-    let (bmin, bmax) = bounds(sb);
-    let gap = (bmin - amax).max(amin - bmax).max(glam::DVec2::ZERO);
+    let ((amin, amax), (bmin, bmax)) = (tracks.boxes[a], tracks.boxes[b]);
+    let gap = (bmin - amax).max(amin - bmax).max(DVec2::ZERO);
     if gap.length() > reach {
         return None;
     }
@@ -103,16 +186,23 @@ fn pair(segs: &[Vec<Segment>], a: usize, b: usize, patch: &Patch) -> Option<Enco
             continue;
         }
         let shift = k as f64 * period;
-        // Both paths run forward in time: one sweep visits every overlapping pair of segments.
-        let (mut i, mut j) = (0, 0);
-        while i < sa.len() && j < sb.len() {
+        // Both paths run forward in time: one sweep visits every pair of segments that
+        // overlap in time, from the first moment both exist to the last.
+        let lo = a0.max(b0 + shift).max(wa.0).max(wb.0 + shift);
+        let hi = a1.min(b1 + shift).min(wa.1).min(wb.1 + shift);
+        if lo > hi {
+            continue;
+        }
+        let mut i = sa.partition_point(|s| s.t1 < lo);
+        let mut j = sb.partition_point(|s| s.t1 + shift < lo);
+        while i < sa.len() && j < sb.len() && sa[i].t0 <= hi && sb[j].t0 + shift <= hi {
             let x = sb[j].shifted(shift);
             // Two pieces whose boxes are farther apart than the closest so far (or than reach)
             // cannot bring it down: most pairs end here, without the exact approach.
             let limit = best.map_or(reach, |(bd, _, _)| bd.min(reach));
             let (lo_a, hi_a) = (sa[i].p0.min(sa[i].p1), sa[i].p0.max(sa[i].p1));
             let (lo_b, hi_b) = (x.p0.min(x.p1), x.p0.max(x.p1));
-            let gap = (lo_b - hi_a).max(lo_a - hi_b).max(glam::DVec2::ZERO);
+            let gap = (lo_b - hi_a).max(lo_a - hi_b).max(DVec2::ZERO);
             if gap.length_squared() <= limit * limit
                 && let Some((d, t)) = geometry::closest(&sa[i], &x)
                 && best.is_none_or(|(bd, _, _)| d < bd)
@@ -126,60 +216,113 @@ fn pair(segs: &[Vec<Segment>], a: usize, b: usize, patch: &Patch) -> Option<Enco
             }
         }
     }
-    best.map(|(d, t, shift)| Encounter {
-        margin: d - 2.0 * patch.radius_m,
-        distance: d,
-        t,
-        a,
-        other: Other::Walker { b, shift },
-    })
+    // Pairs never within reach have no entry: only a collision matters to the repair.
+    best.filter(|&(d, _, _)| d < reach)
+        .map(|(d, t, shift)| Encounter {
+            margin: d - 2.0 * patch.radius_m,
+            distance: d,
+            t,
+            a,
+            other: Other::Walker { b, shift },
+        })
 }
 
 /// The corners of the box that holds a path.
-fn bounds(segs: &[Segment]) -> (glam::DVec2, glam::DVec2) {
+fn bounds(segs: &[Segment]) -> (DVec2, DVec2) {
     segs.iter().fold(
-        (
-            glam::DVec2::splat(f64::INFINITY),
-            glam::DVec2::splat(f64::NEG_INFINITY),
-        ),
+        (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY)),
         |(lo, hi), s| (lo.min(s.p0).min(s.p1), hi.max(s.p0).max(s.p1)),
     )
 }
 
 /// Every encounter within reach in a patch, by walker: row `a` holds walker `a`'s encounters
 /// with every later walker (and its own later copies), with the standers and the obstacles.
-pub fn rows(segs: &[Vec<Segment>], patch: &Patch) -> Vec<Vec<Encounter>> {
-    (0..segs.len()).map(|a| row(segs, a, patch)).collect()
+pub fn rows(tracks: &Tracks, patch: &Patch) -> Vec<Vec<Encounter>> {
+    (0..tracks.len()).map(|a| row(tracks, a, patch)).collect()
 }
 
-/// Brings [`rows`] up to date after the paths of the walkers `touched` changed: their own rows
-/// anew, and in every other row only the entries with them.
-pub fn refresh(
-    rows: &mut [Vec<Encounter>],
-    segs: &[Vec<Segment>],
-    touched: &[usize],
-    patch: &Patch,
-) {
+/// Brings [`rows`] up to date after the paths of the walkers `touched` changed (through
+/// [`Tracks::set`]): their own rows anew, and in every other row only the entries with them.
+///
+/// Exact, but cheap: where a pair's closest encounter lies outside the span over which one
+/// walker changed, it still stands, and only the changed span can bring it down.
+pub fn refresh(rows: &mut [Vec<Encounter>], tracks: &mut Tracks, touched: &[usize], patch: &Patch) {
+    let changed = |p: usize| tracks.changed[p].unwrap_or(ALWAYS);
+    let outside = |t: f64, (lo, hi): Span| t < lo - 1e-9 || t > hi + 1e-9;
+    // The pair (a, b) after one of them, `moved`, changed over `span`.
+    let update = |old: Option<Encounter>, a: usize, b: usize, a_moved: bool| {
+        let span = changed(if a_moved { a } else { b });
+        let (wa, wb) = if a_moved {
+            (span, ALWAYS)
+        } else {
+            (ALWAYS, span)
+        };
+        match old {
+            Some(e) => {
+                let Other::Walker { shift, .. } = e.other else {
+                    unreachable!("a walker entry")
+                };
+                let when = if a_moved { e.t } else { e.t - shift };
+                if outside(when, span) {
+                    match pair_in(tracks, a, b, patch, wa, wb) {
+                        Some(n) if n.distance < e.distance => Some(n),
+                        _ => Some(e),
+                    }
+                } else {
+                    pair(tracks, a, b, patch)
+                }
+            }
+            None => pair_in(tracks, a, b, patch, wa, wb),
+        }
+    };
+    let entry = |encounters: &[Encounter], b: usize| {
+        encounters
+            .iter()
+            .find(|e| matches!(e.other, Other::Walker { b: x, .. } if x == b))
+            .copied()
+    };
     for (a, encounters) in rows.iter_mut().enumerate() {
         if touched.contains(&a) {
-            *encounters = row(segs, a, patch);
+            let mut fresh: Vec<Encounter> = (a..tracks.len())
+                .filter_map(|b| {
+                    if b == a || touched.contains(&b) {
+                        pair(tracks, a, b, patch)
+                    } else {
+                        update(entry(encounters, b), a, b, true)
+                    }
+                })
+                .collect();
+            fresh.extend(fixed_row(tracks, a, patch));
+            *encounters = fresh;
         } else {
             for &b in touched.iter().filter(|&&b| b > a) {
+                let old = entry(encounters, b);
                 encounters.retain(|e| !matches!(e.other, Other::Walker { b: x, .. } if x == b));
-                encounters.extend(pair(segs, a, b, patch));
+                encounters.extend(update(old, a, b, false));
             }
         }
+    }
+    for &p in touched {
+        tracks.changed[p] = None;
     }
 }
 
 /// Every encounter of walker `a` with walkers `b >= a`, standers and obstacles.
-fn row(segs: &[Vec<Segment>], a: usize, patch: &Patch) -> Vec<Encounter> {
-    let r = patch.radius_m;
-    let mut out: Vec<Encounter> = (a..segs.len())
-        .filter_map(|b| pair(segs, a, b, patch))
+fn row(tracks: &Tracks, a: usize, patch: &Patch) -> Vec<Encounter> {
+    let mut out: Vec<Encounter> = (a..tracks.len())
+        .filter_map(|b| pair(tracks, a, b, patch))
         .collect();
+    out.extend(fixed_row(tracks, a, patch));
+    out
+}
+
+/// Every encounter of walker `a` with the standers and the obstacles.
+fn fixed_row(tracks: &Tracks, a: usize, patch: &Patch) -> Vec<Encounter> {
+    let r = patch.radius_m;
+    let mut out = Vec::new();
     for (s, &q) in patch.standers.iter().enumerate() {
-        let best = segs[a]
+        let best = tracks
+            .get(a)
             .iter()
             .filter_map(|sa| geometry::closest(sa, &Segment::standing(q, sa.t0, sa.t1)))
             .min_by(|x, y| x.0.total_cmp(&y.0));
@@ -194,7 +337,8 @@ fn row(segs: &[Vec<Segment>], a: usize, patch: &Patch) -> Vec<Encounter> {
         }
     }
     for (o, rect) in patch.obstacles.iter().enumerate() {
-        let best = segs[a]
+        let best = tracks
+            .get(a)
             .iter()
             .map(|sa| geometry::to_rect(sa, rect.min, rect.max))
             .min_by(|x, y| x.0.total_cmp(&y.0));
@@ -225,8 +369,8 @@ pub fn remove_collisions(
         }
     }
     let walls = patch.walls();
-    let mut segs: Vec<Vec<Segment>> = paths.iter().map(Path::segments).collect();
-    let mut rows = rows(&segs, patch);
+    let mut tracks = Tracks::new(paths.iter().map(Path::segments).collect());
+    let mut rows = rows(&tracks, patch);
     let worst = |rows: &[Vec<Encounter>]| {
         rows.iter()
             .flatten()
@@ -249,14 +393,14 @@ pub fn remove_collisions(
             };
         }
         iterations += 1;
-        let touched = push_apart(paths, &segs, patch, &w, rng);
+        let touched = push_apart(paths, &tracks, patch, &w, rng);
         for &p in &touched {
             paths[p].reroute(&walls, patch.radius_m, patch.side_m);
         }
         for &p in &touched {
-            segs[p] = paths[p].segments();
+            tracks.set(p, paths[p].segments());
         }
-        refresh(&mut rows, &segs, &touched, patch);
+        refresh(&mut rows, &mut tracks, &touched, patch);
     }
 }
 
@@ -266,7 +410,7 @@ pub fn remove_collisions(
 /// enter an obstacle. Returns the walkers whose paths changed.
 fn push_apart(
     paths: &mut [Path],
-    segs: &[Vec<Segment>],
+    tracks: &Tracks,
     patch: &Patch,
     e: &Encounter,
     rng: &mut ChaCha8Rng,
@@ -337,7 +481,7 @@ fn push_apart(
     // A third of the time, a walker of the pair first tries to pass earlier or later instead.
     if let Some((b, tb)) = other_walker
         && rng.random_bool(1.0 / 3.0)
-        && let Some(p) = time_move(paths, segs, patch, e, (b, tb), push, window)
+        && let Some(p) = time_move(paths, tracks, patch, e, (b, tb), push, window)
     {
         return vec![p];
     }
@@ -377,7 +521,7 @@ fn push_apart(
 /// they are; returns the walker it moved.
 fn time_move(
     paths: &mut [Path],
-    segs: &[Vec<Segment>],
+    tracks: &Tracks,
     patch: &Patch,
     e: &Encounter,
     (b, tb): (usize, f64),
@@ -395,11 +539,11 @@ fn time_move(
             }
             // Only the moved walker's pieces change; the other's are the row's own.
             let (sa, sb) = if p == a {
-                (moved.segments(), segs[b].clone())
+                (moved.segments(), tracks.get(b).to_vec())
             } else {
-                (segs[a].clone(), moved.segments())
+                (tracks.get(a).to_vec(), moved.segments())
             };
-            let two = if a == b { vec![sa] } else { vec![sa, sb] };
+            let two = Tracks::new(if a == b { vec![sa] } else { vec![sa, sb] });
             let distance =
                 pair(&two, 0, (a != b) as usize, patch).map_or(f64::INFINITY, |x| x.distance);
             if distance > e.distance + 1e-3 && best.as_ref().is_none_or(|x| distance > x.0) {

@@ -332,3 +332,49 @@ fn a_planned_way_round_a_pausing_walker_keeps_its_split_point_at_the_period() {
     assert_eq!(splits[0].t, 20.0);
     assert!(t.points.windows(2).all(|w| w[1].t > w[0].t));
 }
+
+/// Each pair's closest distance in a patch's rows, by pair.
+fn distances(rows: &[Vec<repair::Encounter>]) -> Vec<((usize, String), f64)> {
+    let mut out: Vec<_> = rows
+        .iter()
+        .flatten()
+        .map(|e| ((e.a, format!("{:?}", e.other)), e.distance))
+        .collect();
+    out.sort_by(|x, y| x.0.cmp(&y.0));
+    out
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(64))]
+
+    /// Refreshing the rows after some walkers moved (only the changed spans measured again)
+    /// gives the rows a fresh measurement gives.
+    #[test]
+    fn refreshed_rows_equal_rows_measured_anew(
+        walkers in proptest::collection::vec((0u8..4, 0.7f64..7.3, 0.0f64..20.0, 0u8..4, 0.7f64..7.3, 4.0f64..12.0), 4..16),
+        moves in proptest::collection::vec((0usize..16, 0.0f64..1.0, -2.0f64..2.0, -2.0f64..2.0), 1..12),
+    ) {
+        let patch = patch();
+        let mut paths: Vec<Path> = walkers
+            .iter()
+            .map(|&(se, s_in, t, sx, s_out, dt)| banded(se, s_in, t, sx + 1, s_out, t + dt))
+            .collect();
+        let mut tracks = repair::Tracks::new(paths.iter().map(Path::segments).collect());
+        let mut rows = repair::rows(&tracks, &patch);
+        for (w, when, dx, dy) in moves {
+            let p = w % paths.len();
+            let (t0, t1) = paths[p].span();
+            let t = t0 + (t1 - t0) * when;
+            paths[p].push_at(t, DVec2::new(dx, dy), 0.25, out_of_bands, |_| true);
+            tracks.set(p, paths[p].segments());
+            repair::refresh(&mut rows, &mut tracks, &[p], &patch);
+            let fresh = repair::rows(&tracks, &patch);
+            let (got, want) = (distances(&rows), distances(&fresh));
+            prop_assert_eq!(got.len(), want.len());
+            for (g, w) in got.iter().zip(&want) {
+                prop_assert_eq!(&g.0, &w.0);
+                prop_assert!((g.1 - w.1).abs() < 1e-12, "{:?} against {:?}", g, w);
+            }
+        }
+    }
+}

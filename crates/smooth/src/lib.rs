@@ -200,14 +200,14 @@ fn keep_clear(
     curve_at: impl Fn(usize, u32) -> Trajectory,
 ) -> Vec<Trajectory> {
     let old_segs: Vec<Vec<Segment>> = before.iter().map(trajectory_segments).collect();
-    let old: HashMap<_, f64> = repair::rows(&old_segs, patch)
+    let old: HashMap<_, f64> = repair::rows(&repair::Tracks::new(old_segs), patch)
         .iter()
         .flatten()
         .map(|e| (key(e), e.margin))
         .collect();
-    let mut segs: Vec<Vec<Segment>> = after.iter().map(trajectory_segments).collect();
+    let mut tracks = repair::Tracks::new(after.iter().map(trajectory_segments).collect());
     // Only the rows of walkers that changed are measured again.
-    let mut rows = repair::rows(&segs, patch);
+    let mut rows = repair::rows(&tracks, patch);
     let mut level = vec![0u32; before.len()];
     loop {
         let mut again: Vec<usize> = Vec::new();
@@ -233,9 +233,9 @@ fn keep_clear(
             } else {
                 curve_at(i, level[i])
             };
-            segs[i] = trajectory_segments(&after[i]);
+            tracks.set(i, trajectory_segments(&after[i]));
         }
-        repair::refresh(&mut rows, &segs, &again, patch);
+        repair::refresh(&mut rows, &mut tracks, &again, patch);
     }
 }
 
