@@ -9,6 +9,7 @@
 
 pub mod geometry;
 pub mod path;
+pub mod random;
 pub mod repair;
 pub mod replan;
 

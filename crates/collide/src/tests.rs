@@ -378,3 +378,59 @@ proptest! {
         }
     }
 }
+
+/// Smallest distance between every pair of walkers (and each walker and its own copies whole
+/// periods away), sampled every 5 ms: independent of the analytic code under test.
+fn smallest_sampled_distance(paths: &[Path], period: f64) -> f64 {
+    let segs: Vec<Vec<geometry::Segment>> = paths.iter().map(Path::segments).collect();
+    let at = |s: &[geometry::Segment], t: f64| {
+        let i = s.partition_point(|x| x.t1 < t).min(s.len() - 1);
+        s[i].at(t.clamp(s[i].t0, s[i].t1))
+    };
+    let mut best = f64::INFINITY;
+    for i in 0..segs.len() {
+        for j in i..segs.len() {
+            let (a, b) = (&segs[i], &segs[j]);
+            let (a0, a1) = (a[0].t0, a[a.len() - 1].t1);
+            let (b0, b1) = (b[0].t0, b[b.len() - 1].t1);
+            for k in -4i32..=4 {
+                if i == j && k == 0 {
+                    continue;
+                }
+                let shift = k as f64 * period;
+                let (lo, hi) = (a0.max(b0 + shift), a1.min(b1 + shift));
+                let mut t = lo;
+                while t <= hi {
+                    best = best.min(at(a, t).distance(at(b, t - shift)));
+                    t += 0.005;
+                }
+            }
+        }
+    }
+    best
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(64))]
+
+    /// Ramirez's Figure 6 patches (16 m, period 10 s, 1 to 50 pairs at random under stage 3's
+    /// spacing rule, matched by stage 4): every one converges within stage 5's default budget,
+    /// and then every pair keeps its clearance (by sampling).
+    #[test]
+    fn a_random_patch_always_converges(pairs in 1usize..=50, seed in any::<u64>()) {
+        let shape = crate::random::Shape { side_m: 16.0, period_s: 10.0, radius_m: 0.3 };
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let mut paths = crate::random::walkers(pairs, shape, &mut rng);
+        let patch = Patch {
+            side_m: 16.0,
+            period_s: 10.0,
+            radius_m: 0.3,
+            obstacles: &[],
+            standers: &[],
+        };
+        let out = with_restarts(&mut paths, &patch, 12_000, &mut rng);
+        prop_assert!(out.worst.is_none(), "{} pairs: {:?}", pairs, out);
+        let d = smallest_sampled_distance(&paths, 10.0);
+        prop_assert!(d >= 0.6 - 0.01, "{} pairs come {} apart", pairs, d);
+    }
+}
