@@ -89,7 +89,6 @@ pub fn with_restarts(
     // Budgets double from try to try: most stalls clear on a cheap second draw, the rest get
     // room. They add up to `max_iterations`.
     let unit = (max_iterations / ((1 << RESTARTS) - 1)).max(1);
-    let margin = |o: &repair::Outcome| o.worst.map_or(f64::INFINITY, |w| w.margin);
     let mut best: Option<(Vec<Path>, repair::Outcome)> = None;
     let mut used = 0;
     for k in 0..RESTARTS {
@@ -97,26 +96,14 @@ pub fn with_restarts(
         let mut attempt = start.clone();
         let outcome = repair::remove_collisions(&mut attempt, patch, per_try, rng);
         used += outcome.iterations;
-        if best
-            .as_ref()
-            .is_none_or(|(_, b)| margin(&outcome) > margin(b))
-        {
-            best = Some((attempt, outcome));
-        }
-        if outcome.worst.is_none() {
+        if keep_better(&mut best, attempt, outcome) {
             break;
         }
         if k + 1 >= RESCUE_AFTER {
             let (mut rescued, _) = best.clone().expect("an attempt");
             let outcome = replan::rescue(&mut rescued, patch, RESCUE_ROUNDS, RESCUE_PUSHES, rng);
             used += outcome.iterations;
-            if best
-                .as_ref()
-                .is_none_or(|(_, b)| margin(&outcome) > margin(b))
-            {
-                best = Some((rescued, outcome));
-            }
-            if outcome.worst.is_none() {
+            if keep_better(&mut best, rescued, outcome) {
                 break;
             }
         }
@@ -127,6 +114,23 @@ pub fn with_restarts(
         iterations: used,
         ..outcome
     }
+}
+
+/// Keeps `paths` as the best try if its worst encounter is better than the best's; returns
+/// whether it cleared the patch.
+fn keep_better(
+    best: &mut Option<(Vec<Path>, repair::Outcome)>,
+    paths: Vec<Path>,
+    outcome: repair::Outcome,
+) -> bool {
+    let margin = |o: &repair::Outcome| o.worst.map_or(f64::INFINITY, |w| w.margin);
+    if best
+        .as_ref()
+        .is_none_or(|(_, b)| margin(&outcome) > margin(b))
+    {
+        *best = Some((paths, outcome));
+    }
+    outcome.worst.is_none()
 }
 
 /// The file's record of a patch left with encounter `w`.
