@@ -567,7 +567,12 @@ fn relocate_pause(paths: &mut [Path], p: usize, (i, j): (usize, usize), patch: &
     let mut others: Vec<DVec2> = patch.standers.to_vec();
     let steps = ((t1 - t0) / 0.2).ceil().max(1.0) as usize;
     for (b, path) in paths.iter().enumerate() {
-        let (b0, b1) = path.span();
+        // Everywhere the walker is near the patch: its bands and their ghosts too.
+        let segs = path.segments();
+        let (Some(first), Some(last)) = (segs.first(), segs.last()) else {
+            continue;
+        };
+        let (b0, b1) = (first.t0, last.t1);
         let kmin = ((t0 - b1) / patch.period_s).ceil() as i64;
         let kmax = ((t1 - b0) / patch.period_s).floor() as i64;
         for k in kmin..=kmax {
@@ -576,9 +581,10 @@ fn relocate_pause(paths: &mut [Path], p: usize, (i, j): (usize, usize), patch: &
             }
             let shift = k as f64 * patch.period_s;
             for s in 0..=steps {
-                let t = t0 + (t1 - t0) * s as f64 / steps as f64;
-                if t - shift >= b0 && t - shift <= b1 {
-                    others.push(path.position(t - shift));
+                let t = t0 + (t1 - t0) * s as f64 / steps as f64 - shift;
+                if t >= b0 && t <= b1 {
+                    let i = segs.partition_point(|x| x.t1 < t).min(segs.len() - 1);
+                    others.push(segs[i].at(t.clamp(segs[i].t0, segs[i].t1)));
                 }
             }
         }
