@@ -24,6 +24,7 @@ use rand_chacha::ChaCha8Rng;
 const CELL: f64 = 0.2;
 /// Largest time between layers, s.
 const LAYER: f64 = 0.1;
+
 /// How strictly the grid keeps a walker from the others.
 #[derive(Debug, Clone, Copy)]
 pub struct GridRule {
