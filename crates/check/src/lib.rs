@@ -115,9 +115,7 @@ pub fn check(graph: &PatchGraph, motion: &[PatchMotion], period_s: f64) -> Check
     cells.sort_by_key(|(k, _)| **k);
     // Closest approach of two pieces over all copies a whole number of periods apart.
     let pair = |a: &Segment, b: &Segment, skip: [Option<i64>; 2]| -> Option<(f64, f64, DVec2)> {
-        let kmin = ((a.t0 - b.t1) / period_s).ceil() as i64;
-        let kmax = ((a.t1 - b.t0) / period_s).floor() as i64;
-        (kmin..=kmax)
+        geometry::copies((a.t0, a.t1), (b.t0, b.t1), period_s)
             .filter(|&k| !skip.contains(&Some(k)))
             .filter_map(|k| {
                 let b = b.shifted(k as f64 * period_s);

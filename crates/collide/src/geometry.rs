@@ -58,6 +58,23 @@ pub fn pieces(points: impl IntoIterator<Item = (DVec2, f64)>) -> Vec<Segment> {
         .collect()
 }
 
+/// Where a walker on the pieces `segs` (in time order, end to end) is at time `t`, held at
+/// the first or last point outside their span.
+pub fn at_time(segs: &[Segment], t: f64) -> Option<DVec2> {
+    let i = segs
+        .partition_point(|s| s.t1 < t)
+        .min(segs.len().checked_sub(1)?);
+    Some(segs[i].at(t.clamp(segs[i].t0, segs[i].t1)))
+}
+
+/// The whole numbers of periods k for which something existing during `b`, shifted k periods
+/// later, exists during `a` too.
+pub fn copies(a: (f64, f64), b: (f64, f64), period: f64) -> std::ops::RangeInclusive<i64> {
+    let kmin = ((a.0 - b.1) / period).ceil() as i64;
+    let kmax = ((a.1 - b.0) / period).floor() as i64;
+    kmin..=kmax
+}
+
 /// The smallest distance between walkers on `a` and `b` during the time both exist, and when
 /// it happens; `None` when they never coexist. Analytic: with w the offset at the start of the
 /// common interval and dv the relative velocity, the distance |w + dv t| is smallest at

@@ -156,11 +156,7 @@ impl Path {
     }
 
     pub fn position(&self, t: f64) -> DVec2 {
-        let segs = self.segments();
-        segs.iter()
-            .find(|s| t <= s.t1)
-            .or(segs.last())
-            .map_or(self.entry.pos, |s| s.at(t.clamp(s.t0, s.t1)))
+        crate::geometry::at_time(&self.segments(), t).unwrap_or(self.entry.pos)
     }
 
     /// Speed around time `t`.

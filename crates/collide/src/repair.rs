@@ -178,10 +178,8 @@ fn pair_in(
         return None;
     }
     // Copies of b that overlap a in time: b shifted by k periods.
-    let kmin = ((a0 - b1) / period).ceil() as i64;
-    let kmax = ((a1 - b0) / period).floor() as i64;
     let mut best: Option<(f64, f64, f64)> = None;
-    for k in kmin..=kmax {
+    for k in geometry::copies((a0, a1), (b0, b1), period) {
         if b == a && k <= 0 {
             continue;
         }
@@ -501,7 +499,7 @@ fn push_apart(
         if let Some(pause) = paths[p].pause_at(t) {
             // Else the walker steps aside for the part of the pause around the encounter (a
             // bend inside it would end the pause).
-            if !relocate_pause(paths, p, pause, patch) {
+            if !relocate_pause(paths, p, pause, patch, (tracks, &touched)) {
                 paths[p].split_pause(pause, t, force, keep_inside, clear);
             }
             touched.push(p);
@@ -558,8 +556,15 @@ fn time_move(
 
 /// Moves the pause `(i, j)` of walker `p` to the spot of the patch that stays farthest from
 /// every other walker (and stander and obstacle) during the pause, if that is farther than
-/// where it is. Returns whether it moved.
-fn relocate_pause(paths: &mut [Path], p: usize, (i, j): (usize, usize), patch: &Patch) -> bool {
+/// where it is. Returns whether it moved. `tracks` holds everyone's pieces except those of the
+/// walkers `moved` in this push, whose paths have changed since.
+fn relocate_pause(
+    paths: &mut [Path],
+    p: usize,
+    (i, j): (usize, usize),
+    patch: &Patch,
+    (tracks, moved): (&Tracks, &[usize]),
+) -> bool {
     let r = patch.radius_m;
     let (t0, t1) = (paths[p].free[i].t, paths[p].free[j].t);
     let here = paths[p].free[i].pos;
@@ -568,14 +573,16 @@ fn relocate_pause(paths: &mut [Path], p: usize, (i, j): (usize, usize), patch: &
     let steps = ((t1 - t0) / 0.2).ceil().max(1.0) as usize;
     for (b, path) in paths.iter().enumerate() {
         // Everywhere the walker is near the patch: its bands and their ghosts too.
-        let segs = path.segments();
+        let segs: std::borrow::Cow<[Segment]> = if moved.contains(&b) {
+            path.segments().into()
+        } else {
+            tracks.get(b).into()
+        };
         let (Some(first), Some(last)) = (segs.first(), segs.last()) else {
             continue;
         };
         let (b0, b1) = (first.t0, last.t1);
-        let kmin = ((t0 - b1) / patch.period_s).ceil() as i64;
-        let kmax = ((t1 - b0) / patch.period_s).floor() as i64;
-        for k in kmin..=kmax {
+        for k in geometry::copies((t0, t1), (b0, b1), patch.period_s) {
             if b == p && k == 0 {
                 continue;
             }
@@ -583,8 +590,7 @@ fn relocate_pause(paths: &mut [Path], p: usize, (i, j): (usize, usize), patch: &
             for s in 0..=steps {
                 let t = t0 + (t1 - t0) * s as f64 / steps as f64 - shift;
                 if t >= b0 && t <= b1 {
-                    let i = segs.partition_point(|x| x.t1 < t).min(segs.len() - 1);
-                    others.push(segs[i].at(t.clamp(segs[i].t0, segs[i].t1)));
+                    others.extend(geometry::at_time(&segs, t));
                 }
             }
         }

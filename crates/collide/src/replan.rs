@@ -150,11 +150,7 @@ impl Grid {
 /// Where the pieces `segs` (in time order) are at time `t`, if they exist then.
 fn position(segs: &[Segment], t: f64) -> Option<DVec2> {
     let (first, last) = (segs.first()?, segs.last()?);
-    if t < first.t0 || t > last.t1 {
-        return None;
-    }
-    let i = segs.partition_point(|s| s.t1 < t).min(segs.len() - 1);
-    Some(segs[i].at(t))
+    (t >= first.t0 && t <= last.t1).then(|| geometry::at_time(segs, t))?
 }
 
 /// Everyone walker `p` must keep clear of, as pieces: every other walker, and `p`'s own copies
@@ -165,9 +161,7 @@ fn others(segs: &[Vec<Segment>], p: usize, span: (f64, f64), period: f64) -> Vec
         let (Some(first), Some(last)) = (sb.first(), sb.last()) else {
             continue;
         };
-        let kmin = ((span.0 - last.t1) / period).ceil() as i64;
-        let kmax = ((span.1 - first.t0) / period).floor() as i64;
-        for k in kmin..=kmax {
+        for k in geometry::copies(span, (first.t0, last.t1), period) {
             if b == p && k == 0 {
                 continue;
             }

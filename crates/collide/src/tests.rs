@@ -380,13 +380,11 @@ proptest! {
 }
 
 /// Smallest distance between every pair of walkers (and each walker and its own copies whole
-/// periods away), sampled every 5 ms: independent of the analytic code under test.
+/// periods away), sampled every 5 ms over all their pieces, bands and ghosts included:
+/// independent of the analytic code under test.
 fn smallest_sampled_distance(paths: &[Path], period: f64) -> f64 {
     let segs: Vec<Vec<geometry::Segment>> = paths.iter().map(Path::segments).collect();
-    let at = |s: &[geometry::Segment], t: f64| {
-        let i = s.partition_point(|x| x.t1 < t).min(s.len() - 1);
-        s[i].at(t.clamp(s[i].t0, s[i].t1))
-    };
+    let at = |s: &[geometry::Segment], t: f64| geometry::at_time(s, t).expect("pieces");
     let mut best = f64::INFINITY;
     for i in 0..segs.len() {
         for j in i..segs.len() {
