@@ -16,7 +16,7 @@
 use crate::geometry::{self, Segment};
 use crate::path::{Free, Path};
 use crate::repair::{self, Outcome, Patch};
-use crowd_core::trajectories::PointKind;
+use crowd_core::trajectories::{ControlPoint, PointKind, split_at_periods};
 use glam::DVec2;
 use rand_chacha::ChaCha8Rng;
 
@@ -240,7 +240,7 @@ pub fn plan(paths: &[Path], p: usize, patch: &Patch, how: GridRule) -> Option<Ve
     // the walker was (its way stays close to the one stage 4 and the pushes gave it).
     let mut way = vec![to; layers + 1];
     for k in (1..layers).rev() {
-        let want = paths[p].position(time(k));
+        let want = geometry::at_time(&segs[p], time(k)).expect("the walker's pieces");
         way[k] = grid
             .around(way[k + 1])
             .filter(|&d| reach[k][d])
@@ -320,48 +320,30 @@ fn clear(
 /// The inner points of a planned way as free points: bends, pauses where it stands still for
 /// a while, and a split point at every multiple of the period it passes.
 fn free_points(kept: &[(DVec2, f64)], period: f64) -> Vec<Free> {
-    let inner = &kept[1..kept.len() - 1];
-    let mut free: Vec<Free> = inner
+    let mut points: Vec<ControlPoint> = kept
         .iter()
-        .map(|&(pos, t)| Free {
+        .map(|&(pos, t)| ControlPoint {
             pos,
             t,
             kind: PointKind::Bend,
         })
         .collect();
     // A stretch where it stands for 0.3 s or more is a pause (reached and left at rest when
-    // smoothed).
-    for w in 0..free.len().saturating_sub(1) {
-        if free[w].pos == free[w + 1].pos && free[w + 1].t - free[w].t >= 0.3 {
-            free[w].kind = PointKind::Pause;
-            free[w + 1].kind = PointKind::Pause;
+    // smoothed). The ends are the band ends, never part of a pause.
+    let n = points.len();
+    for w in 1..n.saturating_sub(2) {
+        if points[w].pos == points[w + 1].pos && points[w + 1].t - points[w].t >= 0.3 {
+            points[w].kind = PointKind::Pause;
+            points[w + 1].kind = PointKind::Pause;
         }
     }
-    let (t0, t1) = (kept[0].1, kept[kept.len() - 1].1);
-    let way = geometry::pieces(kept.iter().copied());
-    let mut m = (t0 / period).floor() + 1.0;
-    while m * period < t1 - 1e-9 {
-        let t = m * period;
-        m += 1.0;
-        if t <= t0 + 1e-9 {
-            continue;
-        }
-        let at = free.partition_point(|f| f.t < t - 1e-9);
-        match free.get_mut(at) {
-            // A bend at that very moment becomes the split point.
-            Some(f) if f.t <= t + 1e-9 && f.kind == PointKind::Bend => f.kind = PointKind::Split,
-            _ => {
-                let pos = position(&way, t).expect("inside the way");
-                free.insert(
-                    at,
-                    Free {
-                        pos,
-                        t,
-                        kind: PointKind::Split,
-                    },
-                );
-            }
-        }
-    }
-    free
+    let points = split_at_periods(points, period);
+    points[1..points.len() - 1]
+        .iter()
+        .map(|c| Free {
+            pos: c.pos,
+            t: c.t,
+            kind: c.kind,
+        })
+        .collect()
 }

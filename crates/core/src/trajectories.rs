@@ -119,6 +119,36 @@ pub fn position_at(points: &[ControlPoint], t: f64) -> DVec2 {
     }
 }
 
+/// Inserts a split point wherever the trajectory passes a multiple of the period.
+pub fn split_at_periods(points: Vec<ControlPoint>, period: f64) -> Vec<ControlPoint> {
+    let mut out = Vec::with_capacity(points.len() + 2);
+    for pair in points.windows(2) {
+        let (a, b) = (pair[0], pair[1]);
+        out.push(a);
+        let mut k = (a.t / period).floor() + 1.0;
+        while k * period < b.t - 1e-9 {
+            let at = k * period;
+            if at > a.t + 1e-9 {
+                let f = (at - a.t) / (b.t - a.t);
+                // A pause stays exactly in place (lerp would round it by an ulp).
+                let pos = if a.pos == b.pos {
+                    a.pos
+                } else {
+                    a.pos.lerp(b.pos, f)
+                };
+                out.push(ControlPoint {
+                    pos,
+                    t: at,
+                    kind: PointKind::Split,
+                });
+            }
+            k += 1.0;
+        }
+    }
+    out.extend(points.last().copied());
+    out
+}
+
 /// Everything that moves or stands in one patch.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct PatchMotion {

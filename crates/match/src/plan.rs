@@ -141,7 +141,7 @@ pub fn plan(entry: &Endpoint, exit: &Endpoint, ctx: &PatchContext) -> Trajectory
     Trajectory {
         entry: entry.crossing,
         exit: exit.crossing,
-        points: split_at_periods(points, ctx.period_s),
+        points: crowd_core::trajectories::split_at_periods(points, ctx.period_s),
     }
 }
 
@@ -187,36 +187,6 @@ pub fn with_bands(
             .filter(|p| p.t > start.t + 1e-9 && p.t < end.t - 1e-9),
     );
     out.extend([end, last]);
-    out
-}
-
-/// Inserts a split point wherever the trajectory passes a multiple of the period.
-fn split_at_periods(points: Vec<ControlPoint>, period: f64) -> Vec<ControlPoint> {
-    let mut out = Vec::with_capacity(points.len() + 2);
-    for pair in points.windows(2) {
-        let (a, b) = (pair[0], pair[1]);
-        out.push(a);
-        let mut k = (a.t / period).floor() + 1.0;
-        while k * period < b.t - 1e-9 {
-            let at = k * period;
-            if at > a.t + 1e-9 {
-                let f = (at - a.t) / (b.t - a.t);
-                // A pause stays exactly in place (lerp would round it by an ulp).
-                let pos = if a.pos == b.pos {
-                    a.pos
-                } else {
-                    a.pos.lerp(b.pos, f)
-                };
-                out.push(ControlPoint {
-                    pos,
-                    t: at,
-                    kind: PointKind::Split,
-                });
-            }
-            k += 1.0;
-        }
-    }
-    out.extend(points.last().copied());
     out
 }
 
