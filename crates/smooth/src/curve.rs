@@ -24,8 +24,19 @@ pub struct Limits {
 /// and last chords then leave and reach the border at the crossing velocity, to within
 /// acceleration x this.
 const END_STEP_S: f64 = 0.1;
+/// A corner sharper than this is taken at rest, as people turn back: the curve slows to a
+/// stop there instead of sweeping a wide arc at walking speed (a U-turn at 1.3 m/s on a
+/// 1 m radius spins at 1.3 rad/s for 2.4 s; stopped, it does not spin while walking at all).
+const SHARP_RAD: f64 = std::f64::consts::FRAC_PI_2;
+/// Most of a pause a walker may spend still arriving or already leaving (each side).
+const PAUSE_SHARE: f64 = 0.45;
 /// The finest resampling step.
 const MIN_STEP_S: f64 = 0.05;
+/// The largest change of velocity along one chord of the resampled curve, m/s. A player
+/// shows each chord at constant velocity and the whole change at its vertex: sparse vertices
+/// on a gentle turn would show as jerks (at 0.27 s apart, a 0.3 rad/s turn plays at
+/// 0.8 rad/s in one frame and 0 in the next two).
+const MAX_CHORD_DV: f64 = 0.025;
 
 /// The smoothed trajectory and how many curve points it dropped. Entry and exit stay exactly
 /// where and when they were; the curve leaves the entry at `v_entry` and reaches the exit at
@@ -53,12 +64,24 @@ pub fn smooth(
             continue;
         }
         let mut j = i + 1;
-        while j < last && pts[j + 1].pos != pts[j].pos {
+        while j < last && pts[j + 1].pos != pts[j].pos && !sharp(&pts[j - 1..=j + 1]) {
             j += 1;
         }
         let v0 = if i == first { v_entry } else { DVec2::ZERO };
         let v1 = if j == last { v_exit } else { DVec2::ZERO };
-        dropped += piece(&pts[i..=j], v0, v1, limits, &mut out);
+        // Leaving a pause a little earlier and reaching the next one a little later, at most
+        // PAUSE_SHARE of the standing either side.
+        let leave = if i > first && pts[i - 1].pos == pts[i].pos {
+            PAUSE_SHARE * (pts[i].t - pts[i - 1].t)
+        } else {
+            0.0
+        };
+        let reach = if j < last && pts[j + 1].pos == pts[j].pos {
+            PAUSE_SHARE * (pts[j + 1].t - pts[j].t)
+        } else {
+            0.0
+        };
+        dropped += piece(&pts[i..=j], v0, v1, (leave, reach), limits, &mut out);
         i = j;
     }
     out.extend_from_slice(&pts[last + 1..]);
@@ -72,26 +95,62 @@ pub fn smooth(
     )
 }
 
+/// Does the polyline turn back at the middle of `w` (three points) by more than [`SHARP_RAD`]?
+fn sharp(w: &[ControlPoint]) -> bool {
+    let (u, v) = (w[1].pos - w[0].pos, w[2].pos - w[1].pos);
+    u.length() > 0.0 && v.length() > 0.0 && u.perp_dot(v).atan2(u.dot(v)).abs() > SHARP_RAD
+}
+
 /// Smooths the moving piece `pts` (no pause inside) and appends its points after the first.
+///
+/// A piece that leaves or reaches a pause at rest may take up to `pause_slack` (before, after)
+/// of it: it starts moving that much earlier and stops that much later, so that it slows over
+/// its whole last tack interval instead of braking at its end (a clamped cubic that must
+/// cover its interval's distance and stop brakes at 4 u / h at the end; given half the
+/// interval more, at 4 u / 3 h).
 fn piece(
     pts: &[ControlPoint],
     v0: DVec2,
     v1: DVec2,
+    pause_slack: (f64, f64),
     limits: &Limits,
     out: &mut Vec<ControlPoint>,
 ) -> u64 {
     let (first, last) = (pts[0], pts[pts.len() - 1]);
     let duration = last.t - first.t;
     let n = ((duration / limits.tack_spacing_s).round() as usize).max(1);
+    let interval = duration / n as f64;
+    let (early, late) = (
+        pause_slack.0.min(0.5 * interval),
+        pause_slack.1.min(0.5 * interval),
+    );
     let tack_t: Vec<f64> = (0..=n)
         .map(|k| {
             if k == n {
-                last.t
+                last.t + late
+            } else if k == 0 {
+                first.t - early
             } else {
                 first.t + duration * k as f64 / n as f64
             }
         })
         .collect();
+    if early > 0.0 {
+        // The pause's end point, already written, moves with the start.
+        let end = out.last_mut().expect("a pause before the piece");
+        debug_assert_eq!(end.pos, first.pos);
+        end.t = first.t - early;
+    }
+    let (first, last) = (
+        ControlPoint {
+            t: first.t - early,
+            ..first
+        },
+        ControlPoint {
+            t: last.t + late,
+            ..last
+        },
+    );
     let tack_p: Vec<DVec2> = tack_t.iter().map(|&t| position_at(pts, t)).collect();
     let spline = Spline::clamped(tack_t.clone(), tack_p, v0, v1);
 
@@ -112,6 +171,7 @@ fn piece(
     base.extend(&splits);
     base.sort_by(f64::total_cmp);
     base.dedup_by(|a, b| (*a - *b).abs() < 1e-9);
+    let base: Vec<Knot> = base.into_iter().map(|t| Knot::on(&spline, t)).collect();
     let mut times = vec![base[0]];
     for w in base.windows(2) {
         refine(&spline, w[0], w[1], limits.tolerance_m, 8, &mut times);
@@ -122,10 +182,11 @@ fn piece(
     // Out of the border bands, as stage 5 keeps every free point.
     let (lo, hi) = (limits.band_m, limits.side_m - limits.band_m);
     let inside = |p: DVec2| p.x >= lo && p.y >= lo && p.x <= hi && p.y <= hi;
-    for &t in &times[1..times.len() - 1] {
+    for k in &times[1..times.len() - 1] {
+        let t = k.t;
         let is_split = splits.iter().any(|&s| (s - t).abs() < 1e-9);
         let on_line = position_at(pts, t);
-        let p = on_line + limits.blend * (spline.at(t) - on_line);
+        let p = on_line + limits.blend * (k.p - on_line);
         let kept = p.distance(on_line) <= limits.max_displacement_m && inside(p);
         if kept {
             let kind = if is_split {
@@ -150,20 +211,40 @@ fn piece(
     dropped
 }
 
-/// Adds the times strictly between `a` and `b` where the curve needs more points than its
+/// A time on the curve with its position and velocity there.
+#[derive(Clone, Copy)]
+struct Knot {
+    t: f64,
+    p: DVec2,
+    v: DVec2,
+}
+
+impl Knot {
+    fn on(s: &Spline, t: f64) -> Knot {
+        Knot {
+            t,
+            p: s.at(t),
+            v: s.velocity(t),
+        }
+    }
+}
+
+/// Adds the points strictly between `a` and `b` where the curve needs more points than its
 /// chord, in increasing order.
-fn refine(s: &Spline, a: f64, b: f64, tolerance: f64, depth: u32, times: &mut Vec<f64>) {
-    if depth == 0 || b - a < 2.0 * MIN_STEP_S {
+fn refine(s: &Spline, a: Knot, b: Knot, tolerance: f64, depth: u32, out: &mut Vec<Knot>) {
+    if depth == 0 || b.t - a.t < 2.0 * MIN_STEP_S {
         return;
     }
-    let m = 0.5 * (a + b);
-    let chord = 0.5 * (s.at(a) + s.at(b));
-    if s.at(m).distance(chord) <= tolerance {
+    let m = Knot::on(s, 0.5 * (a.t + b.t));
+    // The chord plays at its own velocity: it must be near the curve's all along it.
+    let along = (b.p - a.p) / (b.t - a.t);
+    let close = |k: &Knot| k.v.distance(along) <= 0.5 * MAX_CHORD_DV;
+    if m.p.distance(0.5 * (a.p + b.p)) <= tolerance && close(&a) && close(&m) && close(&b) {
         return;
     }
-    refine(s, a, m, tolerance, depth - 1, times);
-    times.push(m);
-    refine(s, m, b, tolerance, depth - 1, times);
+    refine(s, a, m, tolerance, depth - 1, out);
+    out.push(m);
+    refine(s, m, b, tolerance, depth - 1, out);
 }
 
 #[cfg(test)]
@@ -217,8 +298,27 @@ mod tests {
         assert!((chord(&s.points[n - 3], &s.points[n - 2]) - v).length() < 0.1);
     }
 
+    /// Largest change of velocity from one chord of `tr` to the next, over the time between
+    /// their middles (m/s2), and the largest change itself (m/s).
+    fn chord_changes(tr: &Trajectory) -> (f64, f64) {
+        let chords: Vec<(DVec2, f64)> = tr
+            .points
+            .windows(2)
+            .map(|w| {
+                (
+                    (w[1].pos - w[0].pos) / (w[1].t - w[0].t),
+                    0.5 * (w[0].t + w[1].t),
+                )
+            })
+            .collect();
+        chords.windows(2).fold((0.0, 0.0), |(a, d), w| {
+            let dv = (w[1].0 - w[0].0).length();
+            (f64::max(a, dv / (w[1].1 - w[0].1)), f64::max(d, dv))
+        })
+    }
+
     #[test]
-    fn a_pause_stays_and_is_reached_at_rest() {
+    fn a_pause_stays_where_it_was_and_is_reached_at_rest_without_braking_hard() {
         let tr = Trajectory {
             entry: 0,
             exit: 1,
@@ -229,17 +329,76 @@ mod tests {
                 cp(4.0, 8.0, 12.0, PointKind::Exit),
             ],
         };
-        let (s, _) = smooth(&tr, DVec2::new(1.3, 0.0), DVec2::new(0.0, 1.3), &limits());
+        // Tacks 3 s apart, as pipelines have them by default.
+        let limits = Limits {
+            tack_spacing_s: 3.0,
+            ..limits()
+        };
+        let (s, _) = smooth(&tr, DVec2::new(1.3, 0.0), DVec2::new(0.0, 1.3), &limits);
         let pauses: Vec<_> = s
             .points
             .iter()
             .filter(|p| p.kind == PointKind::Pause)
             .collect();
         assert_eq!(pauses.len(), 2);
-        assert_eq!((pauses[0].t, pauses[1].t), (3.0, 9.0));
-        let k = s.points.iter().position(|p| p.t == 3.0).unwrap();
+        assert!(pauses.iter().all(|p| p.pos == DVec2::new(4.0, 4.0)));
+        // Reached a little later and left a little earlier: it still stands most of the time.
+        let (start, end) = (pauses[0].t, pauses[1].t);
+        assert!(
+            (3.0..=4.5).contains(&start) && (7.5..=9.0).contains(&end),
+            "{start} {end}"
+        );
+        let k = s.points.iter().position(|p| p.t == start).unwrap();
         let before = s.points[k - 1];
-        assert!(before.pos.distance(pauses[0].pos) / (3.0 - before.t) < 0.3);
+        assert!(before.pos.distance(pauses[0].pos) / (start - before.t) < 0.3);
+        // Braking into the pause over the whole interval: 4 u / 3 h = 0.59 m/s2, not 4 u / h.
+        let (accel, _) = chord_changes(&s);
+        assert!(accel < 0.8, "{accel}");
+    }
+
+    #[test]
+    fn a_turn_back_is_taken_at_rest() {
+        let tr = Trajectory {
+            entry: 0,
+            exit: 1,
+            points: vec![
+                cp(2.0, 8.0, 0.0, PointKind::Entry),
+                cp(2.0, 7.7, 0.25, PointKind::Band),
+                cp(3.0, 4.0, 3.25, PointKind::Turn),
+                cp(4.0, 7.7, 6.25, PointKind::Band),
+                cp(4.0, 8.0, 6.5, PointKind::Exit),
+            ],
+        };
+        let (s, _) = smooth(&tr, DVec2::new(0.0, -1.2), DVec2::new(0.0, 1.2), &limits());
+        let k = s.points.iter().position(|p| p.t == 3.25).unwrap();
+        assert_eq!(s.points[k].pos, DVec2::new(3.0, 4.0));
+        let speed = |a: &ControlPoint, b: &ControlPoint| a.pos.distance(b.pos) / (b.t - a.t);
+        assert!(speed(&s.points[k - 1], &s.points[k]) < 0.2);
+        assert!(speed(&s.points[k], &s.points[k + 1]) < 0.2);
+    }
+
+    #[test]
+    fn the_curve_changes_velocity_little_from_one_chord_to_the_next() {
+        let tr = Trajectory {
+            entry: 0,
+            exit: 1,
+            points: vec![
+                cp(0.0, 2.0, 1.0, PointKind::Entry),
+                cp(0.3, 2.0, 1.0 + 0.3 / 1.3, PointKind::Band),
+                cp(4.0, 3.0, 4.0, PointKind::Bend),
+                cp(7.7, 2.0, 7.0 - 0.3 / 1.3, PointKind::Band),
+                cp(8.0, 2.0, 7.0, PointKind::Exit),
+            ],
+        };
+        let v = DVec2::new(1.3, 0.0);
+        let (s, _) = smooth(&tr, v, v, &limits());
+        // The polyline changes velocity at once at its bend; the curve in steps that a player
+        // shows as a smooth turn.
+        // (Chords shorter than a frame, where the curve turns fast, may change by more than
+        // MAX_CHORD_DV; a fifth of the polyline's corner is still far from a corner.)
+        let (_, corner) = chord_changes(&tr);
+        let (_, step) = chord_changes(&s);
+        assert!(corner > 0.5 && step < corner / 5.0, "{corner} {step}");
     }
 
     #[test]

@@ -79,6 +79,24 @@ impl Spline {
         h00 * self.p[i] + h10 * h * self.v[i] + h01 * self.p[i + 1] + h11 * h * self.v[i + 1]
     }
 
+    /// Velocity at time `t` (clamped to the knots' span).
+    pub fn velocity(&self, t: f64) -> DVec2 {
+        let n = self.t.len();
+        let t = t.clamp(self.t[0], self.t[n - 1]);
+        let i = match self.t.binary_search_by(|x| x.total_cmp(&t)) {
+            Ok(i) => return self.v[i],
+            Err(i) => i.clamp(1, n - 1) - 1,
+        };
+        let h = self.t[i + 1] - self.t[i];
+        let s = (t - self.t[i]) / h;
+        let s2 = s * s;
+        let d00 = 6.0 * s2 - 6.0 * s;
+        let d10 = 3.0 * s2 - 4.0 * s + 1.0;
+        let d01 = -6.0 * s2 + 6.0 * s;
+        let d11 = 3.0 * s2 - 2.0 * s;
+        (d00 * self.p[i] + d01 * self.p[i + 1]) / h + d10 * self.v[i] + d11 * self.v[i + 1]
+    }
+
     /// Velocity at knot `i`.
     pub fn knot_velocity(&self, i: usize) -> DVec2 {
         self.v[i]
