@@ -5,5 +5,6 @@ mod util;
 
 mod bad_input;
 mod build;
+mod export;
 mod patterns;
 mod scenes;

@@ -112,6 +112,20 @@ pub enum Command {
         #[arg(long, short, value_name = "FILE")]
         output: Option<PathBuf>,
     },
+    /// Stage 8: export the final trajectories as a binary patch library for crowd-runtime
+    /// (reads the smoothed trajectories, and the graph and patterns beside them).
+    Export {
+        #[arg(long, default_value = "pipeline.ron", value_name = "FILE")]
+        pipeline: PathBuf,
+        /// Stage 6's file (default: `smoothed.ron` in the pipeline's output folder); the graph
+        /// and patterns are read from `graph.ron` and `patterns.ron` beside it.
+        #[arg(long, short, value_name = "FILE")]
+        input: Option<PathBuf>,
+        /// Output manifest (default: `export.ron` in the pipeline's output folder); the
+        /// library (`library.crowd`) is written beside it.
+        #[arg(long, short, value_name = "FILE")]
+        output: Option<PathBuf>,
+    },
     /// A readable summary of any stage file.
     Inspect { file: PathBuf },
     /// A picture of a stage file as PNG: merged maps, patch graph, error map and convergence,
@@ -295,10 +309,39 @@ pub fn run(cli: Cli) -> Result<()> {
             let inputs = driver::smooth_inputs(&p);
             let hash =
                 crowd_smooth::input_hash(&graph_bytes, &patterns_bytes, &collided_bytes, &inputs);
-            write_all(&driver::smooth_stage(
+            let (_, writes) = driver::smooth_stage(
                 &graph, &crossings, &collided, &motion, &inputs, hash, &out, &ui,
-            ))?;
+            );
+            write_all(&writes)?;
             ui.say(format!("smooth: wrote {}", out.display()));
+        }
+        Command::Export {
+            pipeline,
+            input,
+            output,
+        } => {
+            let (p, input, out) = stage_files(
+                &pipeline,
+                input,
+                output,
+                driver::SMOOTHED_FILE,
+                driver::EXPORT_FILE,
+            )?;
+            let (graph_bytes, graph) = graph_beside(&input)?;
+            let patterns_path = input.with_file_name(driver::PATTERNS_FILE);
+            let (_, crossings) = Patterns::load_for(&patterns_path, &graph)?;
+            let patterns_bytes = read_bytes(&patterns_path)?;
+            let (stage, version) = (crowd_smooth::STAGE, crowd_smooth::VERSION);
+            let (_, motion) =
+                TrajectoriesFile::load_for(&input, stage, version, graph.patches.len())?;
+            let smoothed_bytes = read_bytes(&input)?;
+            let inputs = driver::export_inputs(&p);
+            let hash =
+                crowd_export::input_hash(&graph_bytes, &patterns_bytes, &smoothed_bytes, &inputs);
+            write_all(&driver::export_stage(
+                &graph, &crossings, &motion, &inputs, hash, &out,
+            )?)?;
+            ui.say(format!("export: wrote {}", out.display()));
         }
         Command::Inspect { file } => print!("{}", crate::inspect::inspect(&file)?),
         Command::Check { dir, stage } => {

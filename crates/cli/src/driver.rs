@@ -27,6 +27,7 @@ pub const PATTERNS_FILE: &str = "patterns.ron";
 pub const TRAJECTORIES_FILE: &str = "trajectories.ron";
 pub const COLLIDED_FILE: &str = "collided.ron";
 pub const SMOOTHED_FILE: &str = "smoothed.ron";
+pub const EXPORT_FILE: &str = "export.ron";
 /// Wall time of the last run of each stage. Not compared between builds: it is the one output
 /// that is not deterministic.
 pub const TIMINGS_FILE: &str = "timings.ron";
@@ -50,6 +51,7 @@ pub enum Stage {
     Match,
     Collide,
     Smooth,
+    Export,
 }
 
 /// What happened to one stage in a build.
@@ -279,15 +281,16 @@ pub fn build(pipeline_path: &Path, options: &BuildOptions, ui: &Ui) -> Result<Ve
     let inputs = smooth_inputs(&pipeline);
     let hash = crowd_smooth::input_hash(&graph_bytes, &patterns_bytes, &collided_bytes, &inputs);
     let (stage6, version6) = (crowd_smooth::STAGE, crowd_smooth::VERSION);
-    let fresh = up_to_date(
+    let current = up_to_date(
         options.force,
         &smoothed_path,
         stage6,
         version6,
         hash,
         || TrajectoriesFile::load_stage(&smoothed_path, stage6, version6),
-    )
-    .is_some();
+    );
+    let fresh = current.is_some();
+    let mut smoothed: Option<(Vec<u8>, Vec<PatchMotion>)> = None;
     outcomes.push(stage(
         ui,
         "smooth",
@@ -295,7 +298,7 @@ pub fn build(pipeline_path: &Path, options: &BuildOptions, ui: &Ui) -> Result<Ve
         fresh,
         &mut timings,
         || {
-            let writes = smooth_stage(
+            let (motion, writes) = smooth_stage(
                 &graph,
                 &crossings,
                 &collided,
@@ -305,6 +308,49 @@ pub fn build(pipeline_path: &Path, options: &BuildOptions, ui: &Ui) -> Result<Ve
                 &smoothed_path,
                 ui,
             );
+            let ron = writes
+                .iter()
+                .find(|(p, _)| *p == smoothed_path)
+                .map(|(_, b)| b.clone())
+                .expect("stage 6 writes its RON file");
+            smoothed = Some((ron, motion));
+            pending.0.extend(writes);
+            Ok(())
+        },
+    )?);
+    if options.until == Some(Stage::Smooth) {
+        return finish(&out, pending, &timings, outcomes);
+    }
+    let (smoothed_bytes, final_motion) = match (smoothed, current) {
+        (Some(built), _) => built,
+        (None, current) => {
+            let (bytes, (_, motion)) = current.expect("smooth was built or is up to date");
+            check_motion(&smoothed_path, graph.patches.len(), &motion)?;
+            (bytes, motion)
+        }
+    };
+    drop(motion);
+
+    // Stage 8: export (stage 7, edit, is optional and not built yet).
+    let export_path = out.join(EXPORT_FILE);
+    let inputs = export_inputs(&pipeline);
+    let hash = crowd_export::input_hash(&graph_bytes, &patterns_bytes, &smoothed_bytes, &inputs);
+    let fresh = !options.force && export_current(&export_path, hash);
+    outcomes.push(stage(
+        ui,
+        "export",
+        &export_path,
+        fresh,
+        &mut timings,
+        || {
+            let writes = export_stage(
+                &graph,
+                &crossings,
+                &final_motion,
+                &inputs,
+                hash,
+                &export_path,
+            )?;
             pending.0.extend(writes);
             Ok(())
         },
@@ -373,10 +419,35 @@ pub fn smooth_stage(
     hash: Hash,
     out: &Path,
     ui: &Ui,
-) -> Writes {
+) -> (Vec<PatchMotion>, Writes) {
     let bar = ui.stage_bar("smooth");
     let (motion, summary) = crowd_smooth::smooth(graph, crossings, motion, inputs, &bar);
-    crowd_smooth::encode(out, &motion, summary, collided, inputs, hash).1
+    let writes = crowd_smooth::encode(out, &motion, summary, collided, inputs, hash).1;
+    (motion, writes)
+}
+
+/// Stage 8 in memory: what `crowd build` and `crowd export` both run. `out` is `export.ron`;
+/// the library goes beside it.
+pub fn export_stage(
+    graph: &PatchGraph,
+    crossings: &[Crossing],
+    motion: &[PatchMotion],
+    inputs: &crowd_export::Inputs,
+    hash: Hash,
+    out: &Path,
+) -> Result<Writes> {
+    let export = crowd_export::export(graph, crossings, motion, inputs, hash)
+        .map_err(|e| anyhow::anyhow!("{}: cannot export: {e}", out.display()))?;
+    Ok(crowd_export::writes(out, export))
+}
+
+/// What stage 8 reads of a pipeline.
+pub fn export_inputs(pipeline: &PipelineFile) -> crowd_export::Inputs {
+    let p = &pipeline.pipeline;
+    crowd_export::Inputs {
+        period_s: p.period_s,
+        seed: p.seed,
+    }
 }
 
 /// What stage 6 reads of a pipeline.
@@ -462,6 +533,17 @@ fn up_to_date<T>(
 }
 
 /// Whether the stage file at `path` was built by this stage version from exactly `hash`.
+/// Stage 8 is up to date when `export.ron` records `hash` and the library beside it is the
+/// one it names, byte for byte.
+fn export_current(path: &Path, hash: Hash) -> bool {
+    let Ok(file) = files::read_ron::<crowd_export::ExportFile>(path) else {
+        return false;
+    };
+    file.header == Header::new(crowd_export::STAGE, crowd_export::VERSION, hash)
+        && std::fs::read(path.with_file_name(&file.library))
+            .is_ok_and(|b| Hash::of(&b) == file.library_hash)
+}
+
 fn is_current(path: &Path, stage: &str, version: u32, hash: Hash) -> bool {
     files::read_header(path).is_ok_and(|h| h == Header::new(stage, version, hash))
 }

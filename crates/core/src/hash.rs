@@ -13,6 +13,11 @@ impl Hash {
         Hash(*blake3::hash(bytes).as_bytes())
     }
 
+    /// The 32 bytes.
+    pub fn as_bytes(&self) -> &[u8; 32] {
+        &self.0
+    }
+
     /// The first 16 hex digits, for messages.
     pub fn short(&self) -> String {
         self.to_string()[..16].to_string()

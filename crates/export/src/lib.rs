@@ -1,0 +1,119 @@
+//! Stage 8, export: the final trajectories (stage 6's, or stage 7's) as what engines load.
+//!
+//! - [`library`]: the binary patch library that `crowd-runtime` plays (`FORMAT.md`): patches
+//!   in their places, patterns, standers, trajectories quantised in patch-local space and time,
+//!   and the links that keep a character's identity from patch to patch.
+//! - [`characters`]: those links as loops, the one notion of "a character" both outputs share.
+
+pub mod characters;
+pub mod library;
+
+use crowd_core::{Hash, Hasher};
+
+/// The stage name in `export.ron`'s header.
+pub const STAGE: &str = "export";
+pub const VERSION: u32 = 1;
+
+/// What stage 8 reads of a pipeline besides its input files.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct Inputs {
+    pub period_s: f64,
+    pub seed: u64,
+}
+
+/// The hash of stage 8's inputs: the graph, patterns and final trajectories' bytes and settings.
+pub fn input_hash(graph: &[u8], patterns: &[u8], trajectories: &[u8], inputs: &Inputs) -> Hash {
+    Hasher::new(STAGE, VERSION)
+        .file("graph file", graph)
+        .file("patterns file", patterns)
+        .file("trajectories file", trajectories)
+        .value("inputs", inputs)
+        .finish()
+}
+
+/// The library's file name beside `export.ron`.
+pub const LIBRARY_FILE: &str = "library.crowd";
+
+/// `export.ron`: what stage 8 wrote and the figures an engine programmer asks first.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct ExportFile {
+    pub header: crowd_core::files::Header,
+    /// The binary patch library (`FORMAT.md`), its size and content hash.
+    pub library: String,
+    pub library_bytes: u64,
+    pub library_hash: Hash,
+    pub walkers: u64,
+    pub standers: u64,
+    /// Loops of linked trajectories; a loop of k periods carries k walkers.
+    pub loops: u64,
+    pub points: u64,
+    /// Worst-case quantisation error of the library: metres, seconds.
+    pub position_error_m: f64,
+    pub time_error_s: f64,
+}
+
+impl ExportFile {
+    pub const STAGE: &'static str = STAGE;
+    pub const VERSION: u32 = VERSION;
+}
+
+/// Everything stage 8 makes, in memory.
+pub struct Export {
+    pub file: ExportFile,
+    pub library: Vec<u8>,
+}
+
+/// Why stage 8 cannot export a build.
+pub type ExportError = library::LibraryError;
+
+/// Stage 8's pure core: the library of the final trajectories, and its manifest.
+pub fn export(
+    graph: &crowd_core::PatchGraph,
+    crossings: &[crowd_core::patterns::Crossing],
+    motion: &[crowd_core::trajectories::PatchMotion],
+    inputs: &Inputs,
+    hash: Hash,
+) -> Result<Export, ExportError> {
+    let links = characters::link(motion, crossings.len()).map_err(library::LibraryError::Links)?;
+    let mut short = [0u8; 8];
+    short.copy_from_slice(&hash.as_bytes()[..8]);
+    let lib = library::build(
+        graph,
+        crossings,
+        motion,
+        &links,
+        inputs.period_s,
+        inputs.seed,
+        short,
+    )?;
+    let bytes = lib.to_bytes();
+    let file = ExportFile {
+        header: crowd_core::files::Header::new(STAGE, VERSION, hash),
+        library: LIBRARY_FILE.to_string(),
+        library_bytes: bytes.len() as u64,
+        library_hash: Hash::of(&bytes),
+        walkers: lib.walkers(),
+        standers: lib.standers.len() as u64,
+        loops: lib.characters.len() as u64,
+        points: lib.points.len() as u64,
+        position_error_m: graph.world.patch_side_m * library::POSITION_ERROR_SHARE,
+        time_error_s: 0.5 * crowd_runtime::TICK_S,
+    };
+    Ok(Export {
+        file,
+        library: bytes,
+    })
+}
+
+/// Stage 8's files: the library, then `export.ron` (written last, so that a manifest always
+/// names a library that is there).
+pub fn writes(out: &std::path::Path, export: Export) -> crowd_core::files::Writes {
+    let dir = out.parent().unwrap_or(std::path::Path::new("."));
+    vec![
+        (dir.join(LIBRARY_FILE), export.library),
+        (
+            out.to_path_buf(),
+            crowd_core::files::to_ron(&export.file).into_bytes(),
+        ),
+    ]
+}

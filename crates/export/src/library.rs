@@ -1,0 +1,183 @@
+//! The binary patch library: stage 6's trajectories quantised for `crowd-runtime`.
+//!
+//! Positions are patch-local in steps of side / 65535 (within side / 131,070 of the exact
+//! point); times are whole ticks of 0.1 ms from each trajectory's start, which is itself in
+//! ticks of the period (within 0.05 ms). Where a trajectory ends, its time is snapped to the
+//! start of the one that continues it, a whole number of periods on, so that every loop lasts
+//! exactly its laps x the period and the runtime's links are exact.
+
+use crate::characters::{LinkError, Links};
+use crowd_core::PatchGraph;
+use crowd_core::patterns::Crossing;
+use crowd_core::trajectories::PatchMotion;
+use crowd_runtime::{Character, Library, Point, TICK_S, World};
+
+/// Worst-case quantisation error of positions, as a share of the patch side.
+pub const POSITION_ERROR_SHARE: f64 = 0.5 / 65535.0;
+
+/// Why a library cannot be made.
+#[derive(Debug, Clone, PartialEq)]
+pub enum LibraryError {
+    Links(LinkError),
+    /// The period is not a whole number of ticks, so loops could not close exactly.
+    Period(f64),
+    /// More of something than the format's 32-bit counts hold.
+    TooMany(&'static str),
+}
+
+impl std::fmt::Display for LibraryError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            LibraryError::Links(e) => e.fmt(f),
+            LibraryError::Period(p) => write!(
+                f,
+                "period {p} s is not a whole number of 0.1 ms ticks; expected e.g. 20.0 or 17.5"
+            ),
+            LibraryError::TooMany(what) => write!(f, "more {what} than a library holds (2^32)"),
+        }
+    }
+}
+
+impl std::error::Error for LibraryError {}
+
+/// The library of a build.
+pub fn build(
+    graph: &PatchGraph,
+    crossings: &[Crossing],
+    motion: &[PatchMotion],
+    links: &Links,
+    period_s: f64,
+    seed: u64,
+    input_hash: [u8; 8],
+) -> Result<Library, LibraryError> {
+    let period_ticks = (period_s / TICK_S).round();
+    if (period_ticks * TICK_S - period_s).abs() > 1e-9 || period_ticks < 1.0 {
+        return Err(LibraryError::Period(period_s));
+    }
+    let period_ticks = period_ticks as u64;
+    let count = |n: usize, what| u32::try_from(n).map_err(|_| LibraryError::TooMany(what));
+    let side = graph.world.patch_side_m;
+    let quant = |v: f64| ((v / side).clamp(0.0, 1.0) * 65535.0).round() as u16;
+    let ticks = |t: f64| (t / TICK_S).round() as i64;
+    let pt = period_ticks as i64;
+
+    let world = World {
+        patch_side_m: side as f32,
+        period_ticks: count(period_ticks as usize, "ticks in a period")?,
+        radius_m: graph.radius_m as f32,
+        cols: graph.world.cols,
+        rows: graph.world.rows,
+        seed,
+        input_hash,
+    };
+    let mut patches = Vec::with_capacity(motion.len());
+    let mut standers = Vec::new();
+    let mut trajectories = Vec::with_capacity(links.refs.len());
+    let mut points = Vec::new();
+    // Starts first: a trajectory's end is snapped to its successor's start.
+    let start_of = |i: usize| {
+        let r = links.refs[i];
+        ticks(motion[r.patch].trajectories[r.index].points[0].t).rem_euclid(pt)
+    };
+    for (p, m) in motion.iter().enumerate() {
+        let cell = graph.patches[p].cell;
+        patches.push(crowd_runtime::Patch {
+            col: cell.col,
+            row: cell.row,
+            first_trajectory: count(trajectories.len(), "trajectories")?,
+            trajectories: count(m.trajectories.len(), "trajectories")?,
+            first_stander: count(standers.len(), "standers")?,
+            standers: count(m.standers.len(), "standers")?,
+        });
+        standers.extend(m.standers.iter().map(|s| Point {
+            x: quant(s.x),
+            y: quant(s.y),
+            t: 0,
+        }));
+        for tr in &m.trajectories {
+            let i = trajectories.len();
+            let start = start_of(i);
+            // Relative ticks as differences of absolute ones: each point's time is then within
+            // half a tick of exact.
+            let t0 = ticks(tr.points[0].t);
+            let first_point = count(points.len(), "points")?;
+            // The end, snapped: the successor's start a whole number of periods on.
+            let succ = start_of(links.next[i]);
+            let exact = ticks(tr.points[tr.points.len() - 1].t) - t0;
+            let gap = (succ - start).rem_euclid(pt);
+            let mut end = gap + pt * ((exact - gap) as f64 / pt as f64).round() as i64;
+            while end < 1 {
+                end += pt;
+            }
+            let mut last = 0i64;
+            for (k, cp) in tr.points.iter().enumerate() {
+                let t = if k == 0 {
+                    0
+                } else if k + 1 == tr.points.len() {
+                    end
+                } else {
+                    (ticks(cp.t) - t0).clamp(last, end)
+                };
+                last = t;
+                points.push(Point {
+                    x: quant(cp.pos.x),
+                    y: quant(cp.pos.y),
+                    t: u32::try_from(t).map_err(|_| LibraryError::TooMany("ticks in a walk"))?,
+                });
+            }
+            trajectories.push(crowd_runtime::Trajectory {
+                patch: p as u32,
+                entry: tr.entry,
+                exit: tr.exit,
+                next: count(links.next[i], "trajectories")?,
+                first_point,
+                points: count(tr.points.len(), "points")?,
+                start: start as u32,
+            });
+        }
+    }
+    let characters = links
+        .loops
+        .iter()
+        .map(|lp| {
+            let total: u64 = lp
+                .iter()
+                .map(|&i| {
+                    let t = &trajectories[i];
+                    u64::from(points[(t.first_point + t.points - 1) as usize].t)
+                })
+                .sum();
+            Ok(Character {
+                first_trajectory: count(lp[0], "trajectories")?,
+                trajectories: count(lp.len(), "trajectories")?,
+                laps: count((total / period_ticks) as usize, "laps")?,
+            })
+        })
+        .collect::<Result<Vec<_>, LibraryError>>()?;
+    let crossing_records = crossings
+        .iter()
+        .map(|c| {
+            let (from, to) = c.ends(graph);
+            let origin = graph.world_from_patch(graph.patches[to.patch.0 as usize].cell);
+            let at = origin + to.pos;
+            crowd_runtime::Crossing {
+                from_patch: from.patch.0,
+                to_patch: to.patch.0,
+                x: at.x as f32,
+                y: at.y as f32,
+                t: (ticks(c.t).rem_euclid(pt)) as u32,
+                vx: c.velocity.x as f32,
+                vy: c.velocity.y as f32,
+            }
+        })
+        .collect();
+    Ok(Library {
+        world,
+        patches,
+        standers,
+        crossings: crossing_records,
+        trajectories,
+        points,
+        characters,
+    })
+}

@@ -1,0 +1,19 @@
+//! The runtime an engine embeds to play a crowd-patches library (stage 8's `library.crowd`).
+//!
+//! [`Library::from_bytes`] checks untrusted bytes completely (section table, checksums, every
+//! index and count, every character's loop) and never panics, reads out of bounds or
+//! allocates more than the bytes can hold. [`Sampler::sample`] then yields every character in
+//! a view rectangle at a time: per-character cursors make a frame O(characters), with no
+//! search while time moves forward. `FORMAT.md` at the repository root documents the bytes.
+
+pub mod crc;
+mod error;
+mod format;
+mod sampler;
+
+pub use crc::crc32;
+pub use error::LoadError;
+pub use format::{
+    Character, Crossing, Library, MAGIC, Patch, Point, TICK_S, Trajectory, VERSION, World,
+};
+pub use sampler::{Sample, Sampler};

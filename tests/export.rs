@@ -1,0 +1,227 @@
+//! Stage 8's library, played by crowd-runtime: what an engine gets is what stage 6 made,
+//! within the stated quantisation error, and every character walks on without a jump.
+
+use crate::util::*;
+use crowd_core::trajectories::TrajectoriesFile;
+use crowd_runtime::{Library, Sample, Sampler, TICK_S};
+use proptest::prelude::*;
+use std::path::Path;
+use std::sync::OnceLock;
+
+/// Positions the engine gets are within this of stage 6's (library quantisation, 0.06 mm on
+/// an 8 m patch, plus f32 world coordinates), metres.
+const POSITION_TOLERANCE_M: f64 = 2e-4;
+
+fn library(out: &Path) -> Library {
+    Library::from_bytes(&std::fs::read(out.join("library.crowd")).unwrap()).unwrap()
+}
+
+fn smoothed(out: &Path) -> Vec<crowd_core::trajectories::PatchMotion> {
+    let (stage, version) = (crowd_smooth::STAGE, crowd_smooth::VERSION);
+    TrajectoriesFile::load_stage(&out.join("smoothed.ron"), stage, version)
+        .unwrap()
+        .1
+}
+
+const EVERYWHERE: [f32; 4] = [-1e9, -1e9, 1e9, 1e9];
+
+#[test]
+fn every_scene_but_painting_exports_a_library_that_loads_with_every_walker_and_stander() {
+    for name in ["bands", "center-flow", "city", "lanes", "ring"] {
+        let (_dir, out) = build_shared_scene(name, "export");
+        let lib = library(&out);
+        let motion = smoothed(&out);
+        let standers: usize = motion.iter().map(|m| m.standers.len()).sum();
+        let walker_time: f64 = motion
+            .iter()
+            .flat_map(|m| &m.trajectories)
+            .map(|t| t.duration())
+            .sum();
+        // Each walker spends one period in the world per period: walker-time / period walkers.
+        let walkers = (walker_time / lib.period_s()).round() as u64;
+        assert_eq!(lib.walkers(), walkers, "{name}");
+        assert_eq!(lib.standers.len(), standers, "{name}");
+        let mut sampler = Sampler::new(&lib);
+        let mut seen = Vec::new();
+        sampler.sample(3.25, EVERYWHERE, &mut seen);
+        assert_eq!(seen.len() as u64, walkers + standers as u64, "{name}");
+    }
+}
+
+/// Stage 6's keyframes, and where the runtime puts somebody at their times.
+#[test]
+fn sampling_at_the_keyframes_gives_stage_6_positions_within_the_quantisation_error() {
+    let (_dir, out) = build_shared_scene("city", "export");
+    let graph = crowd_core::PatchGraph::load(&out.join("graph.ron")).unwrap();
+    let lib = library(&out);
+    let motion = smoothed(&out);
+    let mut sampler = Sampler::new(&lib);
+    let mut seen = Vec::new();
+    let mut checked = 0;
+    let mut worst: f64 = 0.0;
+    for (p, m) in motion.iter().enumerate().step_by(13) {
+        let origin = graph.world_from_patch(graph.patches[p].cell);
+        for tr in m.trajectories.iter().step_by(3) {
+            for cp in tr.points.iter().step_by(5) {
+                let at = origin + cp.pos;
+                let e = 1e-3;
+                let view = [
+                    (at.x - e) as f32,
+                    (at.y - e) as f32,
+                    (at.x + e) as f32,
+                    (at.y + e) as f32,
+                ];
+                sampler.sample(cp.t, view, &mut seen);
+                let nearest = seen
+                    .iter()
+                    .map(|s| (f64::from(s.x) - at.x).hypot(f64::from(s.y) - at.y))
+                    .fold(f64::INFINITY, f64::min);
+                assert!(
+                    nearest <= POSITION_TOLERANCE_M,
+                    "patch {p} at {}: {nearest}",
+                    cp.t
+                );
+                worst = worst.max(nearest);
+                checked += 1;
+            }
+        }
+    }
+    assert!(checked > 1000, "{checked}");
+    eprintln!("{checked} keyframes, worst {worst:.2e} m");
+}
+
+/// Every character, frame after frame over three periods: never a step longer than the
+/// fastest walk allows, across patch borders and period ends alike.
+#[test]
+fn every_character_walks_on_continuously_across_patches_and_periods() {
+    let (_dir, out) = build_shared_scene("ring", "export");
+    let lib = library(&out);
+    let mut fastest: f64 = 0.0;
+    for t in &lib.trajectories {
+        let patch = &lib.patches[t.patch as usize];
+        for w in lib.points_of(t).windows(2) {
+            let (a, b) = (
+                lib.world_position(patch, w[0]),
+                lib.world_position(patch, w[1]),
+            );
+            if w[1].t > w[0].t {
+                let d = (b[0] - a[0]).hypot(b[1] - a[1]);
+                fastest = fastest.max(d / (f64::from(w[1].t - w[0].t) * TICK_S));
+            }
+        }
+    }
+    let dt = 1.0 / 30.0;
+    let frames = (3.0 * lib.period_s() / dt) as usize;
+    let mut sampler = Sampler::new(&lib);
+    let (mut before, mut now): (Vec<Sample>, Vec<Sample>) = (Vec::new(), Vec::new());
+    sampler.sample(0.0, EVERYWHERE, &mut before);
+    for f in 1..=frames {
+        sampler.sample(f as f64 * dt, EVERYWHERE, &mut now);
+        assert_eq!(now.len(), before.len());
+        for (a, b) in before.iter().zip(&now) {
+            assert_eq!(a.id, b.id);
+            let step = f64::from(b.x - a.x).hypot(f64::from(b.y - a.y));
+            assert!(
+                step <= fastest * dt + 1e-3,
+                "character {} jumps {step} m at frame {f}",
+                a.id
+            );
+        }
+        std::mem::swap(&mut before, &mut now);
+    }
+}
+
+#[test]
+fn a_frame_is_the_same_whether_time_ran_forward_to_it_or_jumped_there() {
+    let (_dir, out) = build_shared_scene("bands", "export");
+    let lib = library(&out);
+    let mut walked = Sampler::new(&lib);
+    let (mut a, mut b) = (Vec::new(), Vec::new());
+    for f in 0..=900 {
+        walked.sample(f as f64 / 30.0, EVERYWHERE, &mut a);
+    }
+    for t in [30.0, 1e4 + 30.0 - 500.0 * lib.period_s()] {
+        Sampler::new(&lib).sample(t, EVERYWHERE, &mut b);
+        assert_eq!(a.len(), b.len());
+        for (x, y) in a.iter().zip(&b) {
+            assert_eq!(x.id, y.id);
+            assert!(
+                (x.x - y.x).abs() < 1e-3 && (x.y - y.y).abs() < 1e-3,
+                "{x:?} {y:?}"
+            );
+        }
+    }
+    // And back in time: the sampler searches instead of walking.
+    walked.sample(1.0, EVERYWHERE, &mut a);
+    Sampler::new(&lib).sample(1.0, EVERYWHERE, &mut b);
+    assert_eq!(a.len(), b.len());
+    assert!(a.iter().zip(&b).all(|(x, y)| x == y), "the same samples");
+}
+
+fn bands_library() -> &'static Vec<u8> {
+    static BYTES: OnceLock<Vec<u8>> = OnceLock::new();
+    BYTES.get_or_init(|| {
+        let (dir, out) = build_shared_scene("bands", "export");
+        let bytes = std::fs::read(out.join("library.crowd")).unwrap();
+        drop(dir);
+        bytes
+    })
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(256))]
+
+    /// A corrupt or cut library is refused with an error, or (where the change is one the
+    /// format cannot see, such as a position) plays: never a panic.
+    #[test]
+    fn flipped_or_truncated_bytes_never_panic(
+        flips in proptest::collection::vec((any::<prop::sample::Index>(), 1u8..=255), 0..8),
+        cut in proptest::option::of(any::<prop::sample::Index>()),
+        fix_checksums in any::<bool>(),
+    ) {
+        let mut bytes = bands_library().clone();
+        for (at, x) in &flips {
+            let i = at.index(bytes.len());
+            bytes[i] ^= x;
+        }
+        if let Some(cut) = cut {
+            bytes.truncate(cut.index(bytes.len()));
+        }
+        if fix_checksums {
+            // Corruption that checksums cannot catch: the checks behind them must.
+            bytes = with_fresh_checksums(bytes);
+        }
+        if let Ok(lib) = Library::from_bytes(&bytes) {
+            let mut s = Sampler::new(&lib);
+            let mut out = Vec::new();
+            for t in [0.0, 7.5, -3.0, 1e6] {
+                s.sample(t, EVERYWHERE, &mut out);
+            }
+        }
+    }
+}
+
+/// `bytes` with every section's checksum recomputed, where the table is readable.
+fn with_fresh_checksums(mut bytes: Vec<u8>) -> Vec<u8> {
+    if bytes.len() < 16 {
+        return bytes;
+    }
+    let count = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
+    for e in 0..count.min(64) {
+        let at = 16 + 24 * e;
+        if at + 24 > bytes.len() {
+            break;
+        }
+        let offset = u64::from_le_bytes(bytes[at + 8..at + 16].try_into().unwrap());
+        let len = u64::from_le_bytes(bytes[at + 16..at + 24].try_into().unwrap());
+        let Some(end) = offset.checked_add(len) else {
+            continue;
+        };
+        if end as usize > bytes.len() {
+            continue;
+        }
+        let crc = crowd_runtime::crc32(&bytes[offset as usize..end as usize]);
+        bytes[at + 4..at + 8].copy_from_slice(&crc.to_le_bytes());
+    }
+    bytes
+}
