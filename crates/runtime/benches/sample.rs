@@ -1,1 +1,50 @@
-fn main() {}
+//! One frame of `Sampler::sample` over a real library: `painting`'s (94k walkers), built by
+//! `cargo xtask build-crowd --pipeline assets/pipelines/painting.ron` (or any library named by
+//! CROWD_LIBRARY). Time runs forward at 60 frames a second, as in a game; the whole world is
+//! in view (every character is written out), and then a quarter of it.
+
+use criterion::{Criterion, Throughput, criterion_group, criterion_main};
+use crowd_runtime::{Library, Sampler};
+use std::path::PathBuf;
+
+fn library() -> Library {
+    let path = std::env::var_os("CROWD_LIBRARY").map_or_else(
+        || PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../build/painting/library.crowd"),
+        PathBuf::from,
+    );
+    let bytes = std::fs::read(&path).unwrap_or_else(|e| {
+        panic!(
+            "{}: {e}; build it first: cargo xtask build-crowd --pipeline assets/pipelines/painting.ron",
+            path.display()
+        )
+    });
+    Library::from_bytes(&bytes).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+}
+
+fn frames(c: &mut Criterion) {
+    let lib = library();
+    let side = lib.world.patch_side_m;
+    let (w, h) = (lib.world.cols as f32 * side, lib.world.rows as f32 * side);
+    let mut group = c.benchmark_group("sample");
+    let walkers = lib.walkers();
+    group.throughput(Throughput::Elements(walkers));
+    for (name, view) in [
+        ("whole world", [0.0, 0.0, w, h]),
+        ("a quarter", [0.0, 0.0, w / 2.0, h / 2.0]),
+    ] {
+        let mut sampler = Sampler::new(&lib);
+        let mut out = Vec::with_capacity(sampler.characters());
+        let mut t = 0.0;
+        group.bench_function(format!("{walkers} walkers, {name} in view"), |b| {
+            b.iter(|| {
+                t += 1.0 / 60.0;
+                sampler.sample(t, view, &mut out);
+                out.len()
+            })
+        });
+    }
+    group.finish();
+}
+
+criterion_group!(benches, frames);
+criterion_main!(benches);
