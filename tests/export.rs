@@ -225,3 +225,61 @@ fn with_fresh_checksums(mut bytes: Vec<u8>) -> Vec<u8> {
     }
     bytes
 }
+
+/// The tools in `tools/gltf` (installed by `.ci/run`: `npm ci --prefix tools/gltf`).
+fn node_tool(script: &str, args: &[&str]) -> std::process::Output {
+    let dir = root().join("tools/gltf");
+    assert!(
+        dir.join("node_modules").is_dir(),
+        "{}: run `npm ci --prefix tools/gltf` first (.ci/run does)",
+        dir.display()
+    );
+    std::process::Command::new("node")
+        .arg(dir.join(script))
+        .args(args)
+        .output()
+        .expect("node runs")
+}
+
+/// world.glb, checked by the Khronos validator and read back by glTF Transform: one node per
+/// walker and stander, a clip of one period, and positions at a few times where crowd-runtime
+/// puts the same characters (within 1 mm; the runtime is within 0.2 mm of stage 6).
+#[test]
+fn world_glb_validates_and_an_independent_reader_finds_our_characters_where_we_do() {
+    let (dir, out) = build_shared_scene("city", "export");
+    let glb = out.join("world.glb");
+    let validated = node_tool("validate.mjs", &[s(&glb)]);
+    let text = String::from_utf8_lossy(&validated.stdout);
+    assert!(validated.status.success(), "{text}");
+    assert!(text.contains("0 errors, 0 warnings"), "{text}");
+
+    let lib = library(&out);
+    let mut sampler = Sampler::new(&lib);
+    let (mut seen, mut samples) = (Vec::new(), Vec::new());
+    for t in [0.0, 3.3, 9.95, 17.0, lib.period_s()] {
+        sampler.sample(t, EVERYWHERE, &mut seen);
+        let walkers = lib.walkers() as u32;
+        for c in seen.iter().filter(|c| c.id < walkers).step_by(97) {
+            samples.push(serde_json::json!({
+                "node": format!("walker_{}", c.id),
+                "t": t,
+                "pos": [c.x, 0.0, -c.y],
+            }));
+        }
+    }
+    let expected = serde_json::json!({
+        "nodes": lib.walkers() + lib.standers.len() as u64,
+        "period": lib.period_s(),
+        "samples": samples,
+    });
+    let expected_path = dir.path().join("expected.json");
+    std::fs::write(&expected_path, expected.to_string()).unwrap();
+    let read = node_tool("read_back.mjs", &[s(&glb), s(&expected_path)]);
+    let text = String::from_utf8_lossy(&read.stdout);
+    assert!(
+        read.status.success(),
+        "{text}{}",
+        String::from_utf8_lossy(&read.stderr)
+    );
+    eprintln!("{text}");
+}

@@ -447,6 +447,7 @@ pub fn export_inputs(pipeline: &PipelineFile) -> crowd_export::Inputs {
     crowd_export::Inputs {
         period_s: p.period_s,
         seed: p.seed,
+        settings: p.export.clone(),
     }
 }
 
@@ -542,6 +543,8 @@ fn export_current(path: &Path, hash: Hash) -> bool {
     file.header == Header::new(crowd_export::STAGE, crowd_export::VERSION, hash)
         && std::fs::read(path.with_file_name(&file.library))
             .is_ok_and(|b| Hash::of(&b) == file.library_hash)
+        && std::fs::read(path.with_file_name(&file.gltf))
+            .is_ok_and(|b| Hash::of(&b) == file.gltf_hash)
 }
 
 fn is_current(path: &Path, stage: &str, version: u32, hash: Hash) -> bool {

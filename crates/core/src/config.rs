@@ -40,6 +40,19 @@ pub struct Pipeline {
     pub collide: CollideSettings,
     #[serde(default)]
     pub smooth: SmoothSettings,
+    #[serde(default)]
+    pub export: ExportSettings,
+}
+
+/// Stage 8's settings.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ExportSettings {
+    /// The part of the world `world.glb` holds, `(x0, y0, x1, y1)` in world metres: the
+    /// characters there at time 0 (DCC tools slow down with tens of thousands of animated
+    /// nodes). None: the whole world. The library always holds the whole world.
+    #[serde(default)]
+    pub gltf_region: Option<(f64, f64, f64, f64)>,
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

@@ -3,9 +3,11 @@
 //! - [`library`]: the binary patch library that `crowd-runtime` plays (`FORMAT.md`): patches
 //!   in their places, patterns, standers, trajectories quantised in patch-local space and time,
 //!   and the links that keep a character's identity from patch to patch.
+//! - [`glb`]: `world.glb`, the same characters as a glTF 2.0 scene with one looping clip.
 //! - [`characters`]: those links as loops, the one notion of "a character" both outputs share.
 
 pub mod characters;
+pub mod glb;
 pub mod library;
 
 use crowd_core::{Hash, Hasher};
@@ -19,6 +21,7 @@ pub const VERSION: u32 = 1;
 pub struct Inputs {
     pub period_s: f64,
     pub seed: u64,
+    pub settings: crowd_core::config::ExportSettings,
 }
 
 /// The hash of stage 8's inputs: the graph, patterns and final trajectories' bytes and settings.
@@ -33,6 +36,8 @@ pub fn input_hash(graph: &[u8], patterns: &[u8], trajectories: &[u8], inputs: &I
 
 /// The library's file name beside `export.ron`.
 pub const LIBRARY_FILE: &str = "library.crowd";
+/// The glTF world's file name beside `export.ron`.
+pub const GLB_FILE: &str = "world.glb";
 
 /// `export.ron`: what stage 8 wrote and the figures an engine programmer asks first.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -42,6 +47,11 @@ pub struct ExportFile {
     pub library: String,
     pub library_bytes: u64,
     pub library_hash: Hash,
+    /// The glTF 2.0 world, its size and content hash, and the region it holds (None: all).
+    pub gltf: String,
+    pub gltf_bytes: u64,
+    pub gltf_hash: Hash,
+    pub gltf_region: Option<(f64, f64, f64, f64)>,
     pub walkers: u64,
     pub standers: u64,
     /// Loops of linked trajectories; a loop of k periods carries k walkers.
@@ -61,6 +71,7 @@ impl ExportFile {
 pub struct Export {
     pub file: ExportFile,
     pub library: Vec<u8>,
+    pub glb: Vec<u8>,
 }
 
 /// Why stage 8 cannot export a build.
@@ -87,11 +98,24 @@ pub fn export(
         short,
     )?;
     let bytes = lib.to_bytes();
+    let glb = glb::world_glb(&glb::World {
+        graph,
+        motion,
+        links: &links,
+        period_s: inputs.period_s,
+        seed: inputs.seed,
+        input_hash: hash.to_string(),
+        region: inputs.settings.gltf_region,
+    });
     let file = ExportFile {
         header: crowd_core::files::Header::new(STAGE, VERSION, hash),
         library: LIBRARY_FILE.to_string(),
         library_bytes: bytes.len() as u64,
         library_hash: Hash::of(&bytes),
+        gltf: GLB_FILE.to_string(),
+        gltf_bytes: glb.len() as u64,
+        gltf_hash: Hash::of(&glb),
+        gltf_region: inputs.settings.gltf_region,
         walkers: lib.walkers(),
         standers: lib.standers.len() as u64,
         loops: lib.characters.len() as u64,
@@ -102,6 +126,7 @@ pub fn export(
     Ok(Export {
         file,
         library: bytes,
+        glb,
     })
 }
 
@@ -111,6 +136,7 @@ pub fn writes(out: &std::path::Path, export: Export) -> crowd_core::files::Write
     let dir = out.parent().unwrap_or(std::path::Path::new("."));
     vec![
         (dir.join(LIBRARY_FILE), export.library),
+        (dir.join(GLB_FILE), export.glb),
         (
             out.to_path_buf(),
             crowd_core::files::to_ron(&export.file).into_bytes(),
