@@ -109,6 +109,9 @@ pub fn build(
             while end < 1 {
                 end += pt;
             }
+            if end > i64::from(crowd_runtime::MAX_PERIODS_PER_TRAJECTORY) * pt {
+                return Err(LibraryError::TooMany("periods in one trajectory (64)"));
+            }
             let mut last = 0i64;
             for (k, cp) in tr.points.iter().enumerate() {
                 let t = if k == 0 {

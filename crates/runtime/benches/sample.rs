@@ -1,7 +1,8 @@
 //! One frame of `Sampler::sample` over a real library: `painting`'s (94k walkers), built by
 //! `cargo xtask build-crowd --pipeline assets/pipelines/painting.ron` (or any library named by
 //! CROWD_LIBRARY). Time runs forward at 60 frames a second, as in a game; the whole world is
-//! in view (every character is written out), and then a quarter of it.
+//! in view (every character is written out), then a quarter of it; and, for the floor, a
+//! frame at a time that does not move.
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use crowd_runtime::{Library, Sampler};
@@ -43,6 +44,15 @@ fn frames(c: &mut Criterion) {
             })
         });
     }
+    // The floor: time stands still, so nobody walks on and a frame only streams the cursors.
+    let mut sampler = Sampler::new(&lib);
+    let mut out = Vec::with_capacity(sampler.characters());
+    group.bench_function(format!("{walkers} walkers, time standing still"), |b| {
+        b.iter(|| {
+            sampler.sample(5.0, [0.0, 0.0, w, h], &mut out);
+            out.len()
+        })
+    });
     group.finish();
 }
 

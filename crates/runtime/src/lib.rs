@@ -14,6 +14,7 @@ mod sampler;
 pub use crc::crc32;
 pub use error::LoadError;
 pub use format::{
-    Character, Crossing, Library, MAGIC, Patch, Point, TICK_S, Trajectory, VERSION, World,
+    Character, Crossing, Library, MAGIC, MAX_PERIODS_PER_TRAJECTORY, Patch, Point, TICK_S,
+    Trajectory, VERSION, World,
 };
 pub use sampler::{Sample, Sampler};
