@@ -226,6 +226,16 @@ fn stages_run_one_at_a_time_write_the_same_files_as_a_build() {
         "-o",
         s(&f("smoothed.ron")),
     ]);
+    crowd_ok(&[
+        "export",
+        "-q",
+        "--pipeline",
+        p,
+        "-i",
+        s(&f("smoothed.ron")),
+        "-o",
+        s(&f("export.ron")),
+    ]);
     let (built, staged) = (snapshot(&a), snapshot(&b));
     let names = |v: &[(String, Vec<u8>)]| v.iter().map(|f| f.0.clone()).collect::<Vec<_>>();
     assert_eq!(names(&built), names(&staged));

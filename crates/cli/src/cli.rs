@@ -160,6 +160,39 @@ pub enum Command {
     },
 }
 
+/// A trajectories file (of `stage` at `version`) and the graph and patterns beside it, with
+/// their bytes for the input hash: what stages 6 and 8 read.
+struct Beside {
+    graph_bytes: Vec<u8>,
+    graph: crowd_core::PatchGraph,
+    patterns_bytes: Vec<u8>,
+    crossings: Vec<crowd_core::patterns::Crossing>,
+    file: TrajectoriesFile,
+    motion: Vec<crowd_core::trajectories::PatchMotion>,
+    input_bytes: Vec<u8>,
+}
+
+impl Beside {
+    fn load(input: &std::path::Path, stage: &str, version: u32) -> Result<Beside> {
+        let (graph_bytes, graph) = graph_beside(input)?;
+        let patterns_path = input.with_file_name(driver::PATTERNS_FILE);
+        let (_, crossings) = Patterns::load_for(&patterns_path, &graph)?;
+        let patterns_bytes = read_bytes(&patterns_path)?;
+        let (file, motion) =
+            TrajectoriesFile::load_for(input, stage, version, graph.patches.len())?;
+        let input_bytes = read_bytes(input)?;
+        Ok(Beside {
+            graph_bytes,
+            graph,
+            patterns_bytes,
+            crossings,
+            file,
+            motion,
+            input_bytes,
+        })
+    }
+}
+
 /// The pipeline of a single-stage command, its input file and its output file (defaults in the
 /// pipeline's output folder), with the output's folder made ready.
 fn stage_files(
@@ -298,14 +331,10 @@ pub fn run(cli: Cli) -> Result<()> {
                 driver::COLLIDED_FILE,
                 driver::SMOOTHED_FILE,
             )?;
-            let (graph_bytes, graph) = graph_beside(&input)?;
-            let patterns_path = input.with_file_name(driver::PATTERNS_FILE);
-            let (_, crossings) = Patterns::load_for(&patterns_path, &graph)?;
-            let patterns_bytes = read_bytes(&patterns_path)?;
-            let (stage, version) = (crowd_collide::STAGE, crowd_collide::VERSION);
-            let (collided, motion) =
-                TrajectoriesFile::load_for(&input, stage, version, graph.patches.len())?;
-            let collided_bytes = read_bytes(&input)?;
+            let b = Beside::load(&input, crowd_collide::STAGE, crowd_collide::VERSION)?;
+            let (graph_bytes, graph, crossings) = (b.graph_bytes, b.graph, b.crossings);
+            let (patterns_bytes, collided, motion) = (b.patterns_bytes, b.file, b.motion);
+            let collided_bytes = b.input_bytes;
             let inputs = driver::smooth_inputs(&p);
             let hash =
                 crowd_smooth::input_hash(&graph_bytes, &patterns_bytes, &collided_bytes, &inputs);
@@ -327,14 +356,10 @@ pub fn run(cli: Cli) -> Result<()> {
                 driver::SMOOTHED_FILE,
                 driver::EXPORT_FILE,
             )?;
-            let (graph_bytes, graph) = graph_beside(&input)?;
-            let patterns_path = input.with_file_name(driver::PATTERNS_FILE);
-            let (_, crossings) = Patterns::load_for(&patterns_path, &graph)?;
-            let patterns_bytes = read_bytes(&patterns_path)?;
-            let (stage, version) = (crowd_smooth::STAGE, crowd_smooth::VERSION);
-            let (_, motion) =
-                TrajectoriesFile::load_for(&input, stage, version, graph.patches.len())?;
-            let smoothed_bytes = read_bytes(&input)?;
+            let b = Beside::load(&input, crowd_smooth::STAGE, crowd_smooth::VERSION)?;
+            let (graph_bytes, graph, crossings) = (b.graph_bytes, b.graph, b.crossings);
+            let (patterns_bytes, motion, smoothed_bytes) =
+                (b.patterns_bytes, b.motion, b.input_bytes);
             let inputs = driver::export_inputs(&p);
             let hash =
                 crowd_export::input_hash(&graph_bytes, &patterns_bytes, &smoothed_bytes, &inputs);

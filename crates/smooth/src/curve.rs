@@ -259,6 +259,21 @@ mod tests {
         }
     }
 
+    /// A walk across the patch with one bend in the middle, between its border bands.
+    fn bend() -> Trajectory {
+        Trajectory {
+            entry: 0,
+            exit: 1,
+            points: vec![
+                cp(0.0, 2.0, 1.0, PointKind::Entry),
+                cp(0.3, 2.0, 1.0 + 0.3 / 1.3, PointKind::Band),
+                cp(4.0, 3.0, 4.0, PointKind::Bend),
+                cp(7.7, 2.0, 7.0 - 0.3 / 1.3, PointKind::Band),
+                cp(8.0, 2.0, 7.0, PointKind::Exit),
+            ],
+        }
+    }
+
     fn limits() -> Limits {
         Limits {
             side_m: 8.0,
@@ -273,17 +288,7 @@ mod tests {
 
     #[test]
     fn a_bend_is_rounded_and_the_ends_stay_exact() {
-        let tr = Trajectory {
-            entry: 0,
-            exit: 1,
-            points: vec![
-                cp(0.0, 2.0, 1.0, PointKind::Entry),
-                cp(0.3, 2.0, 1.0 + 0.3 / 1.3, PointKind::Band),
-                cp(4.0, 3.0, 4.0, PointKind::Bend),
-                cp(7.7, 2.0, 7.0 - 0.3 / 1.3, PointKind::Band),
-                cp(8.0, 2.0, 7.0, PointKind::Exit),
-            ],
-        };
+        let tr = bend();
         let v = DVec2::new(1.3, 0.0);
         let (s, _) = smooth(&tr, v, v, &limits());
         let n = s.points.len();
@@ -379,17 +384,7 @@ mod tests {
 
     #[test]
     fn the_curve_changes_velocity_little_from_one_chord_to_the_next() {
-        let tr = Trajectory {
-            entry: 0,
-            exit: 1,
-            points: vec![
-                cp(0.0, 2.0, 1.0, PointKind::Entry),
-                cp(0.3, 2.0, 1.0 + 0.3 / 1.3, PointKind::Band),
-                cp(4.0, 3.0, 4.0, PointKind::Bend),
-                cp(7.7, 2.0, 7.0 - 0.3 / 1.3, PointKind::Band),
-                cp(8.0, 2.0, 7.0, PointKind::Exit),
-            ],
-        };
+        let tr = bend();
         let v = DVec2::new(1.3, 0.0);
         let (s, _) = smooth(&tr, v, v, &limits());
         // The polyline changes velocity at once at its bend; the curve in steps that a player

@@ -61,16 +61,25 @@ impl Spline {
         Spline { t, p, v }
     }
 
-    /// Position at time `t` (clamped to the knots' span).
-    pub fn at(&self, t: f64) -> DVec2 {
+    /// The piece holding `t` (clamped to the knots' span): its first knot, its length and
+    /// where `t` is along it in [0, 1]; `Err(i)` when `t` is knot `i` itself.
+    fn piece(&self, t: f64) -> Result<(usize, f64, f64), usize> {
         let n = self.t.len();
         let t = t.clamp(self.t[0], self.t[n - 1]);
         let i = match self.t.binary_search_by(|x| x.total_cmp(&t)) {
-            Ok(i) => return self.p[i],
+            Ok(i) => return Err(i),
             Err(i) => i.clamp(1, n - 1) - 1,
         };
         let h = self.t[i + 1] - self.t[i];
-        let s = (t - self.t[i]) / h;
+        Ok((i, h, (t - self.t[i]) / h))
+    }
+
+    /// Position at time `t` (clamped to the knots' span).
+    pub fn at(&self, t: f64) -> DVec2 {
+        let (i, h, s) = match self.piece(t) {
+            Ok(piece) => piece,
+            Err(i) => return self.p[i],
+        };
         let (s2, s3) = (s * s, s * s * s);
         let h00 = 2.0 * s3 - 3.0 * s2 + 1.0;
         let h10 = s3 - 2.0 * s2 + s;
@@ -81,14 +90,10 @@ impl Spline {
 
     /// Velocity at time `t` (clamped to the knots' span).
     pub fn velocity(&self, t: f64) -> DVec2 {
-        let n = self.t.len();
-        let t = t.clamp(self.t[0], self.t[n - 1]);
-        let i = match self.t.binary_search_by(|x| x.total_cmp(&t)) {
-            Ok(i) => return self.v[i],
-            Err(i) => i.clamp(1, n - 1) - 1,
+        let (i, h, s) = match self.piece(t) {
+            Ok(piece) => piece,
+            Err(i) => return self.v[i],
         };
-        let h = self.t[i + 1] - self.t[i];
-        let s = (t - self.t[i]) / h;
         let s2 = s * s;
         let d00 = 6.0 * s2 - 6.0 * s;
         let d10 = 3.0 * s2 - 4.0 * s + 1.0;
