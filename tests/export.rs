@@ -283,3 +283,26 @@ fn world_glb_validates_and_an_independent_reader_finds_our_characters_where_we_d
     );
     eprintln!("{text}");
 }
+
+/// `crowd inspect export.ron` loads the library as an engine would, and names the file and
+/// the section when it is corrupt.
+#[test]
+fn inspect_checks_the_library_and_names_a_corrupt_section() {
+    let (_dir, out) = build_shared_scene("bands", "export");
+    let manifest = out.join("export.ron");
+    let text = String::from_utf8(crowd_ok(&["inspect", s(&manifest)]).stdout).unwrap();
+    assert!(text.contains("loads and checks: 1102 walkers"), "{text}");
+    assert!(text.contains("world.glb"), "{text}");
+    let path = out.join("library.crowd");
+    let mut bytes = std::fs::read(&path).unwrap();
+    let at = bytes.len() / 2;
+    bytes[at] ^= 0x40;
+    std::fs::write(&path, bytes).unwrap();
+    let failed = crowd(&["inspect", s(&manifest)]);
+    assert!(!failed.status.success());
+    let err = String::from_utf8_lossy(&failed.stderr);
+    assert!(
+        err.contains("library.crowd") && err.contains("does not match its checksum"),
+        "{err}"
+    );
+}

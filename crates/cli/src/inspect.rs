@@ -27,11 +27,59 @@ pub fn inspect(path: &Path) -> Result<String> {
         stage @ (TrajectoriesFile::STAGE | crowd_collide::STAGE | crowd_smooth::STAGE) => Ok(
             inspect_trajectories(&TrajectoriesFile::load_stage(path, stage, header.version)?.0),
         ),
+        crowd_export::STAGE => inspect_export(path),
         other => bail!(
             "{}: `crowd inspect` does not know `{other}` files",
             path.display()
         ),
     }
+}
+
+/// Stage 8's manifest, and its library loaded and checked as crowd-runtime loads it.
+fn inspect_export(path: &Path) -> Result<String> {
+    let file: crowd_export::ExportFile = files::read_ron(path)?;
+    files::expect_stage(
+        path,
+        &file.header,
+        crowd_export::STAGE,
+        crowd_export::VERSION,
+    )?;
+    let library_path = path.with_file_name(&file.library);
+    let bytes = std::fs::read(&library_path)
+        .map_err(|e| anyhow::anyhow!("{}: {e}", library_path.display()))?;
+    let lib = crowd_runtime::Library::from_bytes(&bytes)
+        .map_err(|e| anyhow::anyhow!("{}: {e}", library_path.display()))?;
+    let mut s = String::new();
+    let mb = |b: u64| b as f64 / 1e6;
+    let _ = writeln!(
+        s,
+        "stage 8 (export), built from {}",
+        file.header.input_hash.short()
+    );
+    let _ = writeln!(
+        s,
+        "{}: {:.1} MB, loads and checks: {} walkers on {} loops, {} standers, {} patches, {} points",
+        file.library,
+        mb(file.library_bytes),
+        lib.walkers(),
+        lib.characters.len(),
+        lib.standers.len(),
+        lib.patches.len(),
+        lib.points.len()
+    );
+    let _ = writeln!(
+        s,
+        "  quantised to within {:.3} mm and {:.3} ms; period {} s",
+        file.position_error_m * 1e3,
+        file.time_error_s * 1e3,
+        lib.period_s()
+    );
+    let region = match file.gltf_region {
+        Some((x0, y0, x1, y1)) => format!("the characters in x {x0}-{x1} m, y {y0}-{y1} m"),
+        None => "the whole world".to_string(),
+    };
+    let _ = writeln!(s, "{}: {:.1} MB, {region}", file.gltf, mb(file.gltf_bytes));
+    Ok(s)
 }
 
 /// Renders a stage file to `out` and returns the legend of the picture. Files of later
