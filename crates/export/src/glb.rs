@@ -123,8 +123,6 @@ pub fn world_glb(w: &World) -> Vec<u8> {
         node: json::Index<json::Node>,
         first: usize,
         count: usize,
-        min: f32,
-        max: f32,
     }
     let mut tracks = Vec::new();
     let mut nodes = Vec::new();
@@ -222,8 +220,6 @@ pub fn world_glb(w: &World) -> Vec<u8> {
                 node,
                 first: times.len(),
                 count: key_t.len(),
-                min: 0.0,
-                max: period as f32,
             });
             times.extend(key_t.iter().map(|&t| t as f32));
             moves.extend(key_p.iter().map(|&p| gltf_point(p)));
@@ -270,7 +266,8 @@ pub fn world_glb(w: &World) -> Vec<u8> {
                 tr.first * 4,
                 tr.count,
                 json::accessor::Type::Scalar,
-                Some((vec![tr.min], vec![tr.max])),
+                // Every track runs over the whole clip: keys at 0 and at the period.
+                Some((vec![0.0], vec![period as f32])),
             ));
             let mut channel = |output, path| {
                 let sampler = json::Index::new(animation.samplers.len() as u32);
@@ -293,22 +290,23 @@ pub fn world_glb(w: &World) -> Vec<u8> {
                     extras: None,
                 });
             };
-            let t = root.push(accessor(
-                move_view,
-                tr.first * 12,
-                tr.count,
-                json::accessor::Type::Vec3,
-                None,
-            ));
-            channel(t, json::animation::Property::Translation);
-            let r = root.push(accessor(
-                turn_view,
-                tr.first * 16,
-                tr.count,
-                json::accessor::Type::Vec4,
-                None,
-            ));
-            channel(r, json::animation::Property::Rotation);
+            for (view, size, type_, path) in [
+                (
+                    move_view,
+                    12,
+                    json::accessor::Type::Vec3,
+                    json::animation::Property::Translation,
+                ),
+                (
+                    turn_view,
+                    16,
+                    json::accessor::Type::Vec4,
+                    json::animation::Property::Rotation,
+                ),
+            ] {
+                let output = root.push(accessor(view, tr.first * size, tr.count, type_, None));
+                channel(output, path);
+            }
         }
         root.push(animation);
     }
