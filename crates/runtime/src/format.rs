@@ -20,6 +20,10 @@ pub const QUANT_STEPS: f64 = 65535.0;
 /// file's size, whatever it says.
 pub const MAX_PERIODS_PER_TRAJECTORY: u32 = 64;
 
+/// The most patches a world has across and up (so a patch's place fits two u16s, as the
+/// sampler keeps it): 524 km at 8 m a patch.
+pub const MAX_GRID: u32 = 1 << 16;
+
 const HEADER_LEN: usize = 16;
 const ENTRY_LEN: usize = 24;
 /// Sections, in the order they are written. A reader ignores tags it does not know.
@@ -359,6 +363,9 @@ impl Library {
     /// Every rule a sampler relies on.
     fn validate(&self) -> Result<(), LoadError> {
         let w = &self.world;
+        if w.cols > MAX_GRID || w.rows > MAX_GRID {
+            return Err(invalid("WRLD", 0, "at most 65536 patches across and up"));
+        }
         let in_range =
             |first: u32, count: u32, len: usize| u64::from(first) + u64::from(count) <= len as u64;
         for (i, p) in self.patches.iter().enumerate() {

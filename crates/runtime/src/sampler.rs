@@ -1,70 +1,30 @@
 //! Playing a library: where every character is at a time, frame after frame.
+//!
+//! A frame is bound by memory, not arithmetic: 100k characters are 100k records to read and
+//! 100k samples to write. So a frame streams one 32-byte [`walker::Hot`] record per walker,
+//! which places it and, for the one walker in twelve whose piece ends in a frame at 60 frames a
+//! second, nearly always steps it onto its next piece with nothing else but that piece's point.
+//! Ended walkers are found a block ahead, so that those points are fetched together while the
+//! block before is moved on and written out.
+//!
+//! Time is kept in whole ticks (`TICK_S`), so a piece is the same bits whether the sampler
+//! walked to it or searched for it: a frame depends only on its time.
+
+mod steps;
+mod walker;
 
 use crate::format::{Library, TICK_S};
+use steps::Steps;
+use walker::{Cursor, Hot, Loops, quantum, radians};
 
 /// One character seen in a frame: world metres (x east, y north), heading in radians
-/// counter-clockwise from east (the direction it walks, or last walked).
+/// counter-clockwise from east (the direction it walks, or last walked), within 5e-5 rad.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Sample {
     pub id: u32,
     pub x: f32,
     pub y: f32,
     pub heading: f32,
-}
-
-/// Where one walking character is on its loop: the straight piece it walks now, in world
-/// time and world space, so that a frame inside the piece is a multiply-add.
-#[derive(Debug, Clone, Copy)]
-struct Cursor {
-    /// World-time span of the piece.
-    t0: f64,
-    t1: f64,
-    x0: f32,
-    y0: f32,
-    vx: f32,
-    vy: f32,
-    heading: f32,
-    /// The piece: points `at`, `at + 1` of the library (of trajectory `traj`, in `patch`,
-    /// whose last point is `last`): walking on needs no other record.
-    at: u32,
-    last: u32,
-    patch: u32,
-    traj: u32,
-    /// World time at which `traj` started, for this character's current pass.
-    traj_start: f64,
-    character: u32,
-    lap: u32,
-}
-
-/// What a frame reads of a character that stays on its piece: 40 bytes, so that a frame
-/// streams 4 MB for 100k characters and touches [`Cursor`] only for those that walk on.
-#[derive(Debug, Clone, Copy)]
-struct Hot {
-    t0: f64,
-    /// Seconds the piece lasts.
-    dur: f32,
-    x0: f32,
-    y0: f32,
-    vx: f32,
-    vy: f32,
-    heading: f32,
-    /// The point the next piece ends at, to prefetch.
-    then: u32,
-}
-
-impl Hot {
-    fn of(c: &Cursor) -> Hot {
-        Hot {
-            t0: c.t0,
-            dur: (c.t1 - c.t0) as f32,
-            x0: c.x0,
-            y0: c.y0,
-            vx: c.vx,
-            vy: c.vy,
-            heading: c.heading,
-            then: c.at + 2,
-        }
-    }
 }
 
 /// Samples a library's characters. Walkers have ids `0 .. walkers` (loop by loop, lap by lap),
@@ -76,66 +36,33 @@ pub struct Sampler<'a> {
     hot: Vec<Hot>,
     cursors: Vec<Cursor>,
     standers: Vec<Sample>,
+    /// Absolute tick that `Hot::end` counts from, and the last frame's time in ticks (None
+    /// before the first frame).
+    epoch: i64,
+    last: Option<f64>,
+    /// The walkers whose piece has ended, of the block being scanned and of the one before.
+    ended: [Vec<u32>; 2],
+    steps: Steps,
 }
 
-/// Every loop's trajectories in walking order, with the tick each starts at from the loop's
-/// start: a search is a binary search, not a walk round the loop.
-#[derive(Debug, Clone)]
-struct Loops {
-    /// Per loop, where its trajectories begin in `trajectories` and `starts`.
-    first: Vec<usize>,
-    trajectories: Vec<u32>,
-    starts: Vec<u64>,
-}
-
-impl Loops {
-    fn new(lib: &Library) -> Loops {
-        let mut loops = Loops {
-            first: Vec::with_capacity(lib.characters.len() + 1),
-            trajectories: Vec::with_capacity(lib.trajectories.len()),
-            starts: Vec::with_capacity(lib.trajectories.len()),
-        };
-        for ch in &lib.characters {
-            loops.first.push(loops.trajectories.len());
-            let (mut at, mut tick) = (ch.first_trajectory, 0u64);
-            for _ in 0..ch.trajectories {
-                let tr = &lib.trajectories[at as usize];
-                loops.trajectories.push(at);
-                loops.starts.push(tick);
-                tick += u64::from(lib.duration_ticks(tr));
-                at = tr.next;
-            }
-        }
-        loops.first.push(loops.trajectories.len());
-        loops
-    }
-}
+/// Walkers per block: their records stay in L1 from finding the ended pieces to writing the
+/// samples, and a block's ended walkers (about 40) are enough fetches in flight.
+const BLOCK: usize = 512;
+/// `Hot::end` must stay below 2^32 ticks after the epoch: the epoch moves on by whole steps of
+/// this many ticks (30 hours) once time is two steps past it.
+const EPOCH_STEP: i64 = 1 << 30;
+const TICKS_PER_S: f64 = 1.0 / TICK_S;
 
 impl<'a> Sampler<'a> {
-    /// A sampler with every character placed at time 0.
+    /// A sampler whose first frame may be at any time.
     pub fn new(lib: &'a Library) -> Sampler<'a> {
-        let loops = Loops::new(lib);
         let mut cursors = Vec::with_capacity(lib.walkers() as usize);
         for (c, ch) in lib.characters.iter().enumerate() {
-            for lap in 0..ch.laps {
-                let mut cursor = Cursor {
-                    t0: 0.0,
-                    t1: 0.0,
-                    x0: 0.0,
-                    y0: 0.0,
-                    vx: 0.0,
-                    vy: 0.0,
-                    heading: 0.0,
-                    at: 0,
-                    last: 0,
-                    patch: 0,
-                    traj: ch.first_trajectory,
-                    traj_start: 0.0,
+            for _ in 0..ch.laps {
+                cursors.push(Cursor {
                     character: c as u32,
-                    lap,
-                };
-                seek(lib, &loops, &mut cursor, 0.0);
-                cursors.push(cursor);
+                    ..Cursor::default()
+                });
             }
         }
         let first_stander = cursors.len() as u32;
@@ -158,10 +85,14 @@ impl<'a> Sampler<'a> {
             .collect();
         Sampler {
             lib,
-            loops,
-            hot: cursors.iter().map(Hot::of).collect(),
+            loops: Loops::new(lib),
+            hot: vec![Hot::default(); cursors.len()],
             cursors,
             standers,
+            epoch: 0,
+            last: None,
+            ended: [Vec::with_capacity(BLOCK), Vec::with_capacity(BLOCK)],
+            steps: Steps::default(),
         }
     }
 
@@ -172,35 +103,23 @@ impl<'a> Sampler<'a> {
 
     /// Every character inside `view` (`[x0, y0, x1, y1]`, world metres, x0 <= x < x1 and
     /// y0 <= y < y1) at world time `t` seconds, into `out` (cleared first), in id order.
-    /// Any `t` is allowed; moving forward by less than a piece costs no search.
+    /// Any `t` is allowed. Moving forward costs no search; going back, or forward by more than
+    /// a period, searches each walker's loop.
     pub fn sample(&mut self, t: f64, view: [f32; 4], out: &mut Vec<Sample>) {
         out.clear();
-        let (lib, loops) = (self.lib, &self.loops);
-        let (hot, cursors) = (&mut self.hot, &mut self.cursors);
-        for id in 0..hot.len() {
-            // A character a few places on that will walk onto its next piece: ask for that
-            // piece's point now, so the memory fetches of several characters overlap.
-            if let Some(ahead) = hot.get(id + PREFETCH_AHEAD)
-                && t - ahead.t0 >= f64::from(ahead.dur)
-            {
-                prefetch(lib.points.as_ptr().wrapping_add(ahead.then as usize));
-                prefetch(cursors.as_ptr().wrapping_add(id + PREFETCH_AHEAD));
+        out.reserve(self.characters());
+        let now = t * TICKS_PER_S;
+        self.settle_epoch(now);
+        let rel = now - self.epoch as f64;
+        let whole = rel.floor() as u32;
+        let blocks = self.hot.len().div_ceil(BLOCK);
+        for b in 0..=blocks {
+            if b < blocks {
+                self.scan(b, whole);
             }
-            let h = &mut hot[id];
-            let since = t - h.t0;
-            if !(since >= 0.0 && since < f64::from(h.dur)) {
-                advance(lib, loops, &mut cursors[id], t);
-                *h = Hot::of(&cursors[id]);
-            }
-            let dt = (t - h.t0) as f32;
-            let (x, y) = (h.x0 + h.vx * dt, h.y0 + h.vy * dt);
-            if x >= view[0] && x < view[2] && y >= view[1] && y < view[3] {
-                out.push(Sample {
-                    id: id as u32,
-                    x,
-                    y,
-                    heading: h.heading,
-                });
+            if b > 0 {
+                self.walk_on_ended(b - 1, now, whole);
+                self.write(b - 1, rel, view, out);
             }
         }
         out.extend(
@@ -209,40 +128,98 @@ impl<'a> Sampler<'a> {
                 .filter(|s| s.x >= view[0] && s.x < view[2] && s.y >= view[1] && s.y < view[3]),
         );
     }
-}
 
-/// Moves `c` to the piece that holds `t`: forward piece by piece while that is short, else a
-/// fresh search.
-fn advance(lib: &Library, loops: &Loops, c: &mut Cursor, t: f64) {
-    let period = lib.period_s();
-    if t < c.t0 || t - c.t1 > period {
-        seek(lib, loops, c, t);
-        return;
+    /// Block `b`'s range of walker ids.
+    fn block(&self, b: usize) -> std::ops::Range<usize> {
+        b * BLOCK..((b + 1) * BLOCK).min(self.hot.len())
     }
-    while t >= c.t1 {
-        if c.at + 1 < c.last {
-            c.at += 1;
-            load_piece(lib, c);
-        } else {
-            c.traj_start += f64::from(lib.points[c.last as usize].t) * TICK_S;
-            let next = lib.trajectories[c.traj as usize].next;
-            enter(lib, c, next, 0);
+
+    /// Finds block `b`'s walkers whose piece ended by tick `whole` (after the epoch), and asks
+    /// for the points they walk on to (and, leaving their trajectory, their cursors), all at
+    /// once.
+    fn scan(&mut self, b: usize, whole: u32) {
+        let range = self.block(b);
+        let ended = &mut self.ended[b % 2];
+        ended.clear();
+        for (id, h) in range.clone().zip(&self.hot[range]) {
+            if whole >= h.end {
+                ended.push(id as u32);
+                prefetch(self.lib.points.as_ptr().wrapping_add(h.at as usize + 1));
+                if h.left == 0 {
+                    prefetch(self.cursors.as_ptr().wrapping_add(id));
+                }
+            }
         }
     }
-}
 
-/// Puts `c` on piece `point` of trajectory `traj`.
-fn enter(lib: &Library, c: &mut Cursor, traj: u32, point: u32) {
-    let tr = &lib.trajectories[traj as usize];
-    c.traj = traj;
-    c.patch = tr.patch;
-    c.at = tr.first_point + point;
-    c.last = tr.first_point + tr.points - 1;
-    load_piece(lib, c);
-}
+    /// Moves block `b`'s ended walkers on to the piece that holds absolute tick `now`
+    /// (`whole` ticks after the epoch, rounded down): most as [`Steps`], the rest one by one.
+    fn walk_on_ended(&mut self, b: usize, now: f64, whole: u32) {
+        let (lib, loops, epoch) = (self.lib, &self.loops, self.epoch);
+        let period = f64::from(lib.world.period_ticks);
+        self.steps.clear();
+        for &id in &self.ended[b % 2] {
+            let h = &mut self.hot[id as usize];
+            if self.steps.take(lib, id, h, whole) {
+                continue;
+            }
+            let c = &mut self.cursors[id as usize];
+            if now - (epoch + i64::from(h.end)) as f64 > period {
+                walker::seek(lib, loops, c, h, id, now, epoch);
+            } else {
+                walker::walk_on(lib, c, h, now, epoch);
+            }
+        }
+        self.steps.finish(quantum(lib), &mut self.hot);
+    }
 
-/// How many characters ahead [`Sampler::sample`] prefetches.
-const PREFETCH_AHEAD: usize = 32;
+    /// Appends block `b`'s walkers inside `view` at `rel` ticks after the epoch.
+    fn write(&self, b: usize, rel: f64, view: [f32; 4], out: &mut Vec<Sample>) {
+        let range = self.block(b);
+        for (id, h) in range.clone().zip(&self.hot[range]) {
+            let dt = (rel - f64::from(h.end)) as f32;
+            let (x, y) = (h.x + h.vx * dt, h.y + h.vy * dt);
+            if x >= view[0] && x < view[2] && y >= view[1] && y < view[3] {
+                out.push(Sample {
+                    id: id as u32,
+                    x,
+                    y,
+                    heading: radians(h.heading),
+                });
+            }
+        }
+    }
+
+    /// Keeps `Hot::end` in range of its u32: before the first frame, after time went back or
+    /// leapt ahead, every walker is placed afresh; when time has merely run long, the epoch
+    /// moves on and every record with it.
+    fn settle_epoch(&mut self, now: f64) {
+        let step = EPOCH_STEP as f64;
+        let fresh = match self.last {
+            None => true,
+            Some(last) => now < last || now - last >= step,
+        };
+        if fresh {
+            self.epoch = (now / step).floor() as i64 * EPOCH_STEP;
+            let (lib, loops, epoch) = (self.lib, &self.loops, self.epoch);
+            let walkers = self.cursors.iter_mut().zip(&mut self.hot);
+            for (id, (c, h)) in walkers.enumerate() {
+                walker::seek(lib, loops, c, h, id as u32, now, epoch);
+            }
+        } else if let Some(last) = self.last
+            && now - self.epoch as f64 >= 2.0 * step
+        {
+            // Every piece ends after the last frame, so after the new epoch: no record wraps.
+            let epoch = (last / step).floor() as i64 * EPOCH_STEP;
+            let shift = (epoch - self.epoch) as u32;
+            for h in &mut self.hot {
+                h.end -= shift;
+            }
+            self.epoch = epoch;
+        }
+        self.last = Some(now);
+    }
+}
 
 /// A hint that `p` will be read soon; nothing is read now, so any address is harmless.
 #[inline(always)]
@@ -256,78 +233,4 @@ fn prefetch<T>(p: *const T) {
     }
     #[cfg(not(target_arch = "x86_64"))]
     let _ = p;
-}
-
-/// Places `c` on its loop at world time `t` by search: a binary search of the loop's
-/// trajectories, then of the trajectory's points.
-fn seek(lib: &Library, loops: &Loops, c: &mut Cursor, t: f64) {
-    let ch = &lib.characters[c.character as usize];
-    let period = lib.period_s();
-    let first = &lib.trajectories[ch.first_trajectory as usize];
-    let start = f64::from(first.start) * TICK_S + f64::from(c.lap) * period;
-    let length = f64::from(ch.laps) * period;
-    let tau = (t - start).rem_euclid(length);
-    let range = loops.first[c.character as usize]..loops.first[c.character as usize + 1];
-    let starts = &loops.starts[range.clone()];
-    let tau_ticks = tau / TICK_S;
-    let k = starts.partition_point(|&s| s as f64 <= tau_ticks).max(1) - 1;
-    let traj = loops.trajectories[range.start + k];
-    let offset = starts[k] as f64 * TICK_S;
-    let tr = &lib.trajectories[traj as usize];
-    let local = ((tau - offset) / TICK_S).max(0.0);
-    let pts = lib.points_of(tr);
-    let k = pts.partition_point(|p| f64::from(p.t) <= local);
-    c.traj_start = t - (tau - offset);
-    enter(lib, c, traj, (k.max(1) - 1).min(pts.len() - 2) as u32);
-    // Rounding may leave t a hair outside; the forward walk settles it.
-    if t >= c.t1 {
-        advance(lib, loops, c, t);
-    }
-}
-
-/// Fills the piece fields of `c` from its points.
-fn load_piece(lib: &Library, c: &mut Cursor) {
-    let patch = &lib.patches[c.patch as usize];
-    let (a, b) = (lib.points[c.at as usize], lib.points[c.at as usize + 1]);
-    let (pa, pb) = (lib.world_position(patch, a), lib.world_position(patch, b));
-    c.t0 = c.traj_start + f64::from(a.t) * TICK_S;
-    c.t1 = c.traj_start + f64::from(b.t) * TICK_S;
-    c.x0 = pa[0] as f32;
-    c.y0 = pa[1] as f32;
-    let (dx, dy) = (pb[0] - pa[0], pb[1] - pa[1]);
-    if c.t1 > c.t0 {
-        let dt = c.t1 - c.t0;
-        c.vx = (dx / dt) as f32;
-        c.vy = (dy / dt) as f32;
-    } else {
-        c.vx = 0.0;
-        c.vy = 0.0;
-    }
-    c.heading = if dx * dx + dy * dy > 1e-12 {
-        (dy as f32).atan2(dx as f32)
-    } else {
-        standing_heading(lib, c)
-    };
-}
-
-/// Standing: the direction of the last piece walked before in the trajectory (else the next
-/// one), a pure function of the piece, whatever way time came to it.
-fn standing_heading(lib: &Library, c: &Cursor) -> f32 {
-    let tr = &lib.trajectories[c.traj as usize];
-    let patch = &lib.patches[c.patch as usize];
-    let pts = lib.points_of(tr);
-    let k = (c.at - tr.first_point) as usize;
-    let moving = |i: usize| {
-        let (a, b) = (
-            lib.world_position(patch, pts[i]),
-            lib.world_position(patch, pts[i + 1]),
-        );
-        let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
-        (dx * dx + dy * dy > 1e-12).then(|| (dy as f32).atan2(dx as f32))
-    };
-    (0..=k)
-        .rev()
-        .chain(k + 1..pts.len() - 1)
-        .find_map(moving)
-        .unwrap_or(0.0)
 }

@@ -1,0 +1,79 @@
+//! The common way on: a walker steps onto the next piece of its trajectory and that piece
+//! holds the frame's time. Such steps are gathered column by column, so that their motions
+//! (a division and an arctangent each) are computed in one tight loop the compiler vectorises.
+
+use super::walker::{Hot, motion, step, world};
+use crate::format::Library;
+
+#[derive(Debug, Clone, Default)]
+pub(super) struct Steps {
+    id: Vec<u32>,
+    /// World position at the new piece's end.
+    x: Vec<f32>,
+    y: Vec<f32>,
+    /// The piece's [`step`].
+    dx: Vec<f32>,
+    dy: Vec<f32>,
+    ticks: Vec<f32>,
+    /// The heading before, which a standing piece keeps.
+    keep: Vec<u16>,
+    motions: Vec<([f32; 2], u16)>,
+}
+
+impl Steps {
+    pub fn clear(&mut self) {
+        for v in [
+            &mut self.x,
+            &mut self.y,
+            &mut self.dx,
+            &mut self.dy,
+            &mut self.ticks,
+        ] {
+            v.clear();
+        }
+        self.id.clear();
+        self.keep.clear();
+    }
+
+    /// Steps walker `id` onto its next piece, if that is all it needs to reach tick `whole`
+    /// after the epoch (its motion is written by [`Steps::finish`]); false if it needs more.
+    pub fn take(&mut self, lib: &Library, id: u32, h: &mut Hot, whole: u32) -> bool {
+        // The last piece of its trajectory, or so many left that only the cursor knows.
+        if h.left == 0 || h.left == u16::MAX {
+            return false;
+        }
+        let (a, b) = (lib.points[h.at as usize], lib.points[h.at as usize + 1]);
+        let end = h.end.wrapping_add(b.t.wrapping_sub(a.t));
+        if whole >= end {
+            return false;
+        }
+        let [dx, dy, ticks] = step(a, b);
+        let [x, y] = world(lib, h.col, h.row, b);
+        self.id.push(id);
+        self.x.push(x);
+        self.y.push(y);
+        self.dx.push(dx);
+        self.dy.push(dy);
+        self.ticks.push(ticks);
+        self.keep.push(h.heading);
+        h.at += 1;
+        h.left -= 1;
+        h.end = end;
+        true
+    }
+
+    /// Computes every step's motion and writes it into the walkers' records.
+    pub fn finish(&mut self, quantum: f32, hot: &mut [Hot]) {
+        self.motions.clear();
+        let columns = self.dx.iter().zip(&self.dy).zip(&self.ticks);
+        self.motions
+            .extend(columns.map(|((&dx, &dy), &ticks)| motion([dx, dy, ticks], quantum)));
+        for (i, &id) in self.id.iter().enumerate() {
+            let h = &mut hot[id as usize];
+            let ([vx, vy], heading) = self.motions[i];
+            let moving = self.dx[i] != 0.0 || self.dy[i] != 0.0;
+            (h.x, h.y, h.vx, h.vy) = (self.x[i], self.y[i], vx, vy);
+            h.heading = if moving { heading } else { self.keep[i] };
+        }
+    }
+}

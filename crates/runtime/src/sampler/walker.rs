@@ -1,0 +1,234 @@
+//! One walker's state and how it moves on: the rare paths (a new trajectory, a pause, several
+//! pieces in one frame, a search) one walker at a time; [`super::steps`] batches the common one.
+
+use crate::angle::atan2;
+use crate::format::{Library, Point, QUANT_STEPS};
+
+/// What a frame reads of every walker: 32 bytes, two to a cache line, holding all that placing
+/// the walker needs and all that stepping it onto the next piece of its trajectory needs
+/// besides that piece's point.
+#[derive(Debug, Clone, Copy, Default)]
+#[repr(C, align(32))]
+pub(super) struct Hot {
+    /// Ticks after the sampler's epoch at which the piece ends.
+    pub end: u32,
+    /// The point the piece ends at.
+    pub at: u32,
+    /// World position at `end`.
+    pub x: f32,
+    pub y: f32,
+    /// Metres per tick.
+    pub vx: f32,
+    pub vy: f32,
+    /// In 65536ths of a turn ([`turns`]).
+    pub heading: u16,
+    /// Pieces left in the trajectory after this one, up to `u16::MAX` (at which the cursor
+    /// knows the rest).
+    pub left: u16,
+    /// The patch's place in the grid: its origin without a lookup.
+    pub col: u16,
+    pub row: u16,
+}
+
+/// What a walker needs only when it leaves its trajectory or is searched for.
+#[derive(Debug, Clone, Copy, Default)]
+pub(super) struct Cursor {
+    /// Absolute ticks at which `traj` started on this walker's current pass.
+    pub traj_start: i64,
+    pub traj: u32,
+    /// The last point of `traj`.
+    pub last: u32,
+    pub character: u32,
+}
+
+/// Every loop's trajectories in walking order, with the tick each starts at from the loop's
+/// start: a search is a binary search, not a walk round the loop.
+#[derive(Debug, Clone)]
+pub(super) struct Loops {
+    /// Per loop, where its trajectories begin in `trajectories` and `starts`.
+    first: Vec<usize>,
+    trajectories: Vec<u32>,
+    starts: Vec<u64>,
+    /// Per loop, the id of its first walker (lap 0).
+    first_id: Vec<u32>,
+}
+
+impl Loops {
+    pub fn new(lib: &Library) -> Loops {
+        let mut loops = Loops {
+            first: Vec::with_capacity(lib.characters.len() + 1),
+            trajectories: Vec::with_capacity(lib.trajectories.len()),
+            starts: Vec::with_capacity(lib.trajectories.len()),
+            first_id: Vec::with_capacity(lib.characters.len()),
+        };
+        let mut id = 0;
+        for ch in &lib.characters {
+            loops.first.push(loops.trajectories.len());
+            loops.first_id.push(id);
+            id += ch.laps;
+            let (mut at, mut tick) = (ch.first_trajectory, 0u64);
+            for _ in 0..ch.trajectories {
+                let tr = &lib.trajectories[at as usize];
+                loops.trajectories.push(at);
+                loops.starts.push(tick);
+                tick += u64::from(lib.duration_ticks(tr));
+                at = tr.next;
+            }
+        }
+        loops.first.push(loops.trajectories.len());
+        loops
+    }
+}
+
+/// A heading in radians as 65536ths of a turn (within 5e-5 rad).
+pub(super) fn turns(radians: f32) -> u16 {
+    (radians * (65536.0 / std::f32::consts::TAU)).round() as i32 as u16
+}
+
+/// [`turns`] back to radians, in [-pi, pi).
+pub(super) fn radians(turns: u16) -> f32 {
+    f32::from(turns as i16) * (std::f32::consts::TAU / 65536.0)
+}
+
+/// World position of point `p` of the patch at (`col`, `row`), as every path computes it.
+pub(super) fn world(lib: &Library, col: u16, row: u16, p: Point) -> [f32; 2] {
+    let side = f64::from(lib.world.patch_side_m);
+    let q = side / QUANT_STEPS;
+    [
+        (f64::from(col) * side + f64::from(p.x) * q) as f32,
+        (f64::from(row) * side + f64::from(p.y) * q) as f32,
+    ]
+}
+
+/// Metres per position step, as the sampler computes with it.
+pub(super) fn quantum(lib: &Library) -> f32 {
+    (f64::from(lib.world.patch_side_m) / QUANT_STEPS) as f32
+}
+
+/// A piece's step from point `a` to point `b`: x and y in position steps, and ticks.
+pub(super) fn step(a: Point, b: Point) -> [f32; 3] {
+    [
+        (i32::from(b.x) - i32::from(a.x)) as f32,
+        (i32::from(b.y) - i32::from(a.y)) as f32,
+        b.t.wrapping_sub(a.t) as f32,
+    ]
+}
+
+/// A piece's velocity (metres per tick) and heading from its [`step`]: one formula for every
+/// way to a piece, so that a piece is the same bits however the sampler came to it.
+#[inline(always)]
+pub(super) fn motion([dx, dy, ticks]: [f32; 3], quantum: f32) -> ([f32; 2], u16) {
+    let per_tick = if ticks > 0.0 { quantum / ticks } else { 0.0 };
+    ([dx * per_tick, dy * per_tick], turns(atan2(dy, dx)))
+}
+
+/// Moves a walker on from its piece, piece by piece, to the one that holds absolute tick
+/// `now`.
+pub(super) fn walk_on(lib: &Library, c: &mut Cursor, h: &mut Hot, now: f64, epoch: i64) {
+    loop {
+        if h.at < c.last {
+            let heading = h.heading;
+            piece(lib, c, h, epoch, Some(heading));
+        } else {
+            c.traj_start += i64::from(lib.points[c.last as usize].t);
+            let next = lib.trajectories[c.traj as usize].next;
+            enter(lib, c, h, next, 0);
+            piece(lib, c, h, epoch, None);
+        }
+        if now < end_tick(lib, c, h) as f64 {
+            return;
+        }
+    }
+}
+
+/// The absolute tick at which the current piece ends.
+fn end_tick(lib: &Library, c: &Cursor, h: &Hot) -> i64 {
+    c.traj_start + i64::from(lib.points[h.at as usize].t)
+}
+
+/// Puts a walker on trajectory `traj` so that its next piece starts at the trajectory's point
+/// `point`.
+fn enter(lib: &Library, c: &mut Cursor, h: &mut Hot, traj: u32, point: u32) {
+    let tr = &lib.trajectories[traj as usize];
+    let patch = &lib.patches[tr.patch as usize];
+    c.traj = traj;
+    c.last = tr.first_point + tr.points - 1;
+    h.at = tr.first_point + point;
+    // The loader keeps the grid within 65536 patches across and up.
+    (h.col, h.row) = (patch.col as u16, patch.row as u16);
+}
+
+/// Places walker `id` on its loop at absolute tick `now` by search: a binary search of the
+/// loop's trajectories, then of the trajectory's points.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn seek(
+    lib: &Library,
+    loops: &Loops,
+    c: &mut Cursor,
+    h: &mut Hot,
+    id: u32,
+    now: f64,
+    epoch: i64,
+) {
+    let k = c.character as usize;
+    let ch = &lib.characters[k];
+    let period = i64::from(lib.world.period_ticks);
+    let lap = i64::from(id - loops.first_id[k]);
+    let start = i64::from(lib.trajectories[ch.first_trajectory as usize].start) + lap * period;
+    let length = i64::from(ch.laps) * period;
+    // The loop began its current pass at a whole tick; `now` is somewhere in that pass.
+    let whole = now.floor() as i64;
+    let pass_start = whole - (whole - start).rem_euclid(length);
+    let range = loops.first[k]..loops.first[k + 1];
+    let starts = &loops.starts[range.clone()];
+    let into = (now - pass_start as f64).max(0.0);
+    let j = starts.partition_point(|&s| s as f64 <= into).max(1) - 1;
+    let traj = loops.trajectories[range.start + j];
+    c.traj_start = pass_start + starts[j] as i64;
+    let pts = lib.points_of(&lib.trajectories[traj as usize]);
+    let local = now - c.traj_start as f64;
+    let p = pts.partition_point(|p| f64::from(p.t) <= local);
+    enter(lib, c, h, traj, (p.max(1) - 1).min(pts.len() - 2) as u32);
+    piece(lib, c, h, epoch, None);
+    // A piece that ends at or before `now` (the trajectory's last, or rounding): walk on.
+    if now >= end_tick(lib, c, h) as f64 {
+        walk_on(lib, c, h, now, epoch);
+    }
+}
+
+/// Makes the piece from point `h.at` to the next the current one (`h.at` moves on to its end).
+/// `walked` is the heading of the piece before it in the same trajectory, if the sampler just
+/// walked it: a standing piece keeps it.
+fn piece(lib: &Library, c: &Cursor, h: &mut Hot, epoch: i64, walked: Option<u16>) {
+    let (a, b) = (lib.points[h.at as usize], lib.points[h.at as usize + 1]);
+    let ([vx, vy], heading) = motion(step(a, b), quantum(lib));
+    let heading = match ((a.x, a.y) != (b.x, b.y), walked) {
+        (true, _) => heading,
+        (false, Some(h)) => h,
+        (false, None) => standing_heading(lib, c, h.at),
+    };
+    [h.x, h.y] = world(lib, h.col, h.row, b);
+    (h.vx, h.vy, h.heading) = (vx, vy, heading);
+    h.at += 1;
+    h.left = (c.last - h.at).min(u32::from(u16::MAX)) as u16;
+    // Wraps only for a piece that ends before the epoch, which the caller walks on from.
+    h.end = (end_tick(lib, c, h) - epoch) as u32;
+}
+
+/// Standing: the direction of the last piece walked before in the trajectory (else the next
+/// one), a pure function of the piece, whatever way time came to it.
+fn standing_heading(lib: &Library, c: &Cursor, at: u32) -> u16 {
+    let tr = &lib.trajectories[c.traj as usize];
+    let pts = lib.points_of(tr);
+    let k = (at - tr.first_point) as usize;
+    let q = quantum(lib);
+    let moving = |i: usize| {
+        let (a, b) = (pts[i], pts[i + 1]);
+        ((a.x, a.y) != (b.x, b.y)).then(|| motion(step(a, b), q).1)
+    };
+    (0..=k)
+        .rev()
+        .chain(k + 1..pts.len() - 1)
+        .find_map(moving)
+        .unwrap_or(0)
+}
