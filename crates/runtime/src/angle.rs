@@ -6,13 +6,14 @@ use std::f32::consts::{FRAC_PI_2, PI};
 /// `y.atan2(x)` within 2e-5 rad (Abramowitz and Stegun 4.4.47, |error| <= 1e-5 on [0, 1],
 /// plus f32 rounding); 0 for (0, 0), as `f32::atan2`. A heading needs no more: 2e-5 rad
 /// turns a 1.8 m character's head by 0.04 mm.
+///
+/// Written without branches (selects only), so that a loop of them vectorises.
+#[inline(always)]
 pub fn atan2(y: f32, x: f32) -> f32 {
     let (ax, ay) = (x.abs(), y.abs());
-    if ax == 0.0 && ay == 0.0 {
-        return 0.0;
-    }
     // atan of the ratio in [0, 1], then unfolded to the octant, half-plane and quadrant.
-    let z = if ay > ax { ax / ay } else { ay / ax };
+    let (num, den) = (ax.min(ay), ax.max(ay));
+    let z = if den > 0.0 { num / den } else { 0.0 };
     let (z2, z4) = (z * z, z * z * z * z);
     // Estrin's scheme: two short chains instead of one long one, since a frame computes
     // thousands of these back to back.

@@ -37,6 +37,7 @@ impl Steps {
 
     /// Steps walker `id` onto its next piece, if that is all it needs to reach tick `whole`
     /// after the epoch (its motion is written by [`Steps::finish`]); false if it needs more.
+    #[inline]
     pub fn take(&mut self, lib: &Library, id: u32, h: &mut Hot, whole: u32) -> bool {
         // The last piece of its trajectory, or so many left that only the cursor knows.
         if h.left == 0 || h.left == u16::MAX {

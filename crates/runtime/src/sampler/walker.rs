@@ -81,8 +81,13 @@ impl Loops {
 }
 
 /// A heading in radians as 65536ths of a turn (within 5e-5 rad).
+#[inline(always)]
 pub(super) fn turns(radians: f32) -> u16 {
-    (radians * (65536.0 / std::f32::consts::TAU)).round() as i32 as u16
+    // Adding and taking away 1.5 x 2^23 rounds to the nearest whole number (|v| <= 32768)
+    // in two instructions, where `f32::round` is a call.
+    const ROUND: f32 = 12_582_912.0;
+    let v = radians * (65536.0 / std::f32::consts::TAU);
+    ((v + ROUND) - ROUND) as i32 as u16
 }
 
 /// [`turns`] back to radians, in [-pi, pi).
