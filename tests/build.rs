@@ -79,9 +79,10 @@ fn a_second_build_reruns_nothing_and_an_edited_layer_reruns_merge_and_graph() {
 fn one_and_two_threads_write_identical_files() {
     let dir = tempfile::tempdir().unwrap();
     for (name, until, files) in [
-        ("city", "match", 8),
-        ("ring", "match", 8),
-        ("painting", "graph", 3),
+        // Stage files, and the report's pictures of them.
+        ("city", "match", 8 + 4),
+        ("ring", "match", 8 + 4),
+        ("painting", "graph", 3 + 2),
     ] {
         let pipeline = scene_pipeline(name);
         let (a, b) = (
@@ -167,6 +168,59 @@ fn report_prints_the_figures_as_json() {
 }
 
 #[test]
+fn a_build_writes_a_report_with_every_stage_its_cost_its_outputs_and_pictures() {
+    let (_dir, out) = build_shared_scene("bands", "export");
+    crowd_ok(&["check", s(&out)]);
+    let md = std::fs::read_to_string(out.join("report.md")).unwrap();
+    for figure in [
+        "| E_rho |",
+        "| collisions | 0 |",
+        "| smallest clearance (m) |",
+        "| acceleration p95 (m/s2) |",
+        "| walkers | 1102 |",
+        "| worst position error (m) |",
+        "| **all stages** |",
+        "| `library.crowd` | 1.3 MB |",
+        "| `world.glb` |",
+    ] {
+        assert!(md.contains(figure), "{figure} in\n{md}");
+    }
+    // A row per stage: wall time and (on Linux) a peak of at least a megabyte.
+    for stage in [
+        "merge", "graph", "optimize", "match", "collide", "smooth", "export",
+    ] {
+        let row = md
+            .lines()
+            .find(|l| l.starts_with(&format!("| {stage} |")))
+            .unwrap_or_else(|| panic!("no {stage} row in\n{md}"));
+        let peak = row.split('|').nth(3).unwrap().trim();
+        if cfg!(target_os = "linux") {
+            assert!(peak.parse::<f64>().unwrap() >= 1.0, "{row}");
+        }
+    }
+    for picture in [
+        "report_maps.png",
+        "report_graph.png",
+        "report_patterns.png",
+        "report_patch.png",
+    ] {
+        assert!(md.contains(&format!("]({picture})")), "{picture}");
+        let png = image::open(out.join(picture)).unwrap();
+        assert!(png.width() > 100 && png.height() > 100, "{picture}");
+    }
+    let json: serde_json::Value =
+        serde_json::from_slice(&crowd_ok(&["report", s(&out), "--json"]).stdout).unwrap();
+    assert!(
+        json["stage_peak_mb"]["export"].as_f64().unwrap() >= 1.0,
+        "{json}"
+    );
+    assert_eq!(
+        json["output_bytes"]["library.crowd"].as_u64().unwrap(),
+        std::fs::metadata(out.join("library.crowd")).unwrap().len()
+    );
+}
+
+#[test]
 fn stages_run_one_at_a_time_write_the_same_files_as_a_build() {
     let dir = tempfile::tempdir().unwrap();
     let pipeline = scene_pipeline("bands");
@@ -236,6 +290,7 @@ fn stages_run_one_at_a_time_write_the_same_files_as_a_build() {
         "-o",
         s(&f("export.ron")),
     ]);
+    crowd_ok(&["report", s(&b), "--markdown"]);
     let (built, staged) = (snapshot(&a), snapshot(&b));
     let names = |v: &[(String, Vec<u8>)]| v.iter().map(|f| f.0.clone()).collect::<Vec<_>>();
     assert_eq!(names(&built), names(&staged));

@@ -306,3 +306,49 @@ fn inspect_checks_the_library_and_names_a_corrupt_section() {
         "{err}"
     );
 }
+
+/// `crowd export --region` puts part of the world in the glTF (still valid), keeps the whole
+/// world in the library, and refuses a region that is not one.
+#[test]
+fn export_region_puts_part_of_the_world_in_the_gltf() {
+    let (_dir, out) = build_shared_scene("bands", "smooth");
+    let pipeline = scene_pipeline("bands");
+    let (p, i, o) = (
+        s(&pipeline),
+        out.join("smoothed.ron"),
+        out.join("export.ron"),
+    );
+    let export = |region: &str| {
+        crowd(&[
+            "export",
+            "-q",
+            "--pipeline",
+            p,
+            "-i",
+            s(&i),
+            "-o",
+            s(&o),
+            "--region",
+            region,
+        ])
+    };
+    assert!(export("0,0,40,40").status.success());
+    let text = String::from_utf8(crowd_ok(&["inspect", s(&o)]).stdout).unwrap();
+    assert!(text.contains("loads and checks: 1102 walkers"), "{text}");
+    assert!(
+        text.contains("the characters in x 0-40 m, y 0-40 m"),
+        "{text}"
+    );
+    let validated = node_tool("validate.mjs", &[s(&out.join("world.glb"))]);
+    let report = String::from_utf8_lossy(&validated.stdout);
+    assert!(report.contains("0 errors, 0 warnings"), "{report}");
+    for bad in ["40,0,0,40", "0,0,40", "0,0,40,4O"] {
+        let failed = export(bad);
+        assert!(!failed.status.success(), "{bad}");
+        let err = String::from_utf8_lossy(&failed.stderr);
+        assert!(
+            err.contains("--region") && err.contains("expected"),
+            "{bad}: {err}"
+        );
+    }
+}

@@ -94,12 +94,15 @@ pub fn s(p: &Path) -> &str {
     p.to_str().expect("utf-8 test paths")
 }
 
-/// Every file of a folder and its bytes, sorted by name, without `timings.ron`.
+/// Every file of a folder and its bytes, sorted by name, without `timings.ron` and
+/// `report.md` (which hold the build's times).
 pub fn snapshot(dir: &Path) -> Vec<(String, Vec<u8>)> {
     let mut files: Vec<(String, Vec<u8>)> = std::fs::read_dir(dir)
         .unwrap()
         .map(|e| e.unwrap().path())
-        .filter(|p| p.file_name().unwrap() != "timings.ron")
+        .filter(|p| {
+            !["timings.ron", "report.md"].contains(&p.file_name().unwrap().to_str().unwrap())
+        })
         .map(|p| {
             (
                 p.file_name().unwrap().to_string_lossy().into_owned(),

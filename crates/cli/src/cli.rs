@@ -125,6 +125,11 @@ pub enum Command {
         /// library (`library.crowd`) is written beside it.
         #[arg(long, short, value_name = "FILE")]
         output: Option<PathBuf>,
+        /// Put only this part of the world (world metres) in `world.glb`, in place of the
+        /// pipeline's `export.gltf_region`: DCC tools slow down with tens of thousands of
+        /// animated nodes. The library always holds the whole world.
+        #[arg(long, value_name = "X0,Y0,X1,Y1", value_parser = parse_region)]
+        region: Option<(f64, f64, f64, f64)>,
     },
     /// A readable summary of any stage file.
     Inspect { file: PathBuf },
@@ -157,7 +162,28 @@ pub enum Command {
         /// One markdown row per build folder, in the shape of Crowd Art's Table 1.
         #[arg(long)]
         table: bool,
+        /// Write `report.md` and its pictures into the folder, as `crowd build` does (for a
+        /// folder built stage by stage).
+        #[arg(long, conflicts_with_all = ["table", "json"])]
+        markdown: bool,
     },
+}
+
+/// `--region x0,y0,x1,y1`: four numbers, x0 < x1 and y0 < y1.
+fn parse_region(text: &str) -> Result<(f64, f64, f64, f64), String> {
+    let numbers: Vec<f64> = text
+        .split(',')
+        .map(|n| n.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .map_err(|e| format!("expected four numbers x0,y0,x1,y1 in metres: {e}"))?;
+    match numbers[..] {
+        [x0, y0, x1, y1] if x0 < x1 && y0 < y1 => Ok((x0, y0, x1, y1)),
+        [_, _, _, _] => Err("expected x0 < x1 and y0 < y1".into()),
+        _ => Err(format!(
+            "expected four numbers x0,y0,x1,y1 in metres, found {}",
+            numbers.len()
+        )),
+    }
 }
 
 /// A trajectories file (of `stage` at `version`) and the graph and patterns beside it, with
@@ -230,12 +256,18 @@ pub fn run(cli: Cli) -> Result<()> {
             output,
             until,
         } => {
+            let out = match &output {
+                Some(dir) => dir.clone(),
+                None => PipelineFile::load(&pipeline)?.output_dir(),
+            };
             let options = BuildOptions {
                 force,
                 output,
                 until,
             };
             driver::build(&pipeline, &options, &ui)?;
+            let report = crate::report_md::write(&out)?;
+            ui.say(format!("  report: {}", report.display()));
         }
         Command::Merge { pipeline, output } => {
             let p = PipelineFile::load(&pipeline)?;
@@ -348,6 +380,7 @@ pub fn run(cli: Cli) -> Result<()> {
             pipeline,
             input,
             output,
+            region,
         } => {
             let (p, input, out) = stage_files(
                 &pipeline,
@@ -360,7 +393,10 @@ pub fn run(cli: Cli) -> Result<()> {
             let (graph_bytes, graph, crossings) = (b.graph_bytes, b.graph, b.crossings);
             let (patterns_bytes, motion, smoothed_bytes) =
                 (b.patterns_bytes, b.motion, b.input_bytes);
-            let inputs = driver::export_inputs(&p);
+            let mut inputs = driver::export_inputs(&p);
+            if region.is_some() {
+                inputs.settings.gltf_region = region;
+            }
             let hash =
                 crowd_export::input_hash(&graph_bytes, &patterns_bytes, &smoothed_bytes, &inputs);
             write_all(&driver::export_stage(
@@ -371,6 +407,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Inspect { file } => print!("{}", crate::inspect::inspect(&file)?),
         Command::Check { dir, stage } => {
             let report = crate::report::check(&dir, stage)?;
+            crate::report_md::write(&dir)?;
             println!(
                 "{} walkers, {} segments: {} collisions ({} across borders); smallest clearance {:+.3} m{}",
                 report.walkers,
@@ -408,7 +445,12 @@ pub fn run(cli: Cli) -> Result<()> {
             let legend = crate::inspect::render(&file, &output, patch)?;
             ui.say(format!("wrote {}: {legend}", output.display()));
         }
-        Command::Report { dirs, json, table } => {
+        Command::Report {
+            dirs,
+            json,
+            table,
+            markdown,
+        } => {
             if table {
                 println!("{}", crate::report::TABLE_HEADER);
                 for dir in &dirs {
@@ -419,6 +461,10 @@ pub fn run(cli: Cli) -> Result<()> {
             let [dir] = dirs.as_slice() else {
                 anyhow::bail!("give one build folder, or `--table` for several");
             };
+            if markdown {
+                println!("{}", crate::report_md::write(dir)?.display());
+                return Ok(());
+            }
             let report = crate::report::Report::gather(dir)?;
             if json {
                 println!("{}", serde_json::to_string_pretty(&report.to_json())?);

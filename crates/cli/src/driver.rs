@@ -9,6 +9,7 @@
 //! A build is all or nothing: stage outputs are kept in memory and written (each file
 //! atomically) only once every stage has succeeded, so a build that fails changes no file.
 
+use crate::memory;
 use crate::ui::Ui;
 use anyhow::Result;
 use crowd_core::config::PipelineFile;
@@ -17,6 +18,7 @@ use crowd_core::maps::MergeFile;
 use crowd_core::patterns::{Crossing, Patterns};
 use crowd_core::trajectories::{PatchMotion, TrajectoriesFile, check_motion};
 use crowd_core::{Hash, MergedMaps, PatchGraph};
+use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -474,7 +476,7 @@ pub fn collide_inputs(pipeline: &PipelineFile) -> crowd_collide::Inputs {
 fn finish(
     out: &Path,
     pending: Pending,
-    timings: &BTreeMap<String, f64>,
+    timings: &BTreeMap<String, StageRun>,
     outcomes: Vec<StageOutcome>,
 ) -> Result<Vec<StageOutcome>> {
     files::write_all(&pending.0)?;
@@ -488,7 +490,7 @@ fn stage(
     name: &'static str,
     output: &Path,
     fresh: bool,
-    timings: &mut BTreeMap<String, f64>,
+    timings: &mut BTreeMap<String, StageRun>,
     run: impl FnOnce() -> Result<()>,
 ) -> Result<StageOutcome> {
     if fresh {
@@ -501,12 +503,17 @@ fn stage(
             seconds: None,
         });
     }
+    memory::reset_peak();
     let start = Instant::now();
     run()?;
     let seconds = start.elapsed().as_secs_f64();
-    timings.insert(name.to_string(), seconds);
+    let peak_mb = memory::peak_bytes().map(|b| b as f64 / 1e6);
+    timings.insert(name.to_string(), StageRun { seconds, peak_mb });
+    let peak = peak_mb
+        .map(|mb| format!(", peak {mb:.0} MB"))
+        .unwrap_or_default();
     ui.say(format!(
-        "{name:>8}: built in {seconds:.3} s -> {}",
+        "{name:>8}: built in {seconds:.3} s{peak} -> {}",
         output.display()
     ));
     Ok(StageOutcome {
@@ -551,8 +558,17 @@ fn is_current(path: &Path, stage: &str, version: u32, hash: Hash) -> bool {
     files::read_header(path).is_ok_and(|h| h == Header::new(stage, version, hash))
 }
 
-/// Stage timings of a build folder (empty when there are none yet).
-pub fn read_timings(dir: &Path) -> BTreeMap<String, f64> {
+/// What a stage cost when it last ran: wall time, and the most memory the process held while
+/// it ran (None where the system does not say).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct StageRun {
+    pub seconds: f64,
+    pub peak_mb: Option<f64>,
+}
+
+/// Stage costs of a build folder (empty when there are none yet, or from before they held
+/// memory).
+pub fn read_timings(dir: &Path) -> BTreeMap<String, StageRun> {
     files::read_ron(&dir.join(TIMINGS_FILE)).unwrap_or_default()
 }
 

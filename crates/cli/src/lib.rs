@@ -3,5 +3,7 @@
 pub mod cli;
 pub mod driver;
 pub mod inspect;
+pub mod memory;
 pub mod report;
+pub mod report_md;
 pub mod ui;

@@ -1,10 +1,10 @@
 //! `crowd report`: the figures a build folder holds so far, as text or one JSON object.
 
 use crate::driver::{
-    COLLIDED_FILE, GRAPH_FILE, MERGE_FILE, PATTERNS_FILE, SMOOTHED_FILE, Stage, TRAJECTORIES_FILE,
-    read_timings,
+    COLLIDED_FILE, EXPORT_FILE, GRAPH_FILE, MERGE_FILE, PATTERNS_FILE, SMOOTHED_FILE, Stage,
+    StageRun, TRAJECTORIES_FILE, read_timings,
 };
-use anyhow::{Result, bail};
+use anyhow::{Context, Result, bail};
 use crowd_core::PatchGraph;
 use crowd_core::files;
 use crowd_core::patterns::Patterns;
@@ -22,7 +22,11 @@ pub struct Report {
     pub smoothed: Option<TrajectoriesFile>,
     /// The last `crowd check` of the folder.
     pub check: Option<crowd_check::CheckReport>,
-    pub stage_seconds: BTreeMap<String, f64>,
+    pub export: Option<crowd_export::ExportFile>,
+    /// What each stage cost when it last ran.
+    pub stages: BTreeMap<String, StageRun>,
+    /// Every file of the folder and its size in bytes, by name.
+    pub outputs: BTreeMap<String, u64>,
 }
 
 impl Report {
@@ -57,6 +61,15 @@ impl Report {
         let collided = optional(&dir.join(COLLIDED_FILE))?;
         let smoothed = optional(&dir.join(SMOOTHED_FILE))?;
         let check = optional(&dir.join(CHECK_FILE))?;
+        let export = optional(&dir.join(EXPORT_FILE))?;
+        let mut outputs = BTreeMap::new();
+        for entry in std::fs::read_dir(dir).with_context(|| format!("{}", dir.display()))? {
+            let entry = entry.with_context(|| format!("{}", dir.display()))?;
+            let meta = entry.metadata()?;
+            if meta.is_file() {
+                outputs.insert(entry.file_name().to_string_lossy().into_owned(), meta.len());
+            }
+        }
         Ok(Report {
             graph,
             patterns,
@@ -64,7 +77,9 @@ impl Report {
             collided,
             smoothed,
             check,
-            stage_seconds: read_timings(dir),
+            export,
+            stages: read_timings(dir),
+            outputs,
         })
     }
 
@@ -137,7 +152,22 @@ impl Report {
             out.insert("unconverged_patches".into(), json!(c.unconverged.len()));
             out.insert("collide_pushes".into(), json!(c.iterations));
         }
-        out.insert("stage_seconds".into(), json!(self.stage_seconds));
+        if let Some(e) = &self.export {
+            out.insert("library_walkers".into(), json!(e.walkers));
+            out.insert("library_standers".into(), json!(e.standers));
+            out.insert("library_loops".into(), json!(e.loops));
+            out.insert("library_points".into(), json!(e.points));
+            out.insert("library_position_error_m".into(), json!(e.position_error_m));
+            out.insert("library_time_error_s".into(), json!(e.time_error_s));
+        }
+        let seconds: BTreeMap<_, _> = self.stages.iter().map(|(k, r)| (k, r.seconds)).collect();
+        let peaks: BTreeMap<_, _> = self.stages.iter().map(|(k, r)| (k, r.peak_mb)).collect();
+        out.insert("stage_seconds".into(), json!(seconds));
+        out.insert("stage_peak_mb".into(), json!(peaks));
+        out.insert("build_seconds".into(), json!(seconds.values().sum::<f64>()));
+        let peak = peaks.values().flatten().copied().reduce(f64::max);
+        out.insert("build_peak_mb".into(), json!(peak));
+        out.insert("output_bytes".into(), json!(self.outputs));
         Value::Object(out)
     }
 
@@ -145,16 +175,20 @@ impl Report {
         let json = self.to_json();
         let mut s = String::new();
         for (key, value) in json.as_object().expect("an object") {
-            if let Value::Object(stages) = value {
-                for (stage, secs) in stages {
-                    s += &format!(
-                        "{:<22} {:.3} s\n",
-                        format!("{key}.{stage}"),
-                        secs.as_f64().unwrap_or(0.0)
-                    );
-                }
-            } else {
-                s += &format!("{key:<22} {value}\n");
+            let Value::Object(items) = value else {
+                s += &format!("{key:<26} {value}\n");
+                continue;
+            };
+            for (item, v) in items {
+                let name = format!("{key}.{item}");
+                let v = v.as_f64();
+                s += &match (key.as_str(), v) {
+                    (_, None) => format!("{name:<26} -\n"),
+                    ("stage_seconds", Some(v)) => format!("{name:<26} {v:.3} s\n"),
+                    ("stage_peak_mb", Some(v)) => format!("{name:<26} {v:.0} MB\n"),
+                    ("output_bytes", Some(v)) => format!("{name:<26} {:.2} MB\n", v / 1e6),
+                    (_, Some(v)) => format!("{name:<26} {v}\n"),
+                };
             }
         }
         s
@@ -175,9 +209,9 @@ impl Report {
             None => "-".to_string(),
         };
         let seconds = |stage: &str| {
-            self.stage_seconds
+            self.stages
                 .get(stage)
-                .map_or("-".to_string(), |s| format!("{s:.2}"))
+                .map_or("-".to_string(), |r| format!("{:.2}", r.seconds))
         };
         let name = dir.file_name().map_or(dir.display().to_string(), |n| {
             n.to_string_lossy().into_owned()

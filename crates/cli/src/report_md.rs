@@ -1,0 +1,237 @@
+//! `report.md`: a build folder's figures for a person to read, with the pictures of its stages.
+//! `crowd build` writes it beside the outputs after every build, and `crowd check` refreshes
+//! it with the collision and motion figures.
+
+use crate::driver::{
+    COLLIDED_FILE, GRAPH_FILE, MERGE_FILE, PATTERNS_FILE, SMOOTHED_FILE, TRAJECTORIES_FILE,
+};
+use crate::report::Report;
+use anyhow::Result;
+use crowd_core::files;
+use serde_json::Value;
+use std::fmt::Write;
+use std::path::{Path, PathBuf};
+
+/// The report's name in a build folder.
+pub const REPORT_FILE: &str = "report.md";
+
+/// The stages in the order they run, as `timings.ron` names them.
+const STAGES: [&str; 7] = [
+    "merge", "graph", "optimize", "match", "collide", "smooth", "export",
+];
+
+/// Draws the pictures of the stage files in `dir`, then writes `report.md` there.
+pub fn write(dir: &Path) -> Result<PathBuf> {
+    let pictures = draw_pictures(dir)?;
+    let report = Report::gather(dir)?;
+    let path = dir.join(REPORT_FILE);
+    files::write_atomic(&path, markdown(dir, &report, &pictures).as_bytes())?;
+    Ok(path)
+}
+
+/// A picture in the report: file name beside it, caption, legend.
+struct Picture {
+    file: &'static str,
+    caption: &'static str,
+    legend: &'static str,
+}
+
+/// One PNG per stage file the folder holds (the latest trajectories only), named `report_*`.
+fn draw_pictures(dir: &Path) -> Result<Vec<Picture>> {
+    let trajectories = [SMOOTHED_FILE, COLLIDED_FILE, TRAJECTORIES_FILE]
+        .into_iter()
+        .find(|f| dir.join(f).exists());
+    let wanted = [
+        (
+            Some(MERGE_FILE),
+            "report_maps.png",
+            "Stage 1: the merged maps",
+        ),
+        (
+            Some(GRAPH_FILE),
+            "report_graph.png",
+            "Stage 2: the patch graph",
+        ),
+        (
+            Some(PATTERNS_FILE),
+            "report_patterns.png",
+            "Stage 3: density error per patch, and E per iteration",
+        ),
+        (
+            trajectories,
+            "report_patch.png",
+            "The busiest patch's final trajectories",
+        ),
+    ];
+    let mut pictures = Vec::new();
+    for (stage_file, file, caption) in wanted {
+        let Some(stage_file) = stage_file.filter(|f| dir.join(f).exists()) else {
+            continue;
+        };
+        let legend = crate::inspect::render(&dir.join(stage_file), &dir.join(file), None)?;
+        pictures.push(Picture {
+            file,
+            caption,
+            legend,
+        });
+    }
+    Ok(pictures)
+}
+
+fn markdown(dir: &Path, report: &Report, pictures: &[Picture]) -> String {
+    let json = report.to_json();
+    let name = dir.file_name().map_or_else(
+        || dir.display().to_string(),
+        |n| n.to_string_lossy().into_owned(),
+    );
+    let mut s = format!("# Crowd build report: {name}\n\n");
+    let _ = writeln!(
+        s,
+        "Written by `crowd build` (collision and motion figures by `crowd check`). Figures as \
+         defined in DESIGN.md, \"The figures we judge by\".\n"
+    );
+    let sections: [(&str, &[(&str, &str)]); 4] = [
+        (
+            "World (stages 1 and 2)",
+            &[
+                ("patches", "patches"),
+                ("patch_side_m", "patch side (m)"),
+                ("components", "connected components"),
+                ("borders", "borders"),
+                ("closed_borders", "closed borders"),
+                ("walkers_requested", "walkers requested"),
+                ("walkers_measured", "walkers measured"),
+                ("standers", "standers"),
+            ],
+        ),
+        (
+            "Patterns (stage 3, Crowd Art eq. 4-6)",
+            &[
+                ("E_rho", "E_rho"),
+                ("E_d", "E_d"),
+                ("E", "E"),
+                ("iterations", "iterations"),
+                ("converged", "converged"),
+            ],
+        ),
+        (
+            "Collisions and motion (`crowd check`, whole tiled world)",
+            &[
+                ("checked_stage", "trajectories checked"),
+                ("collisions", "collisions"),
+                ("collisions_across_borders", "of them across borders"),
+                ("min_clearance_m", "smallest clearance (m)"),
+                ("unconverged_patches", "unconverged patches (stage 5)"),
+                ("speed_in_band", "share of walking time at 0.5-1.8 m/s"),
+                ("accel_p95", "acceleration p95 (m/s2)"),
+                ("turn_rate_p95", "turning rate p95 (rad/s)"),
+                (
+                    "max_border_velocity_jump",
+                    "largest velocity jump at a border (m/s)",
+                ),
+                ("max_boundary_error_m", "boundary points off (m)"),
+                ("max_boundary_time_error_s", "boundary points off (s)"),
+                ("unmatched_crossings", "crossings not entered and left once"),
+            ],
+        ),
+        (
+            "Library (stage 8)",
+            &[
+                ("library_walkers", "walkers"),
+                ("library_standers", "standers"),
+                ("library_loops", "loops"),
+                ("library_points", "trajectory points"),
+                ("library_position_error_m", "worst position error (m)"),
+                ("library_time_error_s", "worst time error (s)"),
+            ],
+        ),
+    ];
+    for (title, rows) in sections {
+        let present: Vec<_> = rows
+            .iter()
+            .filter_map(|(key, label)| json.get(*key).map(|v| (label, v)))
+            .collect();
+        let _ = writeln!(s, "## {title}\n");
+        if present.is_empty() {
+            let _ = writeln!(
+                s,
+                "Not built or not checked yet{}.\n",
+                if title.starts_with("Collisions") {
+                    format!(" (run `crowd check {}`)", dir.display())
+                } else {
+                    String::new()
+                }
+            );
+            continue;
+        }
+        let _ = writeln!(s, "| figure | value |\n| --- | ---: |");
+        for (label, value) in present {
+            let _ = writeln!(s, "| {label} | {} |", cell(value));
+        }
+        s.push('\n');
+    }
+
+    let _ = writeln!(
+        s,
+        "## Cost\n\nWall time and peak resident memory of each stage when it last ran.\n\n\
+         | stage | wall (s) | peak memory (MB) |\n| --- | ---: | ---: |"
+    );
+    for stage in STAGES {
+        if let Some(run) = report.stages.get(stage) {
+            let peak = run.peak_mb.map_or("-".into(), |mb| format!("{mb:.0}"));
+            let _ = writeln!(s, "| {stage} | {:.2} | {peak} |", run.seconds);
+        }
+    }
+    let total: f64 = report.stages.values().map(|r| r.seconds).sum();
+    let peak = report
+        .stages
+        .values()
+        .filter_map(|r| r.peak_mb)
+        .reduce(f64::max)
+        .map_or("-".into(), |mb| format!("{mb:.0}"));
+    let _ = writeln!(s, "| **all stages** | **{total:.2}** | **{peak}** |\n");
+
+    let _ = writeln!(s, "## Outputs\n\n| file | size |\n| --- | ---: |");
+    for (file, bytes) in report.outputs.iter().filter(|(f, _)| *f != REPORT_FILE) {
+        let _ = writeln!(s, "| `{file}` | {} |", size(*bytes));
+    }
+    s.push('\n');
+
+    if !pictures.is_empty() {
+        let _ = writeln!(s, "## Pictures\n");
+        for p in pictures {
+            let _ = writeln!(
+                s,
+                "### {}\n\n![{}]({})\n\n{}\n",
+                p.caption, p.caption, p.file, p.legend
+            );
+        }
+    }
+    s
+}
+
+/// A figure as a table cell: floats to four significant places, shares as percentages.
+fn cell(v: &Value) -> String {
+    match v {
+        Value::Number(n) if n.is_f64() => {
+            let x = n.as_f64().unwrap_or(f64::NAN);
+            if x.fract() == 0.0 && x.abs() < 1e15 {
+                format!("{x:.0}")
+            } else if x != 0.0 && x.abs() < 1e-3 {
+                format!("{x:.2e}")
+            } else {
+                format!("{x:.4}")
+            }
+        }
+        Value::String(t) => t.clone(),
+        other => other.to_string(),
+    }
+}
+
+fn size(bytes: u64) -> String {
+    match bytes {
+        b if b >= 1_000_000 => format!("{:.1} MB", b as f64 / 1e6),
+        b if b >= 1_000 => format!("{:.1} kB", b as f64 / 1e3),
+        b => format!("{b} B"),
+    }
+}
