@@ -147,6 +147,18 @@ fn markdown(dir: &Path, report: &Report, pictures: &[Picture]) -> String {
         ),
     ];
     for (title, rows) in sections {
+        if title.starts_with("Collisions")
+            && let Some(stale) = stale_check(dir)
+        {
+            let _ = writeln!(
+                s,
+                "## {title}\n\n`{}` is older than `{stale}`: run `crowd check {}` for figures \
+                 of this build.\n",
+                crate::report::CHECK_FILE,
+                dir.display()
+            );
+            continue;
+        }
         let present: Vec<_> = rows
             .iter()
             .filter_map(|(key, label)| json.get(*key).map(|v| (label, v)))
@@ -208,6 +220,19 @@ fn markdown(dir: &Path, report: &Report, pictures: &[Picture]) -> String {
         }
     }
     s
+}
+
+/// The trajectories file that changed after `check.ron` was written, if one did.
+fn stale_check(dir: &Path) -> Option<&'static str> {
+    let modified = |f: &str| {
+        std::fs::metadata(dir.join(f))
+            .and_then(|m| m.modified())
+            .ok()
+    };
+    let checked = modified(crate::report::CHECK_FILE)?;
+    [SMOOTHED_FILE, COLLIDED_FILE, TRAJECTORIES_FILE]
+        .into_iter()
+        .find(|f| modified(f).is_some_and(|t| t > checked))
 }
 
 /// A figure as a table cell: floats to four significant places, shares as percentages.

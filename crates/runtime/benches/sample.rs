@@ -53,6 +53,25 @@ fn frames(c: &mut Criterion) {
             out.len()
         })
     });
+    // The memory floor of any sampler whose records are this size: a loop that only streams
+    // 32 bytes in and writes a 16-byte sample out per walker, as `Sampler` does at least.
+    let records: Vec<[f32; 8]> = (0..walkers)
+        .map(|i| [0.0, 0.0, i as f32, 1.0, 0.5, 0.25, 1.0, 0.0])
+        .collect();
+    let mut streamed: Vec<[f32; 4]> = Vec::with_capacity(records.len());
+    let mut dt = 0.0f32;
+    group.bench_function(format!("{walkers} records streamed (the floor)"), |b| {
+        b.iter(|| {
+            dt += 1e-3;
+            streamed.clear();
+            streamed.extend(
+                records
+                    .iter()
+                    .map(|r| [r[2] + r[4] * dt, r[3] + r[5] * dt, r[6], r[7]]),
+            );
+            streamed.len()
+        })
+    });
     group.finish();
 }
 
