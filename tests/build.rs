@@ -170,8 +170,14 @@ fn report_prints_the_figures_as_json() {
 #[test]
 fn a_build_writes_a_report_with_every_stage_its_cost_its_outputs_and_pictures() {
     let (_dir, out) = build_shared_scene("bands", "export");
+    let unchecked = std::fs::read_to_string(out.join("report.md")).unwrap();
+    assert!(
+        unchecked.contains("Not checked yet: run `crowd check"),
+        "{unchecked}"
+    );
     crowd_ok(&["check", s(&out)]);
     let md = std::fs::read_to_string(out.join("report.md")).unwrap();
+    assert!(!md.contains("Not checked yet"), "{md}");
     for figure in [
         "| E_rho |",
         "| collisions | 0 |",

@@ -163,17 +163,21 @@ fn markdown(dir: &Path, report: &Report, pictures: &[Picture]) -> String {
             .iter()
             .filter_map(|(key, label)| json.get(*key).map(|v| (label, v)))
             .collect();
-        let _ = writeln!(s, "## {title}\n");
-        if present.is_empty() {
+        if present.is_empty() && !title.starts_with("Collisions") {
+            let _ = writeln!(s, "## {title}\n\nNot built yet.\n");
+            continue;
+        }
+        if title.starts_with("Collisions") && !dir.join(crate::report::CHECK_FILE).exists() {
             let _ = writeln!(
                 s,
-                "Not built or not checked yet{}.\n",
-                if title.starts_with("Collisions") {
-                    format!(" (run `crowd check {}`)", dir.display())
-                } else {
-                    String::new()
-                }
+                "## {title}\n\nNot checked yet: run `crowd check {}` for the collision and \
+                 motion figures.\n",
+                dir.display()
             );
+        } else {
+            let _ = writeln!(s, "## {title}\n");
+        }
+        if present.is_empty() {
             continue;
         }
         let _ = writeln!(s, "| figure | value |\n| --- | ---: |");
