@@ -15,7 +15,7 @@ mod walker;
 
 use crate::format::{Library, TICK_S};
 use steps::Steps;
-use walker::{Cursor, Hot, Loops, quantum, radians};
+use walker::{Cursor, Hot, Loops, Scale, radians};
 
 /// One character seen in a frame: world metres (x east, y north), heading in radians
 /// counter-clockwise from east (the direction it walks, or last walked), within 5e-5 rad.
@@ -33,6 +33,7 @@ pub struct Sample {
 pub struct Sampler<'a> {
     lib: &'a Library,
     loops: Loops,
+    scale: Scale,
     hot: Vec<Hot>,
     cursors: Vec<Cursor>,
     standers: Vec<Sample>,
@@ -86,6 +87,7 @@ impl<'a> Sampler<'a> {
         Sampler {
             lib,
             loops: Loops::new(lib),
+            scale: Scale::of(lib),
             hot: vec![Hot::default(); cursors.len()],
             cursors,
             standers,
@@ -160,7 +162,7 @@ impl<'a> Sampler<'a> {
         self.steps.clear();
         for &id in &self.ended[b % 2] {
             let h = &mut self.hot[id as usize];
-            if self.steps.take(lib, id, h, whole) {
+            if self.steps.take(lib, &self.scale, id, h, whole) {
                 continue;
             }
             let c = &mut self.cursors[id as usize];
@@ -170,7 +172,7 @@ impl<'a> Sampler<'a> {
                 walker::walk_on(lib, c, h, now, epoch);
             }
         }
-        self.steps.finish(quantum(lib), &mut self.hot);
+        self.steps.finish(self.scale.quantum, &mut self.hot);
     }
 
     /// Appends block `b`'s walkers inside `view` at `rel` ticks after the epoch.

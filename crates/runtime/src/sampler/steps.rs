@@ -2,7 +2,7 @@
 //! holds the frame's time. Such steps are gathered column by column, so that their motions
 //! (a division and an arctangent each) are computed in one tight loop the compiler vectorises.
 
-use super::walker::{Hot, motion, step, world};
+use super::walker::{Hot, Scale, motion, step};
 use crate::format::Library;
 
 #[derive(Debug, Clone, Default)]
@@ -38,7 +38,7 @@ impl Steps {
     /// Steps walker `id` onto its next piece, if that is all it needs to reach tick `whole`
     /// after the epoch (its motion is written by [`Steps::finish`]); false if it needs more.
     #[inline]
-    pub fn take(&mut self, lib: &Library, id: u32, h: &mut Hot, whole: u32) -> bool {
+    pub fn take(&mut self, lib: &Library, scale: &Scale, id: u32, h: &mut Hot, whole: u32) -> bool {
         // The last piece of its trajectory, or so many left that only the cursor knows.
         if h.left == 0 || h.left == u16::MAX {
             return false;
@@ -49,7 +49,7 @@ impl Steps {
             return false;
         }
         let [dx, dy, ticks] = step(a, b);
-        let [x, y] = world(lib, h.col, h.row, b);
+        let [x, y] = scale.world(h.col, h.row, b);
         self.id.push(id);
         self.x.push(x);
         self.y.push(y);

@@ -95,19 +95,34 @@ pub(super) fn radians(turns: u16) -> f32 {
     f32::from(turns as i16) * (std::f32::consts::TAU / 65536.0)
 }
 
-/// World position of point `p` of the patch at (`col`, `row`), as every path computes it.
-pub(super) fn world(lib: &Library, col: u16, row: u16, p: Point) -> [f32; 2] {
-    let side = f64::from(lib.world.patch_side_m);
-    let q = side / QUANT_STEPS;
-    [
-        (f64::from(col) * side + f64::from(p.x) * q) as f32,
-        (f64::from(row) * side + f64::from(p.y) * q) as f32,
-    ]
+/// The library's lengths, computed once, so that a step onto a new piece does not divide.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Scale {
+    side: f64,
+    /// Metres per position step.
+    step: f64,
+    /// The same, as the motions are computed with it.
+    pub quantum: f32,
 }
 
-/// Metres per position step, as the sampler computes with it.
-pub(super) fn quantum(lib: &Library) -> f32 {
-    (f64::from(lib.world.patch_side_m) / QUANT_STEPS) as f32
+impl Scale {
+    pub fn of(lib: &Library) -> Scale {
+        let side = f64::from(lib.world.patch_side_m);
+        let step = side / QUANT_STEPS;
+        Scale {
+            side,
+            step,
+            quantum: step as f32,
+        }
+    }
+
+    /// World position of point `p` of the patch at (`col`, `row`), as every path computes it.
+    pub fn world(&self, col: u16, row: u16, p: Point) -> [f32; 2] {
+        [
+            (f64::from(col) * self.side + f64::from(p.x) * self.step) as f32,
+            (f64::from(row) * self.side + f64::from(p.y) * self.step) as f32,
+        ]
+    }
 }
 
 /// A piece's step from point `a` to point `b`: x and y in position steps, and ticks.
@@ -206,13 +221,14 @@ pub(super) fn seek(
 /// walked it: a standing piece keeps it.
 fn piece(lib: &Library, c: &Cursor, h: &mut Hot, epoch: i64, walked: Option<u16>) {
     let (a, b) = (lib.points[h.at as usize], lib.points[h.at as usize + 1]);
-    let ([vx, vy], heading) = motion(step(a, b), quantum(lib));
+    let scale = Scale::of(lib);
+    let ([vx, vy], heading) = motion(step(a, b), scale.quantum);
     let heading = match ((a.x, a.y) != (b.x, b.y), walked) {
         (true, _) => heading,
         (false, Some(h)) => h,
         (false, None) => standing_heading(lib, c, h.at),
     };
-    [h.x, h.y] = world(lib, h.col, h.row, b);
+    [h.x, h.y] = scale.world(h.col, h.row, b);
     (h.vx, h.vy, h.heading) = (vx, vy, heading);
     h.at += 1;
     h.left = (c.last - h.at).min(u32::from(u16::MAX)) as u16;
@@ -226,7 +242,7 @@ fn standing_heading(lib: &Library, c: &Cursor, at: u32) -> u16 {
     let tr = &lib.trajectories[c.traj as usize];
     let pts = lib.points_of(tr);
     let k = (at - tr.first_point) as usize;
-    let q = quantum(lib);
+    let q = Scale::of(lib).quantum;
     let moving = |i: usize| {
         let (a, b) = (pts[i], pts[i + 1]);
         ((a.x, a.y) != (b.x, b.y)).then(|| motion(step(a, b), q).1)
