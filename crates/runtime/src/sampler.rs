@@ -114,6 +114,7 @@ impl<'a> Sampler<'a> {
         self.settle_epoch(now);
         let rel = now - self.epoch as f64;
         let whole = rel.floor() as u32;
+        let frac = (rel - f64::from(whole)) as f32;
         let blocks = self.hot.len().div_ceil(BLOCK);
         for b in 0..=blocks {
             if b < blocks {
@@ -121,7 +122,7 @@ impl<'a> Sampler<'a> {
             }
             if b > 0 {
                 self.walk_on_ended(b - 1, now, whole);
-                self.write(b - 1, rel, view, out);
+                self.write(b - 1, whole, frac, view, out);
             }
         }
         out.extend(
@@ -175,21 +176,42 @@ impl<'a> Sampler<'a> {
         self.steps.finish(self.scale.quantum, &mut self.hot);
     }
 
-    /// Appends block `b`'s walkers inside `view` at `rel` ticks after the epoch.
-    fn write(&self, b: usize, rel: f64, view: [f32; 4], out: &mut Vec<Sample>) {
+    /// Appends block `b`'s walkers inside `view` at `rel` ticks after the epoch (`whole`
+    /// whole ticks and `frac`): every walker is placed, then, unless the whole block is in
+    /// view, those outside are squeezed out (or, none in view, the block dropped).
+    fn write(&self, b: usize, whole: u32, frac: f32, view: [f32; 4], out: &mut Vec<Sample>) {
         let range = self.block(b);
-        for (id, h) in range.clone().zip(&self.hot[range]) {
-            let dt = (rel - f64::from(h.end)) as f32;
-            let (x, y) = (h.x + h.vx * dt, h.y + h.vy * dt);
-            if x >= view[0] && x < view[2] && y >= view[1] && y < view[3] {
-                out.push(Sample {
-                    id: id as u32,
-                    x,
-                    y,
-                    heading: radians(h.heading),
-                });
+        let first = out.len();
+        out.extend(range.clone().zip(&self.hot[range]).map(|(id, h)| {
+            // Whole ticks in i32 (a piece ends less than 2^31 ticks ahead), exact in f32.
+            let dt = whole.wrapping_sub(h.end) as i32 as f32 + frac;
+            Sample {
+                id: id as u32,
+                x: h.x + h.vx * dt,
+                y: h.y + h.vy * dt,
+                heading: radians(h.heading),
             }
+        }));
+        let inside =
+            |s: &Sample| s.x >= view[0] && s.x < view[2] && s.y >= view[1] && s.y < view[3];
+        let (all, any) = out[first..].iter().fold((true, false), |(all, any), s| {
+            (all & inside(s), any | inside(s))
+        });
+        if all {
+            return;
         }
+        if !any {
+            out.truncate(first);
+            return;
+        }
+        let block = &mut out[first..];
+        let mut kept = 0;
+        for i in 0..block.len() {
+            let s = block[i];
+            block[kept] = s;
+            kept += usize::from(inside(&s));
+        }
+        out.truncate(first + kept);
     }
 
     /// Keeps `Hot::end` in range of its u32: before the first frame, after time went back or
