@@ -186,7 +186,7 @@ fn a_build_writes_a_report_with_every_stage_its_cost_its_outputs_and_pictures() 
         "| walkers | 1102 |",
         "| worst position error (m) |",
         "| **all stages** |",
-        "| `library.crowd` | 1.3 MB |",
+        "| `library.crowd` | 839.2 kB |",
         "| `world.glb` |",
     ] {
         assert!(md.contains(figure), "{figure} in\n{md}");

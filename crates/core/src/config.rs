@@ -45,7 +45,7 @@ pub struct Pipeline {
 }
 
 /// Stage 8's settings.
-#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ExportSettings {
     /// The part of the world `world.glb` holds, `(x0, y0, x1, y1)` in world metres: the
@@ -53,6 +53,24 @@ pub struct ExportSettings {
     /// nodes). None: the whole world. The library always holds the whole world.
     #[serde(default)]
     pub gltf_region: Option<(f64, f64, f64, f64)>,
+    /// Keyframes are dropped where the walk between the kept ones stays within this many
+    /// millimetres of stage 6's: about half of them at 0.75, which halves the library and the
+    /// runtime's steps onto new pieces. 0 keeps every keyframe.
+    #[serde(default = "default_simplify_mm")]
+    pub simplify_mm: f64,
+}
+
+fn default_simplify_mm() -> f64 {
+    0.75
+}
+
+impl Default for ExportSettings {
+    fn default() -> ExportSettings {
+        ExportSettings {
+            gltf_region: None,
+            simplify_mm: default_simplify_mm(),
+        }
+    }
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -472,6 +490,16 @@ impl PipelineFile {
                 ),
             ));
         }
+        let e = &p.export;
+        if !(e.simplify_mm.is_finite() && (0.0..=10.0).contains(&e.simplify_mm)) {
+            return Err(self.field_error(
+                "export.simplify_mm",
+                format!(
+                    "is {}; expected a distance in millimetres from 0 (every keyframe) to 10",
+                    e.simplify_mm
+                ),
+            ));
+        }
         Ok(())
     }
 }
@@ -688,5 +716,16 @@ mod tests {
         let text = GOOD.replace("patch_side_m: 8.0", "patch_side_m: 0.0");
         let err = parse(&text).unwrap_err().to_string();
         assert!(err.starts_with("p.ron:11:5: `patch_side_m` is 0"), "{err}");
+    }
+
+    #[test]
+    fn export_keeps_keyframes_within_three_quarters_of_a_millimetre_unless_told_and_refuses_a_negative_distance()
+     {
+        assert_eq!(parse(GOOD).unwrap().pipeline.export.simplify_mm, 0.75);
+        let text = GOOD.replace("output:", "export: (simplify_mm: -1.0),\n    output:");
+        let err = parse(&text).unwrap_err().to_string();
+        assert!(err.starts_with("p.ron:15:14: "), "{err}");
+        assert!(err.contains("`export.simplify_mm` is -1"), "{err}");
+        assert!(err.contains("expected a distance in millimetres"), "{err}");
     }
 }

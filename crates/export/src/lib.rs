@@ -5,16 +5,19 @@
 //!   and the links that keep a character's identity from patch to patch.
 //! - [`glb`]: `world.glb`, the same characters as a glTF 2.0 scene with one looping clip.
 //! - [`characters`]: those links as loops, the one notion of "a character" both outputs share.
+//! - [`simplify`]: both are made from the keyframes an engine needs, within `simplify_mm` of
+//!   stage 6's.
 
 pub mod characters;
 pub mod glb;
 pub mod library;
+pub mod simplify;
 
 use crowd_core::{Hash, Hasher};
 
 /// The stage name in `export.ron`'s header.
 pub const STAGE: &str = "export";
-pub const VERSION: u32 = 1;
+pub const VERSION: u32 = 2;
 
 /// What stage 8 reads of a pipeline besides its input files.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
@@ -57,7 +60,8 @@ pub struct ExportFile {
     /// Loops of linked trajectories; a loop of k periods carries k walkers.
     pub loops: u64,
     pub points: u64,
-    /// Worst-case quantisation error of the library: metres, seconds.
+    /// Worst-case error of the library against stage 6 (the keyframes dropped, then
+    /// quantisation): metres, seconds.
     pub position_error_m: f64,
     pub time_error_s: f64,
 }
@@ -85,6 +89,9 @@ pub fn export(
     inputs: &Inputs,
     hash: Hash,
 ) -> Result<Export, ExportError> {
+    let tolerance_m = inputs.settings.simplify_mm * 1e-3;
+    let kept = simplify::motion(motion, tolerance_m);
+    let motion = &kept[..];
     let links = characters::link(motion, crossings.len()).map_err(library::LibraryError::Links)?;
     let mut short = [0u8; 8];
     short.copy_from_slice(&hash.as_bytes()[..8]);
@@ -120,7 +127,7 @@ pub fn export(
         standers: lib.standers.len() as u64,
         loops: lib.characters.len() as u64,
         points: lib.points.len() as u64,
-        position_error_m: graph.world.patch_side_m * library::POSITION_ERROR_SHARE,
+        position_error_m: tolerance_m + graph.world.patch_side_m * library::POSITION_ERROR_SHARE,
         time_error_s: 0.5 * crowd_runtime::TICK_S,
     };
     Ok(Export {
