@@ -10,16 +10,21 @@
 //! Time is kept in whole ticks (`TICK_S`), so a piece is the same bits whether the sampler
 //! walked to it or searched for it: a frame depends only on its time.
 
+mod place;
 mod steps;
 mod walker;
 
 use crate::format::{Library, TICK_S};
+use place::place;
 use steps::Steps;
-use walker::{Cursor, Hot, Loops, Scale, radians};
+use walker::{Cursor, Hot, Loops, Scale};
 
 /// One character seen in a frame: world metres (x east, y north), heading in radians
 /// counter-clockwise from east (the direction it walks, or last walked), within 5e-5 rad.
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// Four 4-byte fields in this order (`repr(C)`), so a frame's samples can be copied as they
+/// are into an instance buffer.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+#[repr(C)]
 pub struct Sample {
     pub id: u32,
     pub x: f32,
@@ -176,42 +181,18 @@ impl<'a> Sampler<'a> {
         self.steps.finish(self.scale.quantum, &mut self.hot);
     }
 
-    /// Appends block `b`'s walkers inside `view` at `rel` ticks after the epoch (`whole`
-    /// whole ticks and `frac`): every walker is placed, then, unless the whole block is in
-    /// view, those outside are squeezed out (or, none in view, the block dropped).
+    /// Appends block `b`'s walkers inside `view` at `whole` ticks and `frac` of a tick after
+    /// the epoch.
     fn write(&self, b: usize, whole: u32, frac: f32, view: [f32; 4], out: &mut Vec<Sample>) {
         let range = self.block(b);
-        let first = out.len();
-        out.extend(range.clone().zip(&self.hot[range]).map(|(id, h)| {
-            // Whole ticks in i32 (a piece ends less than 2^31 ticks ahead), exact in f32.
-            let dt = whole.wrapping_sub(h.end) as i32 as f32 + frac;
-            Sample {
-                id: id as u32,
-                x: h.x + h.vx * dt,
-                y: h.y + h.vy * dt,
-                heading: radians(h.heading),
-            }
-        }));
-        let inside =
-            |s: &Sample| s.x >= view[0] && s.x < view[2] && s.y >= view[1] && s.y < view[3];
-        let (all, any) = out[first..].iter().fold((true, false), |(all, any), s| {
-            (all & inside(s), any | inside(s))
-        });
-        if all {
-            return;
-        }
-        if !any {
-            out.truncate(first);
-            return;
-        }
-        let block = &mut out[first..];
-        let mut kept = 0;
-        for i in 0..block.len() {
-            let s = block[i];
-            block[kept] = s;
-            kept += usize::from(inside(&s));
-        }
-        out.truncate(first + kept);
+        place(
+            &self.hot[range.clone()],
+            range.start as u32,
+            whole,
+            frac,
+            view,
+            out,
+        );
     }
 
     /// Keeps `Hot::end` in range of its u32: before the first frame, after time went back or
