@@ -2,7 +2,7 @@
 //! holds the frame's time. Such steps are gathered column by column, so that their motions
 //! (a division and an arctangent each) are computed in one tight loop the compiler vectorises.
 
-use super::walker::{Hot, Scale, heading, per_tick, step};
+use super::walker::{Scale, Walkers, heading, per_tick, step};
 use crate::format::Library;
 
 #[derive(Debug, Clone, Default)]
@@ -40,35 +40,45 @@ impl Steps {
     /// Steps walker `id` onto its next piece, if that is all it needs to reach tick `whole`
     /// after the epoch (its motion is written by [`Steps::finish`]); false if it needs more.
     #[inline]
-    pub fn take(&mut self, lib: &Library, scale: &Scale, id: u32, h: &mut Hot, whole: u32) -> bool {
+    pub fn take(
+        &mut self,
+        lib: &Library,
+        scale: &Scale,
+        id: u32,
+        w: &mut Walkers,
+        whole: u32,
+    ) -> bool {
+        let (f, l) = (&mut w.fours[id as usize / 4], id as usize % 4);
         // The last piece of its trajectory, or so many left that only the cursor knows.
-        if h.left == 0 || h.left == u16::MAX {
+        let left = f.left[l];
+        if left == 0 || left == u16::MAX {
             return false;
         }
-        let (a, b) = (lib.points[h.at as usize], lib.points[h.at as usize + 1]);
-        let end = h.end.wrapping_add(b.t.wrapping_sub(a.t));
+        let at = f.at[l] as usize;
+        let (a, b) = (lib.points[at], lib.points[at + 1]);
+        let end = f.end[l].wrapping_add(b.t.wrapping_sub(a.t));
         if whole >= end {
             return false;
         }
         let [dx, dy, ticks] = step(a, b);
-        let [x, y] = scale.world(h.col, h.row, b);
+        let [x, y] = scale.world(f.col[l], f.row[l], b);
         self.id.push(id);
         self.x.push(x);
         self.y.push(y);
         self.dx.push(dx);
         self.dy.push(dy);
         self.ticks.push(ticks);
-        self.keep.push(h.heading);
-        h.at += 1;
-        h.left -= 1;
-        h.end = end;
+        self.keep.push(f.heading[l]);
+        f.at[l] += 1;
+        f.left[l] = left - 1;
+        f.end[l] = end;
         true
     }
 
     /// Computes every step's motion and writes it into the walkers' records: each part of
     /// [`motion`] is its own loop over plain columns, which the compiler turns into packed
     /// arithmetic (a loop over whole motions it leaves scalar).
-    pub fn finish(&mut self, quantum: f32, hot: &mut [Hot]) {
+    pub fn finish(&mut self, quantum: f32, w: &mut Walkers) {
         let n = self.id.len();
         let (dx, dy, ticks) = (&self.dx[..n], &self.dy[..n], &self.ticks[..n]);
         self.per_tick.clear();
@@ -78,11 +88,12 @@ impl Steps {
         self.heading
             .extend(dy.iter().zip(dx).map(|(&dy, &dx)| heading(dy, dx)));
         for (i, &id) in self.id.iter().enumerate() {
-            let h = &mut hot[id as usize];
+            let (f, l) = (&mut w.fours[id as usize / 4], id as usize % 4);
             let per = self.per_tick[i];
-            (h.x, h.y, h.vx, h.vy) = (self.x[i], self.y[i], dx[i] * per, dy[i] * per);
+            (f.x[l], f.y[l]) = (self.x[i], self.y[i]);
+            (f.vx[l], f.vy[l]) = (dx[i] * per, dy[i] * per);
             let moving = dx[i] != 0.0 || dy[i] != 0.0;
-            h.heading = if moving {
+            f.heading[l] = if moving {
                 self.heading[i]
             } else {
                 self.keep[i]

@@ -4,11 +4,10 @@
 use crate::angle::atan2;
 use crate::format::{Library, Point, QUANT_STEPS};
 
-/// What a frame reads of every walker: 32 bytes, two to a cache line, holding all that placing
-/// the walker needs and all that stepping it onto the next piece of its trajectory needs
-/// besides that piece's point.
+/// One walker's state for placing it and for stepping it onto the next piece of its
+/// trajectory with nothing else but that piece's point. The sampler keeps these column by
+/// column ([`Walkers`]); the rare paths work on one walker's copy.
 #[derive(Debug, Clone, Copy, Default)]
-#[repr(C, align(32))]
 pub(super) struct Hot {
     /// Ticks after the sampler's epoch at which the piece ends.
     pub end: u32,
@@ -28,6 +27,94 @@ pub(super) struct Hot {
     /// The patch's place in the grid: its origin without a lookup.
     pub col: u16,
     pub row: u16,
+}
+
+/// Four walkers' [`Hot`], a lane each, field by field: two cache lines. Placing four walkers
+/// is then six packed loads with nothing to rearrange, finding the ended ones one load, and a
+/// step reads and writes one walker's lanes of the same two lines.
+#[derive(Debug, Clone, Copy)]
+#[repr(C, align(64))]
+pub(super) struct Four {
+    pub end: [u32; 4],
+    pub x: [f32; 4],
+    pub y: [f32; 4],
+    pub vx: [f32; 4],
+    pub vy: [f32; 4],
+    pub heading: [u16; 4],
+    pub left: [u16; 4],
+    pub at: [u32; 4],
+    pub col: [u16; 4],
+    pub row: [u16; 4],
+}
+
+/// Every walker's [`Hot`] in [`Four`]s (32 bytes a walker). The lanes after the last walker
+/// end at `u32::MAX`, so they never end a piece, and are never placed.
+#[derive(Debug, Clone)]
+pub(super) struct Walkers {
+    pub fours: Vec<Four>,
+    len: usize,
+}
+
+impl Walkers {
+    pub fn new(len: usize) -> Walkers {
+        let empty = Four {
+            end: [u32::MAX; 4],
+            x: [0.0; 4],
+            y: [0.0; 4],
+            vx: [0.0; 4],
+            vy: [0.0; 4],
+            heading: [0; 4],
+            left: [0; 4],
+            at: [0; 4],
+            col: [0; 4],
+            row: [0; 4],
+        };
+        Walkers {
+            fours: vec![empty; len.div_ceil(4)],
+            len,
+        }
+    }
+
+    pub fn len(&self) -> usize {
+        self.len
+    }
+
+    pub fn get(&self, i: usize) -> Hot {
+        let (f, l) = (&self.fours[i / 4], i % 4);
+        Hot {
+            end: f.end[l],
+            at: f.at[l],
+            x: f.x[l],
+            y: f.y[l],
+            vx: f.vx[l],
+            vy: f.vy[l],
+            heading: f.heading[l],
+            left: f.left[l],
+            col: f.col[l],
+            row: f.row[l],
+        }
+    }
+
+    pub fn set(&mut self, i: usize, h: &Hot) {
+        let (f, l) = (&mut self.fours[i / 4], i % 4);
+        f.end[l] = h.end;
+        f.at[l] = h.at;
+        f.x[l] = h.x;
+        f.y[l] = h.y;
+        f.vx[l] = h.vx;
+        f.vy[l] = h.vy;
+        f.heading[l] = h.heading;
+        f.left[l] = h.left;
+        f.col[l] = h.col;
+        f.row[l] = h.row;
+    }
+
+    /// Moves every walker's `end` back by `shift` ticks (the epoch moved on by as much).
+    pub fn shift_ends(&mut self, shift: u32) {
+        for i in 0..self.len {
+            self.fours[i / 4].end[i % 4] -= shift;
+        }
+    }
 }
 
 /// What a walker needs only when it leaves its trajectory or is searched for.
