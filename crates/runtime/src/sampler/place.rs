@@ -135,8 +135,8 @@ mod sse2 {
         let (x0, y0) = (_mm_set1_ps(view[0]), _mm_set1_ps(view[1]));
         let (x1, y1) = (_mm_set1_ps(view[2]), _mm_set1_ps(view[3]));
         let turn = _mm_set1_ps(std::f32::consts::TAU / 65536.0);
-        let lanes = _mm_set_epi32(3, 2, 1, 0);
-        for (k, f) in fours.iter().enumerate() {
+        let mut id = _mm_add_epi32(_mm_set1_epi32(first_id as i32), _mm_set_epi32(3, 2, 1, 0));
+        for f in fours {
             // SAFETY: each field of `f` is 16 bytes (`heading`: 8).
             let (end, x, y, vx, vy, turns) = unsafe {
                 (
@@ -155,8 +155,8 @@ mod sse2 {
             let x = _mm_add_ps(x, _mm_mul_ps(vx, dt));
             let y = _mm_add_ps(y, _mm_mul_ps(vy, dt));
             let heading = _mm_mul_ps(_mm_cvtepi32_ps(turns), turn);
-            let id = _mm_add_epi32(_mm_set1_epi32((first_id as usize + 4 * k) as i32), lanes);
-            let id = _mm_castsi128_ps(id);
+            let ids = _mm_castsi128_ps(id);
+            id = _mm_add_epi32(id, _mm_set1_epi32(4));
 
             let seen = _mm_and_ps(
                 _mm_and_ps(_mm_cmpge_ps(x, x0), _mm_cmplt_ps(x, x1)),
@@ -164,21 +164,29 @@ mod sse2 {
             );
             let seen = _mm_movemask_ps(seen) as usize;
 
-            let (a, b) = (_mm_unpacklo_ps(id, x), _mm_unpacklo_ps(y, heading));
-            let (c, d) = (_mm_unpackhi_ps(id, x), _mm_unpackhi_ps(y, heading));
+            let (a, b) = (_mm_unpacklo_ps(ids, x), _mm_unpacklo_ps(y, heading));
+            let (c, d) = (_mm_unpackhi_ps(ids, x), _mm_unpackhi_ps(y, heading));
             let samples = [
                 _mm_movelh_ps(a, b),
                 _mm_movehl_ps(b, a),
                 _mm_movelh_ps(c, d),
                 _mm_movehl_ps(d, c),
             ];
-            // Every sample is stored at the next free place, which moves on only past those
-            // in view: no branch, whatever the view.
-            for (lane, s) in samples.into_iter().enumerate() {
-                // SAFETY: `kept <= 4 k + lane < 4 fours.len()`, within the capacity reserved
-                // above; `Sample` is `repr(C)`, four 4-byte fields.
-                unsafe { _mm_storeu_ps(dst.add(4 * kept), s) };
-                kept += (seen >> lane) & 1;
+            // SAFETY (both ways): after `n` fours, `kept <= 4 n`, so every store is within the
+            // capacity reserved above; `Sample` is `repr(C)`, four 4-byte fields.
+            if seen == 0b1111 {
+                // All four in view, as every four is when the whole world is.
+                for (lane, s) in samples.into_iter().enumerate() {
+                    unsafe { _mm_storeu_ps(dst.add(4 * (kept + lane)), s) };
+                }
+                kept += 4;
+            } else {
+                // Every sample stored at the next free place, which moves on only past those
+                // in view: no branch, whatever the view.
+                for (lane, s) in samples.into_iter().enumerate() {
+                    unsafe { _mm_storeu_ps(dst.add(4 * kept), s) };
+                    kept += (seen >> lane) & 1;
+                }
             }
         }
         // SAFETY: the first `kept` samples after `start` were written above.
