@@ -48,6 +48,8 @@ pub struct Sampler<'a> {
     last: Option<f64>,
     /// The walkers whose piece has ended, of the block being scanned and of the one before.
     ended: [Vec<u32>; 2],
+    /// Those of them that need more than a [`Steps`] step.
+    slow: Vec<u32>,
     steps: Steps,
 }
 
@@ -100,6 +102,7 @@ impl<'a> Sampler<'a> {
             last: None,
             ended: [Vec::with_capacity(BLOCK), Vec::with_capacity(BLOCK)],
             steps: Steps::default(),
+            slow: Vec::with_capacity(BLOCK),
         }
     }
 
@@ -155,7 +158,9 @@ impl<'a> Sampler<'a> {
             let (f, l) = (&w.fours[id as usize / 4], id as usize % 4);
             prefetch(self.lib.points.as_ptr().wrapping_add(f.at[l] as usize + 1));
             if f.left[l] == 0 {
-                prefetch(self.cursors.as_ptr().wrapping_add(id as usize));
+                // Leaving its trajectory: the cursor now, its way onward when it has come.
+                let traj = self.cursors[id as usize].traj as usize;
+                prefetch(self.loops.onward.as_ptr().wrapping_add(traj));
             }
         }
     }
@@ -166,16 +171,29 @@ impl<'a> Sampler<'a> {
         let (lib, loops, epoch) = (self.lib, &self.loops, self.epoch);
         let period = f64::from(lib.world.period_ticks);
         self.steps.clear();
+        // The first points of the trajectories those leaving theirs walk on to: asked for
+        // before the steps below, used after them.
         for &id in &self.ended[b % 2] {
-            let w = &mut self.walkers;
-            if self.steps.take(lib, &self.scale, id, w, whole) {
-                continue;
+            let (f, l) = (&self.walkers.fours[id as usize / 4], id as usize % 4);
+            if f.left[l] == 0 {
+                let traj = self.cursors[id as usize].traj as usize;
+                let first = loops.onward[traj].first as usize;
+                prefetch(lib.points.as_ptr().wrapping_add(first));
             }
+        }
+        self.slow.clear();
+        for &id in &self.ended[b % 2] {
+            if !self.steps.take(lib, &self.scale, id, &mut self.walkers, whole) {
+                self.slow.push(id);
+            }
+        }
+        for &id in &self.slow {
+            let w = &mut self.walkers;
             let (c, mut h) = (&mut self.cursors[id as usize], w.get(id as usize));
             if now - (epoch + i64::from(h.end)) as f64 > period {
                 walker::seek(lib, loops, c, &mut h, id, now, epoch);
             } else {
-                walker::walk_on(lib, c, &mut h, now, epoch);
+                walker::walk_on(lib, loops, c, &mut h, now, epoch);
             }
             w.set(id as usize, &h);
         }

@@ -138,6 +138,21 @@ pub(super) struct Loops {
     starts: Vec<u64>,
     /// Per loop, the id of its first walker (lap 0).
     first_id: Vec<u32>,
+    /// Per trajectory, what a walker leaving it needs: one record, so that leaving is one
+    /// fetch (which the sampler asks for a block ahead), not a chain of four.
+    pub onward: Vec<Onward>,
+}
+
+/// Leaving a trajectory: how long it lasted, and where its successor's points are.
+#[derive(Debug, Clone, Copy, Default)]
+pub(super) struct Onward {
+    pub duration: u32,
+    /// The successor, its first and last point, and its patch's place in the grid.
+    pub next: u32,
+    pub first: u32,
+    pub last: u32,
+    pub col: u16,
+    pub row: u16,
 }
 
 impl Loops {
@@ -147,6 +162,23 @@ impl Loops {
             trajectories: Vec::with_capacity(lib.trajectories.len()),
             starts: Vec::with_capacity(lib.trajectories.len()),
             first_id: Vec::with_capacity(lib.characters.len()),
+            onward: lib
+                .trajectories
+                .iter()
+                .map(|tr| {
+                    let next = &lib.trajectories[tr.next as usize];
+                    let patch = &lib.patches[next.patch as usize];
+                    Onward {
+                        duration: lib.duration_ticks(tr),
+                        next: tr.next,
+                        first: next.first_point,
+                        last: next.first_point + next.points - 1,
+                        // The loader keeps the grid within 65536 patches across and up.
+                        col: patch.col as u16,
+                        row: patch.row as u16,
+                    }
+                })
+                .collect(),
         };
         let mut id = 0;
         for ch in &lib.characters {
@@ -243,15 +275,23 @@ pub(super) fn heading(dy: f32, dx: f32) -> u16 {
 
 /// Moves a walker on from its piece, piece by piece, to the one that holds absolute tick
 /// `now`.
-pub(super) fn walk_on(lib: &Library, c: &mut Cursor, h: &mut Hot, now: f64, epoch: i64) {
+pub(super) fn walk_on(
+    lib: &Library,
+    loops: &Loops,
+    c: &mut Cursor,
+    h: &mut Hot,
+    now: f64,
+    epoch: i64,
+) {
     loop {
         if h.at < c.last {
             let heading = h.heading;
             piece(lib, c, h, epoch, Some(heading));
         } else {
-            c.traj_start += i64::from(lib.points[c.last as usize].t);
-            let next = lib.trajectories[c.traj as usize].next;
-            enter(lib, c, h, next, 0);
+            let o = loops.onward[c.traj as usize];
+            c.traj_start += i64::from(o.duration);
+            (c.traj, c.last) = (o.next, o.last);
+            (h.at, h.col, h.row) = (o.first, o.col, o.row);
             piece(lib, c, h, epoch, None);
         }
         if now < end_tick(lib, c, h) as f64 {
@@ -311,7 +351,7 @@ pub(super) fn seek(
     piece(lib, c, h, epoch, None);
     // A piece that ends at or before `now` (the trajectory's last, or rounding): walk on.
     if now >= end_tick(lib, c, h) as f64 {
-        walk_on(lib, c, h, now, epoch);
+        walk_on(lib, loops, c, h, now, epoch);
     }
 }
 
