@@ -34,7 +34,7 @@ pub(super) fn place(
     #[cfg(not(target_arch = "x86_64"))]
     scalar(fours, first_id, 0..4, whole, frac, view, out);
     // The walkers of a last, partial four.
-    if range.end % 4 != 0 {
+    if !range.end.is_multiple_of(4) {
         let f = &w.fours[range.end / 4];
         let id = 4 * whole_fours.end as u32;
         scalar(
