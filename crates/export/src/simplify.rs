@@ -8,6 +8,7 @@
 //! every time, not only at the keyframes.
 
 use crowd_core::trajectories::{ControlPoint, PatchMotion, PointKind, Trajectory};
+use rayon::prelude::*;
 
 /// Longest run of keyframes one piece may replace: keeps the greedy search linear in the
 /// keyframes, whatever the trajectory (a long pause is many keyframes at one place).
@@ -15,9 +16,11 @@ const MAX_RUN: usize = 256;
 
 /// Every trajectory of `motion` with the keyframes that the walk between its neighbours passes
 /// within `tolerance_m` of dropped. Entry, exit and period-split keyframes are always kept.
+/// Patch by patch in parallel: each is its own, so the result is the same for any number of
+/// threads.
 pub fn motion(motion: &[PatchMotion], tolerance_m: f64) -> Vec<PatchMotion> {
     motion
-        .iter()
+        .par_iter()
         .map(|m| PatchMotion {
             standers: m.standers.clone(),
             trajectories: m
