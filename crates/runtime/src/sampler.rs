@@ -183,7 +183,10 @@ impl<'a> Sampler<'a> {
         }
         self.slow.clear();
         for &id in &self.ended[b % 2] {
-            if !self.steps.take(lib, &self.scale, id, &mut self.walkers, whole) {
+            if !self
+                .steps
+                .take(lib, &self.scale, id, &mut self.walkers, whole)
+            {
                 self.slow.push(id);
             }
         }

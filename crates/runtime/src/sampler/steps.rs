@@ -2,39 +2,51 @@
 //! holds the frame's time. Such steps are gathered column by column, so that their motions
 //! (a division and an arctangent each) are computed in one tight loop the compiler vectorises.
 
+use super::BLOCK;
 use super::walker::{Scale, Walkers, heading, per_tick, step};
 use crate::format::Library;
 
-#[derive(Debug, Clone, Default)]
+/// A step taken: whose, where its new piece ends, and the heading it had.
+#[derive(Debug, Clone, Copy, Default)]
+struct Taken {
+    id: u32,
+    x: f32,
+    y: f32,
+    keep: u16,
+}
+
+/// A block's steps (at most one per walker), in fixed arrays: taking one is a few stores at
+/// one count, not a length and capacity per column.
+#[derive(Debug, Clone)]
 pub(super) struct Steps {
-    id: Vec<u32>,
-    /// World position at the new piece's end.
-    x: Vec<f32>,
-    y: Vec<f32>,
-    /// The piece's [`step`].
-    dx: Vec<f32>,
-    dy: Vec<f32>,
-    ticks: Vec<f32>,
-    /// The heading before, which a standing piece keeps.
-    keep: Vec<u16>,
+    n: usize,
+    taken: Box<[Taken; BLOCK]>,
+    /// The pieces' [`step`]s, column by column for [`Steps::finish`]'s packed loops.
+    dx: Box<[f32; BLOCK]>,
+    dy: Box<[f32; BLOCK]>,
+    ticks: Box<[f32; BLOCK]>,
     /// Computed by [`Steps::finish`].
-    per_tick: Vec<f32>,
-    heading: Vec<u16>,
+    per_tick: Box<[f32; BLOCK]>,
+    heading: Box<[u16; BLOCK]>,
+}
+
+impl Default for Steps {
+    fn default() -> Steps {
+        Steps {
+            n: 0,
+            taken: Box::new([Taken::default(); BLOCK]),
+            dx: Box::new([0.0; BLOCK]),
+            dy: Box::new([0.0; BLOCK]),
+            ticks: Box::new([0.0; BLOCK]),
+            per_tick: Box::new([0.0; BLOCK]),
+            heading: Box::new([0; BLOCK]),
+        }
+    }
 }
 
 impl Steps {
     pub fn clear(&mut self) {
-        for v in [
-            &mut self.x,
-            &mut self.y,
-            &mut self.dx,
-            &mut self.dy,
-            &mut self.ticks,
-        ] {
-            v.clear();
-        }
-        self.id.clear();
-        self.keep.clear();
+        self.n = 0;
     }
 
     /// Steps walker `id` onto its next piece, if that is all it needs to reach tick `whole`
@@ -49,9 +61,10 @@ impl Steps {
         whole: u32,
     ) -> bool {
         let (f, l) = (&mut w.fours[id as usize / 4], id as usize % 4);
-        // The last piece of its trajectory, or so many left that only the cursor knows.
-        let left = f.left[l];
-        if left == 0 || left == u16::MAX {
+        // The last piece of its trajectory, or so many left that only the cursor knows (or,
+        // which a block cannot have, more steps than walkers).
+        let (left, n) = (f.left[l], self.n);
+        if left == 0 || left == u16::MAX || n >= BLOCK {
             return false;
         }
         let at = f.at[l] as usize;
@@ -62,13 +75,10 @@ impl Steps {
         }
         let [dx, dy, ticks] = step(a, b);
         let [x, y] = scale.world(f.col[l], f.row[l], b);
-        self.id.push(id);
-        self.x.push(x);
-        self.y.push(y);
-        self.dx.push(dx);
-        self.dy.push(dy);
-        self.ticks.push(ticks);
-        self.keep.push(f.heading[l]);
+        let keep = f.heading[l];
+        self.taken[n] = Taken { id, x, y, keep };
+        (self.dx[n], self.dy[n], self.ticks[n]) = (dx, dy, ticks);
+        self.n = n + 1;
         f.at[l] += 1;
         f.left[l] = left - 1;
         f.end[l] = end;
@@ -76,28 +86,24 @@ impl Steps {
     }
 
     /// Computes every step's motion and writes it into the walkers' records: each part of
-    /// [`motion`] is its own loop over plain columns, which the compiler turns into packed
+    /// `walker::motion` is its own loop over plain columns, which the compiler turns into packed
     /// arithmetic (a loop over whole motions it leaves scalar).
     pub fn finish(&mut self, quantum: f32, w: &mut Walkers) {
-        let n = self.id.len();
+        let n = self.n;
         let (dx, dy, ticks) = (&self.dx[..n], &self.dy[..n], &self.ticks[..n]);
-        self.per_tick.clear();
-        self.per_tick
-            .extend(ticks.iter().map(|&t| per_tick(t, quantum)));
-        self.heading.clear();
-        self.heading
-            .extend(dy.iter().zip(dx).map(|(&dy, &dx)| heading(dy, dx)));
-        for (i, &id) in self.id.iter().enumerate() {
-            let (f, l) = (&mut w.fours[id as usize / 4], id as usize % 4);
+        for (p, &t) in self.per_tick[..n].iter_mut().zip(ticks) {
+            *p = per_tick(t, quantum);
+        }
+        for (h, (&dy, &dx)) in self.heading[..n].iter_mut().zip(dy.iter().zip(dx)) {
+            *h = heading(dy, dx);
+        }
+        for (i, t) in self.taken[..n].iter().enumerate() {
+            let (f, l) = (&mut w.fours[t.id as usize / 4], t.id as usize % 4);
             let per = self.per_tick[i];
-            (f.x[l], f.y[l]) = (self.x[i], self.y[i]);
+            (f.x[l], f.y[l]) = (t.x, t.y);
             (f.vx[l], f.vy[l]) = (dx[i] * per, dy[i] * per);
             let moving = dx[i] != 0.0 || dy[i] != 0.0;
-            f.heading[l] = if moving {
-                self.heading[i]
-            } else {
-                self.keep[i]
-            };
+            f.heading[l] = if moving { self.heading[i] } else { t.keep };
         }
     }
 }
