@@ -180,9 +180,9 @@ mod sse2 {
                     unsafe { _mm_storeu_ps(dst.add(4 * (kept + lane)), s) };
                 }
                 kept += 4;
-            } else {
-                // Every sample stored at the next free place, which moves on only past those
-                // in view: no branch, whatever the view.
+            } else if seen != 0 {
+                // Partly in view: every sample stored at the next free place, which moves on
+                // only past those in view, with no branch per sample. (None in view: nothing.)
                 for (lane, s) in samples.into_iter().enumerate() {
                     unsafe { _mm_storeu_ps(dst.add(4 * kept), s) };
                     kept += (seen >> lane) & 1;
