@@ -1,6 +1,6 @@
-//! One frame of `Sampler::sample` over a real library: `painting`'s (94k walkers), built by
-//! `cargo xtask build-crowd --pipeline assets/pipelines/painting.ron` (or any library named by
-//! CROWD_LIBRARY). Time runs forward at 60 frames a second, as in a game; the whole world is
+//! One frame of `Sampler::sample` over a real library: the painting with 100k walkers
+//! (100,642), built by `cargo xtask build-crowd --pipeline assets/bench/painting-100k.ron` (or
+//! any library named by CROWD_LIBRARY, such as `build/painting/library.crowd`, 94,388). Time runs forward at 60 frames a second, as in a game; the whole world is
 //! in view (every character is written out), then a quarter of it; and, for the floor, a
 //! frame at a time that does not move.
 
@@ -10,12 +10,15 @@ use std::path::PathBuf;
 
 fn library() -> Library {
     let path = std::env::var_os("CROWD_LIBRARY").map_or_else(
-        || PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../build/painting/library.crowd"),
+        || {
+            PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+                .join("../../build/painting-100k/library.crowd")
+        },
         PathBuf::from,
     );
     let bytes = std::fs::read(&path).unwrap_or_else(|e| {
         panic!(
-            "{}: {e}; build it first: cargo xtask build-crowd --pipeline assets/pipelines/painting.ron",
+            "{}: {e}; build it first: cargo xtask build-crowd --pipeline assets/bench/painting-100k.ron",
             path.display()
         )
     });
