@@ -719,8 +719,7 @@ mod tests {
     }
 
     #[test]
-    fn export_keeps_keyframes_within_three_quarters_of_a_millimetre_unless_told_and_refuses_a_negative_distance()
-     {
+    fn export_keeps_keyframes_within_0_75_mm_unless_told_and_refuses_a_negative_distance() {
         assert_eq!(parse(GOOD).unwrap().pipeline.export.simplify_mm, 0.75);
         let text = GOOD.replace("output:", "export: (simplify_mm: -1.0),\n    output:");
         let err = parse(&text).unwrap_err().to_string();

@@ -1,8 +1,9 @@
 //! One frame of `Sampler::sample` over a real library: the painting with 100k walkers
 //! (100,642), built by `cargo xtask build-crowd --pipeline assets/bench/painting-100k.ron` (or
-//! any library named by CROWD_LIBRARY, such as `build/painting/library.crowd`, 94,388). Time runs forward at 60 frames a second, as in a game; the whole world is
-//! in view (every character is written out), then a quarter of it; and, for the floor, a
-//! frame at a time that does not move.
+//! any library named by CROWD_LIBRARY, such as `build/painting/library.crowd`, 94,388). Time
+//! runs forward at 60 frames a second, as in a game; the whole world is in view (every
+//! character is written out), then a quarter of it; and, for the floor, a frame at a time that
+//! does not move.
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use crowd_runtime::{Library, Sampler};

@@ -2,10 +2,10 @@
 //!
 //! A frame is 100k records to read and 100k samples to write. So a frame streams 32 bytes per
 //! walker, kept four walkers to two cache lines field by field ([`walker::Four`]) so that four
-//! walkers are placed at once ([`place`]), and, for the one walker in twenty whose piece ends in a frame at 60 frames a
-//! second, nearly always steps it onto its next piece with nothing else but that piece's
-//! point. Ended walkers are found a block ahead, so that those points are fetched together
-//! while the block before is moved on and written out.
+//! walkers are placed at once ([`place`]), and, for the one walker in twenty whose piece ends
+//! in a frame at 60 frames a second, nearly always steps it onto its next piece with nothing
+//! else but that piece's point. Ended walkers are found a block ahead, so that those points
+//! are fetched together while the block before is moved on and written out.
 //!
 //! Time is kept in whole ticks (`TICK_S`), so a piece is the same bits whether the sampler
 //! walked to it or searched for it: a frame depends only on its time.
@@ -177,7 +177,7 @@ impl<'a> Sampler<'a> {
             let (f, l) = (&self.walkers.fours[id as usize / 4], id as usize % 4);
             if f.left[l] == 0 {
                 let traj = self.cursors[id as usize].traj as usize;
-                let first = loops.onward[traj].first as usize;
+                let first = loops.onward[traj].next.first as usize;
                 prefetch(lib.points.as_ptr().wrapping_add(first));
             }
         }

@@ -269,7 +269,8 @@ mod tests {
                 }
             }
             let bits = |s: &[Sample]| -> Vec<[u32; 4]> {
-                s.iter().map(|s| [s.id, s.x.to_bits(), s.y.to_bits(), s.heading.to_bits()]).collect()
+                let bits = |s: &Sample| [s.id, s.x.to_bits(), s.y.to_bits(), s.heading.to_bits()];
+                s.iter().map(bits).collect()
             };
             prop_assert_eq!(bits(&packed), bits(&plain));
         }

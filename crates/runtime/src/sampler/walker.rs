@@ -5,8 +5,8 @@ use crate::angle::atan2;
 use crate::format::{Library, Point, QUANT_STEPS};
 
 /// One walker's state for placing it and for stepping it onto the next piece of its
-/// trajectory with nothing else but that piece's point. The sampler keeps these column by
-/// column ([`Walkers`]); the rare paths work on one walker's copy.
+/// trajectory with nothing else but that piece's point. The sampler keeps these four walkers
+/// to a [`Four`] ([`Walkers`]); the rare paths work on one walker's copy.
 #[derive(Debug, Clone, Copy, Default)]
 pub(super) struct Hot {
     /// Ticks after the sampler's epoch at which the piece ends.
@@ -143,16 +143,36 @@ pub(super) struct Loops {
     pub onward: Vec<Onward>,
 }
 
-/// Leaving a trajectory: how long it lasted, and where its successor's points are.
-#[derive(Debug, Clone, Copy, Default)]
+/// Leaving a trajectory: how long it lasted, and its successor.
+#[derive(Debug, Clone, Copy)]
 pub(super) struct Onward {
     pub duration: u32,
-    /// The successor, its first and last point, and its patch's place in the grid.
-    pub next: u32,
+    pub next: Entry,
+}
+
+/// Entering a trajectory: its first and last point, and its patch's place in the grid.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Entry {
+    pub traj: u32,
     pub first: u32,
     pub last: u32,
     pub col: u16,
     pub row: u16,
+}
+
+impl Entry {
+    pub fn of(lib: &Library, traj: u32) -> Entry {
+        let tr = &lib.trajectories[traj as usize];
+        let patch = &lib.patches[tr.patch as usize];
+        Entry {
+            traj,
+            first: tr.first_point,
+            last: tr.first_point + tr.points - 1,
+            // The loader keeps the grid within 65536 patches across and up.
+            col: patch.col as u16,
+            row: patch.row as u16,
+        }
+    }
 }
 
 impl Loops {
@@ -165,18 +185,9 @@ impl Loops {
             onward: lib
                 .trajectories
                 .iter()
-                .map(|tr| {
-                    let next = &lib.trajectories[tr.next as usize];
-                    let patch = &lib.patches[next.patch as usize];
-                    Onward {
-                        duration: lib.duration_ticks(tr),
-                        next: tr.next,
-                        first: next.first_point,
-                        last: next.first_point + next.points - 1,
-                        // The loader keeps the grid within 65536 patches across and up.
-                        col: patch.col as u16,
-                        row: patch.row as u16,
-                    }
+                .map(|tr| Onward {
+                    duration: lib.duration_ticks(tr),
+                    next: Entry::of(lib, tr.next),
                 })
                 .collect(),
         };
@@ -290,8 +301,7 @@ pub(super) fn walk_on(
         } else {
             let o = loops.onward[c.traj as usize];
             c.traj_start += i64::from(o.duration);
-            (c.traj, c.last) = (o.next, o.last);
-            (h.at, h.col, h.row) = (o.first, o.col, o.row);
+            enter(c, h, o.next, 0);
             piece(lib, c, h, epoch, None);
         }
         if now < end_tick(lib, c, h) as f64 {
@@ -305,16 +315,11 @@ fn end_tick(lib: &Library, c: &Cursor, h: &Hot) -> i64 {
     c.traj_start + i64::from(lib.points[h.at as usize].t)
 }
 
-/// Puts a walker on trajectory `traj` so that its next piece starts at the trajectory's point
+/// Puts a walker on trajectory `e` so that its next piece starts at the trajectory's point
 /// `point`.
-fn enter(lib: &Library, c: &mut Cursor, h: &mut Hot, traj: u32, point: u32) {
-    let tr = &lib.trajectories[traj as usize];
-    let patch = &lib.patches[tr.patch as usize];
-    c.traj = traj;
-    c.last = tr.first_point + tr.points - 1;
-    h.at = tr.first_point + point;
-    // The loader keeps the grid within 65536 patches across and up.
-    (h.col, h.row) = (patch.col as u16, patch.row as u16);
+fn enter(c: &mut Cursor, h: &mut Hot, e: Entry, point: u32) {
+    (c.traj, c.last) = (e.traj, e.last);
+    (h.at, h.col, h.row) = (e.first + point, e.col, e.row);
 }
 
 /// Places walker `id` on its loop at absolute tick `now` by search: a binary search of the
@@ -347,7 +352,12 @@ pub(super) fn seek(
     let pts = lib.points_of(&lib.trajectories[traj as usize]);
     let local = now - c.traj_start as f64;
     let p = pts.partition_point(|p| f64::from(p.t) <= local);
-    enter(lib, c, h, traj, (p.max(1) - 1).min(pts.len() - 2) as u32);
+    enter(
+        c,
+        h,
+        Entry::of(lib, traj),
+        (p.max(1) - 1).min(pts.len() - 2) as u32,
+    );
     piece(lib, c, h, epoch, None);
     // A piece that ends at or before `now` (the trajectory's last, or rounding): walk on.
     if now >= end_tick(lib, c, h) as f64 {
