@@ -1,14 +1,12 @@
 //! Command-line arguments and what each subcommand does.
 
-use crate::driver::{self, BuildOptions, GRAPH_FILE, MERGE_FILE};
+use crate::driver::{self, BuildOptions};
+use crate::stage::{self, Stage};
+use crate::stages::{self, STAGES};
 use crate::ui::Ui;
 use anyhow::{Context, Result};
-use clap::{Parser, Subcommand};
-use crowd_core::PatchGraph;
+use clap::{Arg, ArgMatches, FromArgMatches, Parser, Subcommand};
 use crowd_core::config::PipelineFile;
-use crowd_core::files::{read_bytes, write_all};
-use crowd_core::patterns::Patterns;
-use crowd_core::trajectories::TrajectoriesFile;
 use std::path::PathBuf;
 
 #[derive(Debug, Parser)]
@@ -41,96 +39,13 @@ pub enum Command {
         #[arg(long, short, value_name = "DIR")]
         output: Option<PathBuf>,
         /// Stop after this stage.
-        #[arg(long, value_enum, value_name = "STAGE")]
-        until: Option<driver::Stage>,
+        #[arg(long, value_name = "STAGE", value_parser = stage::parser())]
+        until: Option<&'static Stage>,
     },
-    /// Stage 1: merge the painted layers into grids.
-    Merge {
-        #[arg(long, default_value = "pipeline.ron", value_name = "FILE")]
-        pipeline: PathBuf,
-        /// Output file (default: `merge.ron` in the pipeline's output folder).
-        #[arg(long, short, value_name = "FILE")]
-        output: Option<PathBuf>,
-    },
-    /// Stage 2: cut the merged grids into the patch graph.
-    Graph {
-        #[arg(long, default_value = "pipeline.ron", value_name = "FILE")]
-        pipeline: PathBuf,
-        /// Stage 1's file (default: `merge.ron` in the pipeline's output folder).
-        #[arg(long, short, value_name = "FILE")]
-        input: Option<PathBuf>,
-        /// Output file (default: `graph.ron` in the pipeline's output folder).
-        #[arg(long, short, value_name = "FILE")]
-        output: Option<PathBuf>,
-    },
-    /// Stage 3: place the crossings of every border (reads the graph).
-    Optimize {
-        #[arg(long, default_value = "pipeline.ron", value_name = "FILE")]
-        pipeline: PathBuf,
-        /// Stage 2's file (default: `graph.ron` in the pipeline's output folder).
-        #[arg(long, short, value_name = "FILE")]
-        input: Option<PathBuf>,
-        /// Output file (default: `patterns.ron` in the pipeline's output folder).
-        #[arg(long, short, value_name = "FILE")]
-        output: Option<PathBuf>,
-    },
-    /// Stage 4: match entries with exits, straight lines and standers (reads the graph and the
-    /// patterns beside the input).
-    Match {
-        #[arg(long, default_value = "pipeline.ron", value_name = "FILE")]
-        pipeline: PathBuf,
-        /// Stage 3's file (default: `patterns.ron` in the pipeline's output folder); the graph
-        /// is read from `graph.ron` beside it.
-        #[arg(long, short, value_name = "FILE")]
-        input: Option<PathBuf>,
-        /// Output file (default: `trajectories.ron` in the pipeline's output folder).
-        #[arg(long, short, value_name = "FILE")]
-        output: Option<PathBuf>,
-    },
-    /// Stage 5: push walkers apart (reads the trajectories and the graph beside them).
-    Collide {
-        #[arg(long, default_value = "pipeline.ron", value_name = "FILE")]
-        pipeline: PathBuf,
-        /// Stage 4's file (default: `trajectories.ron` in the pipeline's output folder); the
-        /// graph is read from `graph.ron` beside it.
-        #[arg(long, short, value_name = "FILE")]
-        input: Option<PathBuf>,
-        /// Output file (default: `collided.ron` in the pipeline's output folder).
-        #[arg(long, short, value_name = "FILE")]
-        output: Option<PathBuf>,
-    },
-    /// Stage 6: smooth the walkers' paths (reads the collided trajectories, and the graph and
-    /// patterns beside them).
-    Smooth {
-        #[arg(long, default_value = "pipeline.ron", value_name = "FILE")]
-        pipeline: PathBuf,
-        /// Stage 5's file (default: `collided.ron` in the pipeline's output folder); the graph
-        /// and patterns are read from `graph.ron` and `patterns.ron` beside it.
-        #[arg(long, short, value_name = "FILE")]
-        input: Option<PathBuf>,
-        /// Output file (default: `smoothed.ron` in the pipeline's output folder).
-        #[arg(long, short, value_name = "FILE")]
-        output: Option<PathBuf>,
-    },
-    /// Stage 8: export the final trajectories as a binary patch library for crowd-runtime
-    /// (reads the smoothed trajectories, and the graph and patterns beside them).
-    Export {
-        #[arg(long, default_value = "pipeline.ron", value_name = "FILE")]
-        pipeline: PathBuf,
-        /// Stage 6's file (default: `smoothed.ron` in the pipeline's output folder); the graph
-        /// and patterns are read from `graph.ron` and `patterns.ron` beside it.
-        #[arg(long, short, value_name = "FILE")]
-        input: Option<PathBuf>,
-        /// Output manifest (default: `export.ron` in the pipeline's output folder); the
-        /// library (`library.crowd`) is written beside it.
-        #[arg(long, short, value_name = "FILE")]
-        output: Option<PathBuf>,
-        /// Put only this part of the world (world metres) in `world.glb`, in place of the
-        /// pipeline's `export.gltf_region`: DCC tools slow down with tens of thousands of
-        /// animated nodes. The library always holds the whole world.
-        #[arg(long, value_name = "X0,Y0,X1,Y1", value_parser = parse_region)]
-        region: Option<(f64, f64, f64, f64)>,
-    },
+    /// The stages one at a time: `crowd merge`, `crowd graph`, ... (one subcommand per entry
+    /// of the stage table).
+    #[command(flatten)]
+    Stage(StageCommand),
     /// A readable summary of any stage file.
     Inspect { file: PathBuf },
     /// A picture of a stage file as PNG: merged maps, patch graph, error map and convergence,
@@ -149,8 +64,8 @@ pub enum Command {
         dir: PathBuf,
         /// The stage whose trajectories to check: match, collide or smooth (default: the latest
         /// in the folder).
-        #[arg(long, value_name = "STAGE")]
-        stage: Option<crate::driver::Stage>,
+        #[arg(long, value_name = "STAGE", value_parser = stage::parser())]
+        stage: Option<&'static Stage>,
     },
     /// The figures of a build folder (`--json` for one JSON object).
     Report {
@@ -169,6 +84,128 @@ pub enum Command {
     },
 }
 
+/// One stage run alone: `crowd <stage> [--pipeline FILE] [-i INPUT] [-o OUTPUT]`. Its
+/// subcommands are made from the stage table, so a new stage gets one without code here.
+#[derive(Debug, Clone)]
+pub struct StageCommand {
+    pub stage: &'static Stage,
+    pub pipeline: PathBuf,
+    /// The stage file it reads (default: in the pipeline's output folder); the other files it
+    /// reads are read beside it.
+    pub input: Option<PathBuf>,
+    /// Its file (default: in the pipeline's output folder).
+    pub output: Option<PathBuf>,
+    /// Stage 8 only: the part of the world put in `world.glb`.
+    pub region: Option<(f64, f64, f64, f64)>,
+}
+
+/// The subcommand of one stage, with its help made from its table entry.
+fn stage_subcommand(stage: &'static Stage) -> clap::Command {
+    let mut command = clap::Command::new(stage.name).about(stage.about).arg(
+        Arg::new("pipeline")
+            .long("pipeline")
+            .value_name("FILE")
+            .default_value("pipeline.ron")
+            .value_parser(clap::value_parser!(PathBuf))
+            .help("The pipeline: layers and settings"),
+    );
+    if let Some(input) = stage.main_input() {
+        let beside: Vec<&str> = stage
+            .reads
+            .iter()
+            .copied()
+            .filter(|r| *r != input)
+            .collect();
+        let beside = match beside.as_slice() {
+            [] => String::new(),
+            names => format!("; {} read beside it", names.join(" and ")),
+        };
+        command = command.arg(
+            Arg::new("input")
+                .long("input")
+                .short('i')
+                .value_name("FILE")
+                .value_parser(clap::value_parser!(PathBuf))
+                .help(format!(
+                    "The file it reads (default: `{input}` in the pipeline's output folder){beside}"
+                )),
+        );
+    }
+    command = command.arg(
+        Arg::new("output")
+            .long("output")
+            .short('o')
+            .value_name("FILE")
+            .value_parser(clap::value_parser!(PathBuf))
+            .help(format!(
+                "Output file (default: `{}` in the pipeline's output folder){}",
+                stage.output,
+                match stage.writes {
+                    [] | [_] => String::new(),
+                    [beside @ .., _] => format!("; {} written beside it", beside.join(", ")),
+                }
+            )),
+    );
+    if *stage == stages::EXPORT {
+        command = command.arg(
+            Arg::new("region")
+                .long("region")
+                .value_name("X0,Y0,X1,Y1")
+                .value_parser(parse_region)
+                .help(
+                    "Put only this part of the world (world metres) in `world.glb`, in place of \
+                     the pipeline's `export.gltf_region`: DCC tools slow down with tens of \
+                     thousands of animated nodes. The library always holds the whole world.",
+                ),
+        );
+    }
+    command
+}
+
+impl FromArgMatches for StageCommand {
+    fn from_arg_matches(matches: &ArgMatches) -> Result<Self, clap::Error> {
+        let Some((name, args)) = matches.subcommand() else {
+            return Err(clap::Error::new(clap::error::ErrorKind::MissingSubcommand));
+        };
+        let Some(stage) = stage::named(name) else {
+            return Err(clap::Error::new(clap::error::ErrorKind::InvalidSubcommand));
+        };
+        let path = |id: &str| args.try_get_one::<PathBuf>(id).ok().flatten().cloned();
+        Ok(StageCommand {
+            stage,
+            pipeline: path("pipeline").unwrap_or_else(|| PathBuf::from("pipeline.ron")),
+            input: path("input"),
+            output: path("output"),
+            region: args
+                .try_get_one::<(f64, f64, f64, f64)>("region")
+                .ok()
+                .flatten()
+                .copied(),
+        })
+    }
+
+    fn update_from_arg_matches(&mut self, matches: &ArgMatches) -> Result<(), clap::Error> {
+        *self = Self::from_arg_matches(matches)?;
+        Ok(())
+    }
+}
+
+impl Subcommand for StageCommand {
+    fn augment_subcommands(command: clap::Command) -> clap::Command {
+        STAGES.iter().fold(command, |command, s| {
+            command.subcommand(stage_subcommand(s))
+        })
+    }
+
+    fn augment_subcommands_for_update(command: clap::Command) -> clap::Command {
+        Self::augment_subcommands(command)
+    }
+
+    fn has_subcommand(name: &str) -> bool {
+        stage::named(name).is_some()
+    }
+}
+
 /// `--region x0,y0,x1,y1`: four numbers, x0 < x1 and y0 < y1.
 fn parse_region(text: &str) -> Result<(f64, f64, f64, f64), String> {
     let numbers: Vec<f64> = text
@@ -184,61 +221,6 @@ fn parse_region(text: &str) -> Result<(f64, f64, f64, f64), String> {
             numbers.len()
         )),
     }
-}
-
-/// A trajectories file (of `stage` at `version`) and the graph and patterns beside it, with
-/// their bytes for the input hash: what stages 6 and 8 read.
-struct Beside {
-    graph_bytes: Vec<u8>,
-    graph: crowd_core::PatchGraph,
-    patterns_bytes: Vec<u8>,
-    crossings: Vec<crowd_core::patterns::Crossing>,
-    file: TrajectoriesFile,
-    motion: Vec<crowd_core::trajectories::PatchMotion>,
-    input_bytes: Vec<u8>,
-}
-
-impl Beside {
-    fn load(input: &std::path::Path, stage: &str, version: u32) -> Result<Beside> {
-        let (graph_bytes, graph) = graph_beside(input)?;
-        let patterns_path = input.with_file_name(driver::PATTERNS_FILE);
-        let (_, crossings) = Patterns::load_for(&patterns_path, &graph)?;
-        let patterns_bytes = read_bytes(&patterns_path)?;
-        let (file, motion) =
-            TrajectoriesFile::load_for(input, stage, version, graph.patches.len())?;
-        let input_bytes = read_bytes(input)?;
-        Ok(Beside {
-            graph_bytes,
-            graph,
-            patterns_bytes,
-            crossings,
-            file,
-            motion,
-            input_bytes,
-        })
-    }
-}
-
-/// The pipeline of a single-stage command, its input file and its output file (defaults in the
-/// pipeline's output folder), with the output's folder made ready.
-fn stage_files(
-    pipeline: &std::path::Path,
-    input: Option<PathBuf>,
-    output: Option<PathBuf>,
-    default_input: &str,
-    default_output: &str,
-) -> Result<(PipelineFile, PathBuf, PathBuf)> {
-    let p = PipelineFile::load(pipeline)?;
-    let input = input.unwrap_or_else(|| p.output_dir().join(default_input));
-    let out = output.unwrap_or_else(|| p.output_dir().join(default_output));
-    driver::ensure_parent(&out)?;
-    Ok((p, input, out))
-}
-
-/// The graph a stage file was built on (`graph.ron` beside it) and its bytes.
-fn graph_beside(stage_file: &std::path::Path) -> Result<(Vec<u8>, PatchGraph)> {
-    let path = stage_file.with_file_name(GRAPH_FILE);
-    Ok((read_bytes(&path)?, PatchGraph::load(&path)?))
 }
 
 pub fn run(cli: Cli) -> Result<()> {
@@ -269,140 +251,18 @@ pub fn run(cli: Cli) -> Result<()> {
             let report = crate::report_md::write(&out)?;
             ui.say(format!("  report: {}", report.display()));
         }
-        Command::Merge { pipeline, output } => {
-            let p = PipelineFile::load(&pipeline)?;
-            let out = output.unwrap_or_else(|| p.output_dir().join(MERGE_FILE));
-            driver::ensure_parent(&out)?;
-            let bar = ui.stage_bar("merge");
-            crowd_merge::run(&p, &out, &bar)?;
-            ui.say(format!("merge: wrote {}", out.display()));
-        }
-        Command::Graph {
-            pipeline,
-            input,
-            output,
-        } => {
-            let (p, input, out) = stage_files(&pipeline, input, output, MERGE_FILE, GRAPH_FILE)?;
-            let bar = ui.stage_bar("graph");
-            crowd_graph::run(&p, &input, &out, &bar)?;
-            ui.say(format!("graph: wrote {}", out.display()));
-        }
-        Command::Optimize {
-            pipeline,
-            input,
-            output,
-        } => {
-            let (p, input, out) =
-                stage_files(&pipeline, input, output, GRAPH_FILE, driver::PATTERNS_FILE)?;
-            let graph_bytes = read_bytes(&input)?;
-            let graph = PatchGraph::load(&input)?;
-            let inputs = crowd_optimize::inputs(&p);
-            let hash = crowd_optimize::input_hash(&graph_bytes, &inputs);
-            let (outcome, _, writes) = driver::optimize_stage(&graph, &inputs, hash, &out, &ui);
-            write_all(&writes)?;
-            ui.say(format!(
-                "optimize: wrote {} (E = {:.4})",
-                out.display(),
-                outcome.error.e
-            ));
-        }
-        Command::Match {
-            pipeline,
-            input,
-            output,
-        } => {
-            let (p, input, out) = stage_files(
-                &pipeline,
-                input,
-                output,
-                driver::PATTERNS_FILE,
-                driver::TRAJECTORIES_FILE,
-            )?;
-            let (graph_bytes, graph) = graph_beside(&input)?;
-            let (patterns, crossings) = Patterns::load_for(&input, &graph)?;
-            let patterns_bytes = read_bytes(&input)?;
-            let inputs = crowd_match::inputs(&p);
-            let hash = crowd_match::input_hash(&graph_bytes, &patterns_bytes, &inputs);
-            let (_, writes) =
-                driver::match_stage(&graph, &patterns, &crossings, &inputs, hash, &out, &ui);
-            write_all(&writes)?;
-            ui.say(format!("match: wrote {}", out.display()));
-        }
-        Command::Collide {
-            pipeline,
-            input,
-            output,
-        } => {
-            let (p, input, out) = stage_files(
-                &pipeline,
-                input,
-                output,
-                driver::TRAJECTORIES_FILE,
-                driver::COLLIDED_FILE,
-            )?;
-            let (graph_bytes, graph) = graph_beside(&input)?;
-            let (stage, version) = (TrajectoriesFile::STAGE, TrajectoriesFile::VERSION);
-            let (_, motion) =
-                TrajectoriesFile::load_for(&input, stage, version, graph.patches.len())?;
-            let trajectories_bytes = read_bytes(&input)?;
-            let inputs = driver::collide_inputs(&p);
-            let hash = crowd_collide::input_hash(&graph_bytes, &trajectories_bytes, &inputs);
-            let (_, _, writes) = driver::collide_stage(&graph, &motion, &inputs, hash, &out, &ui);
-            write_all(&writes)?;
-            ui.say(format!("collide: wrote {}", out.display()));
-        }
-        Command::Smooth {
-            pipeline,
-            input,
-            output,
-        } => {
-            let (p, input, out) = stage_files(
-                &pipeline,
-                input,
-                output,
-                driver::COLLIDED_FILE,
-                driver::SMOOTHED_FILE,
-            )?;
-            let b = Beside::load(&input, crowd_collide::STAGE, crowd_collide::VERSION)?;
-            let (graph_bytes, graph, crossings) = (b.graph_bytes, b.graph, b.crossings);
-            let (patterns_bytes, collided, motion) = (b.patterns_bytes, b.file, b.motion);
-            let collided_bytes = b.input_bytes;
-            let inputs = driver::smooth_inputs(&p);
-            let hash =
-                crowd_smooth::input_hash(&graph_bytes, &patterns_bytes, &collided_bytes, &inputs);
-            let (_, writes) = driver::smooth_stage(
-                &graph, &crossings, &collided, &motion, &inputs, hash, &out, &ui,
-            );
-            write_all(&writes)?;
-            ui.say(format!("smooth: wrote {}", out.display()));
-        }
-        Command::Export {
+        Command::Stage(StageCommand {
+            stage,
             pipeline,
             input,
             output,
             region,
-        } => {
-            let (p, input, out) = stage_files(
-                &pipeline,
-                input,
-                output,
-                driver::SMOOTHED_FILE,
-                driver::EXPORT_FILE,
-            )?;
-            let b = Beside::load(&input, crowd_smooth::STAGE, crowd_smooth::VERSION)?;
-            let (graph_bytes, graph, crossings) = (b.graph_bytes, b.graph, b.crossings);
-            let (patterns_bytes, motion, smoothed_bytes) =
-                (b.patterns_bytes, b.motion, b.input_bytes);
-            let mut inputs = driver::export_inputs(&p);
+        }) => {
+            let mut p = PipelineFile::load(&pipeline)?;
             if region.is_some() {
-                inputs.settings.gltf_region = region;
+                p.pipeline.export.gltf_region = region;
             }
-            let hash =
-                crowd_export::input_hash(&graph_bytes, &patterns_bytes, &smoothed_bytes, &inputs);
-            write_all(&driver::export_stage(
-                &graph, &crossings, &motion, &inputs, hash, &out,
-            )?)?;
-            ui.say(format!("export: wrote {}", out.display()));
+            driver::run_stage(stage, &p, input, output, &ui)?;
         }
         Command::Inspect { file } => print!("{}", crate::inspect::inspect(&file)?),
         Command::Check { dir, stage } => {

@@ -1,6 +1,6 @@
 //! `crowd inspect` and `crowd render`: any stage file, told apart by its header.
 
-use crate::driver::{GRAPH_FILE, PATTERNS_FILE};
+use crate::stages::{GRAPH_FILE, PATTERNS_FILE};
 use anyhow::{Result, bail};
 use crowd_core::files;
 use crowd_core::maps::MergeFile;

@@ -1,9 +1,12 @@
 //! The `crowd` command line as a library, so tests and benchmarks drive exactly what users run.
 
+pub mod artifacts;
 pub mod cli;
 pub mod driver;
 pub mod inspect;
 pub mod memory;
 pub mod report;
 pub mod report_md;
+pub mod stage;
+pub mod stages;
 pub mod ui;

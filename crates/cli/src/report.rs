@@ -1,8 +1,10 @@
 //! `crowd report`: the figures a build folder holds so far, as text or one JSON object.
 
-use crate::driver::{
-    COLLIDED_FILE, EXPORT_FILE, GRAPH_FILE, MERGE_FILE, PATTERNS_FILE, SMOOTHED_FILE, Stage,
-    StageRun, TRAJECTORIES_FILE, read_timings,
+use crate::driver::{StageRun, read_timings};
+use crate::stage::Stage;
+use crate::stages::{
+    self, COLLIDED_FILE, EXPORT_FILE, GRAPH_FILE, MERGE_FILE, PATTERNS_FILE, SMOOTHED_FILE,
+    TRAJECTORIES_FILE,
 };
 use anyhow::{Context, Result, bail};
 use crowd_core::PatchGraph;
@@ -234,38 +236,21 @@ impl Report {
 
 /// `crowd check DIR`: checks the trajectories of a build folder written by `stage` (default:
 /// the latest there is: smoothed, else collided, else matched) and writes `check.ron`.
-pub fn check(dir: &Path, stage: Option<Stage>) -> Result<crowd_check::CheckReport> {
+pub fn check(dir: &Path, stage: Option<&'static Stage>) -> Result<crowd_check::CheckReport> {
     let graph = PatchGraph::load(&dir.join(GRAPH_FILE))?;
-    let candidates = [
-        (
-            Stage::Smooth,
-            SMOOTHED_FILE,
-            crowd_smooth::STAGE,
-            crowd_smooth::VERSION,
-        ),
-        (
-            Stage::Collide,
-            COLLIDED_FILE,
-            crowd_collide::STAGE,
-            crowd_collide::VERSION,
-        ),
-        (
-            Stage::Match,
-            TRAJECTORIES_FILE,
-            TrajectoriesFile::STAGE,
-            TrajectoriesFile::VERSION,
-        ),
-    ];
-    let Some(&(_, name, kind, version)) = candidates
-        .iter()
-        .find(|c| stage.map_or(dir.join(c.1).exists(), |s| s == c.0))
+    // The stages that write trajectories, latest first.
+    let candidates = [&stages::SMOOTH, &stages::COLLIDE, &stages::MATCH];
+    let Some(chosen) = candidates
+        .into_iter()
+        .find(|c| stage.map_or(dir.join(c.output).exists(), |s| s == *c))
     else {
         bail!(
             "{}: no trajectories to check; `--stage` takes match, collide or smooth",
             dir.display()
         );
     };
-    let path = dir.join(name);
+    let (kind, version) = (chosen.kind, chosen.version);
+    let path = dir.join(chosen.output);
     let (file, motion) = TrajectoriesFile::load_for(&path, kind, version, graph.patches.len())?;
     let mut report = crowd_check::check(&graph, &motion, file.period_s);
     report.stage = kind.to_string();

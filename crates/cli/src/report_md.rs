@@ -2,10 +2,10 @@
 //! `crowd build` writes it beside the outputs after every build, and `crowd check` refreshes
 //! it with the collision and motion figures.
 
-use crate::driver::{
-    COLLIDED_FILE, GRAPH_FILE, MERGE_FILE, PATTERNS_FILE, SMOOTHED_FILE, TRAJECTORIES_FILE,
-};
 use crate::report::Report;
+use crate::stages::{
+    COLLIDED_FILE, GRAPH_FILE, MERGE_FILE, PATTERNS_FILE, SMOOTHED_FILE, STAGES, TRAJECTORIES_FILE,
+};
 use anyhow::Result;
 use crowd_core::files;
 use serde_json::Value;
@@ -14,11 +14,6 @@ use std::path::{Path, PathBuf};
 
 /// The report's name in a build folder.
 pub const REPORT_FILE: &str = "report.md";
-
-/// The stages in the order they run, as `timings.ron` names them.
-const STAGES: [&str; 7] = [
-    "merge", "graph", "optimize", "match", "collide", "smooth", "export",
-];
 
 /// Draws the pictures of the stage files in `dir`, then writes `report.md` there.
 pub fn write(dir: &Path) -> Result<PathBuf> {
@@ -192,7 +187,7 @@ fn markdown(dir: &Path, report: &Report, pictures: &[Picture]) -> String {
         "## Cost\n\nWall time and peak resident memory of each stage when it last ran.\n\n\
          | stage | wall (s) | peak memory (MB) |\n| --- | ---: | ---: |"
     );
-    for stage in STAGES {
+    for stage in STAGES.map(|s| s.name) {
         if let Some(run) = report.stages.get(stage) {
             let peak = run.peak_mb.map_or("-".into(), |mb| format!("{mb:.0}"));
             let _ = writeln!(s, "| {stage} | {:.2} | {peak} |", run.seconds);

@@ -27,6 +27,16 @@ pub struct Inputs {
     pub settings: crowd_core::config::ExportSettings,
 }
 
+/// What stage 8 reads of a pipeline.
+pub fn inputs(pipeline: &crowd_core::config::PipelineFile) -> Inputs {
+    let p = &pipeline.pipeline;
+    Inputs {
+        period_s: p.period_s,
+        seed: p.seed,
+        settings: p.export.clone(),
+    }
+}
+
 /// The hash of stage 8's inputs: the graph, patterns and final trajectories' bytes and settings.
 pub fn input_hash(graph: &[u8], patterns: &[u8], trajectories: &[u8], inputs: &Inputs) -> Hash {
     Hasher::new(STAGE, VERSION)

@@ -16,8 +16,7 @@ mod components;
 mod density;
 
 use crowd_core::config::{GraphSettings, PipelineFile};
-use crowd_core::files::{self, Header};
-use crowd_core::maps::MergeFile;
+use crowd_core::files::Header;
 use crowd_core::patch_graph::{Dropped, World};
 use crowd_core::{Error, Hash, Hasher, MergedMaps, Patch, PatchGraph, PatchId, Progress, Result};
 use glam::DVec2;
@@ -271,20 +270,6 @@ pub fn input_hash(merge_file_bytes: &[u8], inputs: &GraphInputs) -> Hash {
         .file("merge file", merge_file_bytes)
         .value("inputs", inputs)
         .finish()
-}
-
-/// Runs stage 2: reads `merge` (stage 1's file), writes `out`.
-pub fn run(
-    pipeline: &PipelineFile,
-    merge: &Path,
-    out: &Path,
-    progress: &dyn Progress,
-) -> Result<PatchGraph> {
-    let merge_bytes = files::read_bytes(merge)?;
-    let (_, maps) = MergeFile::load(merge)?;
-    let graph = build(pipeline, merge, &merge_bytes, &maps, progress)?;
-    files::write_atomic(out, files::to_ron(&graph).as_bytes())?;
-    Ok(graph)
 }
 
 /// Builds the graph of a pipeline from stage 1's maps and the bytes of its file (`merge` names

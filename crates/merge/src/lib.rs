@@ -20,7 +20,7 @@ pub use paint::merge;
 use crowd_core::config::PipelineFile;
 use crowd_core::files::{self, Header, SideFile};
 use crowd_core::maps::{LayerRecord, MapsSummary, MergeFile, MergedMaps};
-use crowd_core::{Hash, Hasher, Progress, Result};
+use crowd_core::{Hash, Hasher, Result};
 use std::path::Path;
 
 /// The hash of everything stage 1 reads: layer contents, kinds, weights, scale and settings.
@@ -102,20 +102,4 @@ pub fn encode(
         file,
         writes: vec![(side, bytes), (out.to_path_buf(), ron)],
     }
-}
-
-/// Runs stage 1 from a pipeline to `out`.
-pub fn run(pipeline: &PipelineFile, out: &Path, progress: &dyn Progress) -> Result<MergeFile> {
-    let layers = read_layers(pipeline)?;
-    let hash = input_hash(pipeline, &layers);
-    let decoded = decode(&layers)?;
-    let maps = merge(
-        &decoded,
-        &pipeline.pipeline.merge,
-        pipeline.pipeline.scene.meters_per_pixel,
-        progress,
-    );
-    let encoded = encode(out, pipeline, &layers, &decoded, hash, &maps);
-    encoded.write()?;
-    Ok(encoded.file)
 }

@@ -33,6 +33,15 @@ pub struct Inputs {
     pub settings: SmoothSettings,
 }
 
+/// What stage 6 reads of a pipeline.
+pub fn inputs(pipeline: &crowd_core::config::PipelineFile) -> Inputs {
+    let p = &pipeline.pipeline;
+    Inputs {
+        period_s: p.period_s,
+        settings: p.smooth.clone(),
+    }
+}
+
 /// The hash of stage 6's inputs: the graph, patterns and collided files' bytes and the settings.
 pub fn input_hash(graph: &[u8], patterns: &[u8], collided: &[u8], inputs: &Inputs) -> Hash {
     Hasher::new(STAGE, VERSION)

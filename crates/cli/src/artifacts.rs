@@ -1,0 +1,171 @@
+//! What the stages of one command have made or read so far. A stage asks for its inputs here;
+//! whatever an earlier stage of the same build made is handed over in memory, anything else is
+//! read from the stage files in the folder on first use (and checked against the graph beside
+//! it). Values are shared (`Rc`) so a stage can hold several while the next one's result goes
+//! in, and taken out (`take_*`) by the last stage that needs them, to free the memory early.
+
+use crate::stage::Stage;
+use crate::stages;
+use anyhow::Result;
+use crowd_core::config::PipelineFile;
+use crowd_core::files;
+use crowd_core::maps::MergeFile;
+use crowd_core::patterns::{Crossing, Patterns};
+use crowd_core::trajectories::{PatchMotion, TrajectoriesFile, check_motion};
+use crowd_core::{MergedMaps, PatchGraph};
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::rc::Rc;
+
+/// A stage's patterns: the file and its crossings.
+pub type PatternsOf = (Patterns, Vec<Crossing>);
+/// A trajectories file (stages 4, 5, 6) and its motion.
+pub type MotionOf = (TrajectoriesFile, Vec<PatchMotion>);
+
+/// The inputs and results of the stages of one command.
+pub struct Artifacts<'p> {
+    pub pipeline: &'p PipelineFile,
+    /// Where stage files are read from.
+    dir: PathBuf,
+    /// A stage's file given at another path (a subcommand's `--input`).
+    given: Option<(&'static str, PathBuf)>,
+    bytes: BTreeMap<&'static str, Rc<Vec<u8>>>,
+    layers: Option<Rc<Vec<crowd_merge::LayerBytes>>>,
+    maps: Option<Rc<MergedMaps>>,
+    graph: Option<Rc<PatchGraph>>,
+    patterns: Option<Rc<PatternsOf>>,
+    motion: BTreeMap<&'static str, Rc<MotionOf>>,
+}
+
+impl<'p> Artifacts<'p> {
+    /// Nothing made yet; stage files are read from `dir`.
+    pub fn new(pipeline: &'p PipelineFile, dir: &Path) -> Artifacts<'p> {
+        Artifacts {
+            pipeline,
+            dir: dir.to_path_buf(),
+            given: None,
+            bytes: BTreeMap::new(),
+            layers: None,
+            maps: None,
+            graph: None,
+            patterns: None,
+            motion: BTreeMap::new(),
+        }
+    }
+
+    /// Stage files read beside `path`, which stands for the stage file `name`.
+    pub fn beside(pipeline: &'p PipelineFile, name: &'static str, path: &Path) -> Artifacts<'p> {
+        let dir = path.parent().filter(|p| !p.as_os_str().is_empty());
+        let mut artifacts = Artifacts::new(pipeline, dir.unwrap_or(Path::new(".")));
+        artifacts.given = Some((name, path.to_path_buf()));
+        artifacts
+    }
+
+    /// Where the stage file `name` is read from.
+    pub fn path(&self, name: &str) -> PathBuf {
+        match &self.given {
+            Some((given, path)) if *given == name => path.clone(),
+            _ => self.dir.join(name),
+        }
+    }
+
+    /// The bytes of the file `stage` made (what later stages' hashes are made of).
+    pub fn bytes(&mut self, stage: &Stage) -> Result<Rc<Vec<u8>>> {
+        if let Some(bytes) = self.bytes.get(stage.output) {
+            return Ok(bytes.clone());
+        }
+        let bytes = Rc::new(files::read_bytes(&self.path(stage.output))?);
+        self.bytes.insert(stage.output, bytes.clone());
+        Ok(bytes)
+    }
+
+    /// Records the bytes of the file `stage` just made.
+    pub fn keep_bytes(&mut self, stage: &'static Stage, bytes: Vec<u8>) {
+        self.bytes.insert(stage.output, Rc::new(bytes));
+    }
+
+    /// The painted layers the pipeline names, read (not decoded) once.
+    pub fn layers(&mut self) -> Result<Rc<Vec<crowd_merge::LayerBytes>>> {
+        if self.layers.is_none() {
+            self.layers = Some(Rc::new(crowd_merge::read_layers(self.pipeline)?));
+        }
+        Ok(self.layers.clone().expect("just read"))
+    }
+
+    pub fn keep_maps(&mut self, maps: MergedMaps) {
+        self.maps = Some(Rc::new(maps));
+    }
+
+    /// Stage 1's maps, taken out: only stage 2 reads them.
+    pub fn take_maps(&mut self) -> Result<Rc<MergedMaps>> {
+        match self.maps.take() {
+            Some(maps) => Ok(maps),
+            None => Ok(Rc::new(
+                MergeFile::load(&self.path(stages::MERGE.output))?.1,
+            )),
+        }
+    }
+
+    pub fn made_graph(&mut self, graph: PatchGraph) {
+        self.graph = Some(Rc::new(graph));
+    }
+
+    /// Stage 2's graph.
+    pub fn graph(&mut self) -> Result<Rc<PatchGraph>> {
+        if self.graph.is_none() {
+            let graph = PatchGraph::load(&self.path(stages::GRAPH.output))?;
+            self.graph = Some(Rc::new(graph));
+        }
+        Ok(self.graph.clone().expect("just loaded"))
+    }
+
+    pub fn made_patterns(&mut self, patterns: PatternsOf) {
+        self.patterns = Some(Rc::new(patterns));
+    }
+
+    /// Keeps stage 3's patterns read from `path`, refused unless they fit the graph.
+    pub fn found_patterns(&mut self, path: &Path, patterns: PatternsOf) -> Result<()> {
+        let graph = self.graph()?;
+        crowd_core::patterns::check_crossings(path, &graph, &patterns.0, &patterns.1)?;
+        self.patterns = Some(Rc::new(patterns));
+        Ok(())
+    }
+
+    /// Stage 3's patterns and crossings.
+    pub fn patterns(&mut self) -> Result<Rc<PatternsOf>> {
+        if self.patterns.is_none() {
+            let path = self.path(stages::OPTIMIZE.output);
+            let patterns = Patterns::load(&path)?;
+            self.found_patterns(&path, patterns)?;
+        }
+        Ok(self.patterns.clone().expect("just loaded"))
+    }
+
+    pub fn made_motion(&mut self, stage: &'static Stage, motion: MotionOf) {
+        self.motion.insert(stage.output, Rc::new(motion));
+    }
+
+    /// Keeps the motion `stage` wrote at `path`, refused unless it has one entry per patch of
+    /// the graph.
+    pub fn found_motion(
+        &mut self,
+        stage: &'static Stage,
+        path: &Path,
+        motion: MotionOf,
+    ) -> Result<()> {
+        check_motion(path, self.graph()?.patches.len(), &motion.1)?;
+        self.made_motion(stage, motion);
+        Ok(())
+    }
+
+    /// The motion `stage` (match, collide, smooth) made, taken out: each is read by the next
+    /// stage only.
+    pub fn take_motion(&mut self, stage: &'static Stage) -> Result<Rc<MotionOf>> {
+        if !self.motion.contains_key(stage.output) {
+            let path = self.path(stage.output);
+            let loaded = TrajectoriesFile::load_stage(&path, stage.kind, stage.version)?;
+            self.found_motion(stage, &path, loaded)?;
+        }
+        Ok(self.motion.remove(stage.output).expect("just loaded"))
+    }
+}

@@ -1,0 +1,381 @@
+//! The pipeline's stages, in build order: the one table `crowd build`, the stage subcommands,
+//! `--until`, the report and the timings read. Each entry says what the stage reads and writes
+//! and glues its crate's pure function to the files: hash the inputs, tell whether the file is
+//! up to date, run. Stage 7 (edit) is not built yet; it will be one more entry.
+
+use crate::artifacts::Artifacts;
+use crate::stage::{Ran, Stage};
+use crate::ui::Ui;
+use anyhow::{Result, anyhow};
+use crowd_core::files::{self, Header};
+use crowd_core::maps::MergeFile;
+use crowd_core::patterns::Patterns;
+use crowd_core::trajectories::TrajectoriesFile;
+use crowd_core::{Hash, PatchGraph};
+use std::path::Path;
+
+/// The stage files, by the stage that writes them (side files are named in them).
+pub const MERGE_FILE: &str = "merge.ron";
+pub const GRAPH_FILE: &str = "graph.ron";
+pub const PATTERNS_FILE: &str = "patterns.ron";
+pub const TRAJECTORIES_FILE: &str = "trajectories.ron";
+pub const COLLIDED_FILE: &str = "collided.ron";
+pub const SMOOTHED_FILE: &str = "smoothed.ron";
+pub const EXPORT_FILE: &str = "export.ron";
+
+/// Every stage, in the order a build runs them.
+pub static STAGES: [&Stage; 7] = [
+    &MERGE, &GRAPH, &OPTIMIZE, &MATCH, &COLLIDE, &SMOOTH, &EXPORT,
+];
+
+pub static MERGE: Stage = Stage {
+    name: "merge",
+    number: 1,
+    about: "Stage 1: merge the painted layers into grids",
+    reads: &[],
+    output: MERGE_FILE,
+    writes: &["merge.bin", MERGE_FILE],
+    kind: MergeFile::STAGE,
+    version: MergeFile::VERSION,
+    hash: |a| {
+        let layers = a.layers()?;
+        Ok(crowd_merge::input_hash(a.pipeline, &layers))
+    },
+    fresh: |a, path, hash| {
+        if !header_matches(&MERGE, path, hash) {
+            return Ok(false);
+        }
+        let Ok((_, maps)) = MergeFile::load(path) else {
+            return Ok(false);
+        };
+        a.keep_maps(maps);
+        Ok(true)
+    },
+    run: merge,
+};
+
+pub static GRAPH: Stage = Stage {
+    name: "graph",
+    number: 2,
+    about: "Stage 2: cut the merged grids into the patch graph",
+    reads: &[MERGE_FILE],
+    output: GRAPH_FILE,
+    writes: &[GRAPH_FILE],
+    kind: PatchGraph::STAGE,
+    version: PatchGraph::VERSION,
+    hash: |a| {
+        let merge = a.bytes(&MERGE)?;
+        Ok(crowd_graph::input_hash(
+            &merge,
+            &crowd_graph::inputs(a.pipeline),
+        ))
+    },
+    // The graph is read (and checked) only when a later stage runs.
+    fresh: |_, path, hash| Ok(header_matches(&GRAPH, path, hash)),
+    run: graph,
+};
+
+pub static OPTIMIZE: Stage = Stage {
+    name: "optimize",
+    number: 3,
+    about: "Stage 3: place the crossings of every border (reads the graph)",
+    reads: &[GRAPH_FILE],
+    output: PATTERNS_FILE,
+    writes: &["patterns.bin", "optimize.csv", PATTERNS_FILE],
+    kind: Patterns::STAGE,
+    version: Patterns::VERSION,
+    hash: |a| {
+        let graph = a.bytes(&GRAPH)?;
+        Ok(crowd_optimize::input_hash(
+            &graph,
+            &crowd_optimize::inputs(a.pipeline),
+        ))
+    },
+    fresh: |a, path, hash| {
+        if !header_matches(&OPTIMIZE, path, hash) {
+            return Ok(false);
+        }
+        let Ok(patterns) = Patterns::load(path) else {
+            return Ok(false);
+        };
+        a.found_patterns(path, patterns)?;
+        Ok(true)
+    },
+    run: optimize,
+};
+
+pub static MATCH: Stage = Stage {
+    name: "match",
+    number: 4,
+    about: "Stage 4: match entries with exits, straight lines and standers (reads the graph and \
+            the patterns beside the input)",
+    reads: &[GRAPH_FILE, PATTERNS_FILE],
+    output: TRAJECTORIES_FILE,
+    writes: &["trajectories.bin", TRAJECTORIES_FILE],
+    kind: TrajectoriesFile::STAGE,
+    version: TrajectoriesFile::VERSION,
+    hash: |a| {
+        let (graph, patterns) = (a.bytes(&GRAPH)?, a.bytes(&OPTIMIZE)?);
+        let inputs = crowd_match::inputs(a.pipeline);
+        Ok(crowd_match::input_hash(&graph, &patterns, &inputs))
+    },
+    fresh: |a, path, hash| motion_fresh(&MATCH, a, path, hash),
+    run: matching,
+};
+
+pub static COLLIDE: Stage = Stage {
+    name: "collide",
+    number: 5,
+    about: "Stage 5: push walkers apart (reads the trajectories and the graph beside them)",
+    reads: &[GRAPH_FILE, TRAJECTORIES_FILE],
+    output: COLLIDED_FILE,
+    writes: &["collided.bin", COLLIDED_FILE],
+    kind: crowd_collide::STAGE,
+    version: crowd_collide::VERSION,
+    hash: |a| {
+        let (graph, matched) = (a.bytes(&GRAPH)?, a.bytes(&MATCH)?);
+        let inputs = collide_inputs(a.pipeline);
+        Ok(crowd_collide::input_hash(&graph, &matched, &inputs))
+    },
+    fresh: |a, path, hash| motion_fresh(&COLLIDE, a, path, hash),
+    run: collide,
+};
+
+pub static SMOOTH: Stage = Stage {
+    name: "smooth",
+    number: 6,
+    about: "Stage 6: smooth the walkers' paths (reads the collided trajectories, and the graph \
+            and patterns beside them)",
+    reads: &[GRAPH_FILE, PATTERNS_FILE, COLLIDED_FILE],
+    output: SMOOTHED_FILE,
+    writes: &["smoothed.bin", SMOOTHED_FILE],
+    kind: crowd_smooth::STAGE,
+    version: crowd_smooth::VERSION,
+    hash: |a| {
+        let (graph, patterns) = (a.bytes(&GRAPH)?, a.bytes(&OPTIMIZE)?);
+        let collided = a.bytes(&COLLIDE)?;
+        let inputs = crowd_smooth::inputs(a.pipeline);
+        Ok(crowd_smooth::input_hash(
+            &graph, &patterns, &collided, &inputs,
+        ))
+    },
+    fresh: |a, path, hash| motion_fresh(&SMOOTH, a, path, hash),
+    run: smooth,
+};
+
+pub static EXPORT: Stage = Stage {
+    name: "export",
+    number: 8,
+    about: "Stage 8: export the final trajectories as a binary patch library for crowd-runtime \
+            (reads the smoothed trajectories, and the graph and patterns beside them)",
+    reads: &[GRAPH_FILE, PATTERNS_FILE, SMOOTHED_FILE],
+    output: EXPORT_FILE,
+    writes: &[
+        crowd_export::LIBRARY_FILE,
+        crowd_export::GLB_FILE,
+        EXPORT_FILE,
+    ],
+    kind: crowd_export::STAGE,
+    version: crowd_export::VERSION,
+    hash: |a| {
+        let (graph, patterns) = (a.bytes(&GRAPH)?, a.bytes(&OPTIMIZE)?);
+        let smoothed = a.bytes(&SMOOTH)?;
+        let inputs = crowd_export::inputs(a.pipeline);
+        Ok(crowd_export::input_hash(
+            &graph, &patterns, &smoothed, &inputs,
+        ))
+    },
+    fresh: |_, path, hash| Ok(export_current(path, hash)),
+    run: export,
+};
+
+/// Whether the file at `path` was built by this version of `stage` from exactly `hash`.
+fn header_matches(stage: &Stage, path: &Path, hash: Hash) -> bool {
+    files::read_header(path).is_ok_and(|h| h == Header::new(stage.kind, stage.version, hash))
+}
+
+/// Stages 4-6: up to date when the header matches and the file reads whole (side file
+/// included); its motion is then kept for the next stage.
+fn motion_fresh(stage: &'static Stage, a: &mut Artifacts, path: &Path, hash: Hash) -> Result<bool> {
+    if !header_matches(stage, path, hash) {
+        return Ok(false);
+    }
+    let Ok(motion) = TrajectoriesFile::load_stage(path, stage.kind, stage.version) else {
+        return Ok(false);
+    };
+    a.found_motion(stage, path, motion)?;
+    Ok(true)
+}
+
+/// Stage 8 is up to date when `export.ron` records `hash` and the library and glTF beside it
+/// are the ones it names, byte for byte.
+fn export_current(path: &Path, hash: Hash) -> bool {
+    let Ok(file) = files::read_ron::<crowd_export::ExportFile>(path) else {
+        return false;
+    };
+    let named = |name: &str, named: Hash| {
+        std::fs::read(path.with_file_name(name)).is_ok_and(|b| Hash::of(&b) == named)
+    };
+    file.header == Header::new(crowd_export::STAGE, crowd_export::VERSION, hash)
+        && named(&file.library, file.library_hash)
+        && named(&file.gltf, file.gltf_hash)
+}
+
+fn merge(a: &mut Artifacts, out: &Path, hash: Hash, ui: &Ui) -> Result<Ran> {
+    let bar = ui.stage_bar(MERGE.name);
+    let layers = a.layers()?;
+    let decoded = crowd_merge::decode(&layers)?;
+    let p = &a.pipeline.pipeline;
+    let maps = crowd_merge::merge(&decoded, &p.merge, p.scene.meters_per_pixel, &bar);
+    let encoded = crowd_merge::encode(out, a.pipeline, &layers, &decoded, hash, &maps);
+    a.keep_maps(maps);
+    Ok(Ran::files(encoded.writes))
+}
+
+fn graph(a: &mut Artifacts, out: &Path, _: Hash, ui: &Ui) -> Result<Ran> {
+    let bar = ui.stage_bar(GRAPH.name);
+    let merge_bytes = a.bytes(&MERGE)?;
+    let maps = a.take_maps()?;
+    let merge_path = a.path(MERGE.output);
+    let graph = crowd_graph::build(a.pipeline, &merge_path, &merge_bytes, &maps, &bar)?;
+    let bytes = files::to_ron(&graph).into_bytes();
+    a.made_graph(graph);
+    Ok(Ran::files(vec![(out.to_path_buf(), bytes)]))
+}
+
+fn optimize(a: &mut Artifacts, out: &Path, hash: Hash, ui: &Ui) -> Result<Ran> {
+    let bar = ui.stage_bar(OPTIMIZE.name);
+    let graph = a.graph()?;
+    let s = crowd_optimize::inputs(a.pipeline);
+    let outcome =
+        crowd_optimize::optimize(&graph, &s.settings, &s.matching, s.period_s, s.seed, &bar);
+    let (patterns, writes) = crowd_optimize::encode(out, &outcome, &s, hash);
+    let note = format!("E = {:.4}", outcome.error.e);
+    a.made_patterns((patterns, outcome.crossings));
+    Ok(Ran {
+        writes,
+        note: Some(note),
+    })
+}
+
+fn matching(a: &mut Artifacts, out: &Path, hash: Hash, ui: &Ui) -> Result<Ran> {
+    let bar = ui.stage_bar(MATCH.name);
+    let (graph, patterns) = (a.graph()?, a.patterns()?);
+    let (patterns, crossings) = (&patterns.0, &patterns.1);
+    let inputs = crowd_match::inputs(a.pipeline);
+    let motion = crowd_match::match_all(&graph, crossings, &patterns.measured, &inputs, &bar);
+    let (file, writes) = crowd_match::encode(out, &motion, &graph, &inputs, hash);
+    a.made_motion(&MATCH, (file, motion));
+    Ok(Ran::files(writes))
+}
+
+fn collide(a: &mut Artifacts, out: &Path, hash: Hash, ui: &Ui) -> Result<Ran> {
+    let bar = ui.stage_bar(COLLIDE.name);
+    let (graph, matched) = (a.graph()?, a.take_motion(&MATCH)?);
+    let s = collide_inputs(a.pipeline);
+    let (motion, reports) = crowd_collide::collide(
+        &graph,
+        &matched.1,
+        s.period_s,
+        s.max_iterations,
+        s.seed,
+        &bar,
+    );
+    drop(matched);
+    let (file, writes) = crowd_collide::encode(out, &motion, &reports, &graph, &s, hash);
+    a.made_motion(&COLLIDE, (file, motion));
+    Ok(Ran::files(writes))
+}
+
+fn smooth(a: &mut Artifacts, out: &Path, hash: Hash, ui: &Ui) -> Result<Ran> {
+    let bar = ui.stage_bar(SMOOTH.name);
+    let (graph, patterns) = (a.graph()?, a.patterns()?);
+    let collided = a.take_motion(&COLLIDE)?;
+    let inputs = crowd_smooth::inputs(a.pipeline);
+    let (motion, summary) = crowd_smooth::smooth(&graph, &patterns.1, &collided.1, &inputs, &bar);
+    let (file, writes) = crowd_smooth::encode(out, &motion, summary, &collided.0, &inputs, hash);
+    drop(collided);
+    a.made_motion(&SMOOTH, (file, motion));
+    Ok(Ran::files(writes))
+}
+
+fn export(a: &mut Artifacts, out: &Path, hash: Hash, _: &Ui) -> Result<Ran> {
+    let (graph, patterns) = (a.graph()?, a.patterns()?);
+    let smoothed = a.take_motion(&SMOOTH)?;
+    let inputs = crowd_export::inputs(a.pipeline);
+    let export = crowd_export::export(&graph, &patterns.1, &smoothed.1, &inputs, hash)
+        .map_err(|e| anyhow!("{}: cannot export: {e}", out.display()))?;
+    Ok(Ran::files(crowd_export::writes(out, export)))
+}
+
+/// What stage 5 reads of a pipeline.
+fn collide_inputs(pipeline: &crowd_core::config::PipelineFile) -> crowd_collide::Inputs {
+    let p = &pipeline.pipeline;
+    crowd_collide::Inputs {
+        period_s: p.period_s,
+        seed: p.seed,
+        max_iterations: p.collide.max_iterations,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_stage_reads_only_files_of_stages_before_it() {
+        for (i, stage) in STAGES.iter().enumerate() {
+            for read in stage.reads {
+                assert!(
+                    STAGES[..i].iter().any(|s| s.output == *read),
+                    "{stage:?} reads {read}, which no earlier stage writes"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn names_files_and_numbers_are_distinct_and_in_order() {
+        for (i, a) in STAGES.iter().enumerate() {
+            assert_eq!(
+                a.writes.last(),
+                Some(&a.output),
+                "{a:?} writes its file last"
+            );
+            for b in &STAGES[i + 1..] {
+                assert!(a.number < b.number, "{a:?} before {b:?}");
+                assert_ne!(a.name, b.name);
+                assert!(
+                    a.writes.iter().all(|w| !b.writes.contains(w)),
+                    "{a:?} {b:?}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn until_stops_after_the_named_stage() {
+        let names = |until| {
+            crate::stage::up_to(until)
+                .map(|s| s.name)
+                .collect::<Vec<_>>()
+        };
+        assert_eq!(names(Some(&OPTIMIZE)), ["merge", "graph", "optimize"]);
+        assert_eq!(names(None).len(), STAGES.len());
+        assert_eq!(crate::stage::named("collide"), Some(&COLLIDE));
+    }
+
+    #[test]
+    fn every_stage_has_a_subcommand() {
+        use clap::CommandFactory;
+        let cli = crate::cli::Cli::command();
+        for stage in STAGES {
+            let sub = cli
+                .find_subcommand(stage.name)
+                .expect("a subcommand per stage");
+            let has = |id: &str| sub.get_arguments().any(|a| a.get_id() == id);
+            assert!(has("pipeline") && has("output"), "{stage:?}");
+            assert_eq!(has("input"), !stage.reads.is_empty(), "{stage:?}");
+        }
+    }
+}
