@@ -6,6 +6,9 @@
 //!
 //! Kept light on purpose: no dependencies, cargo is found through the `CARGO` variable.
 
+#[cfg(test)]
+mod tidy;
+
 use std::env;
 use std::path::PathBuf;
 use std::process::{Command, ExitCode};

@@ -1,3 +1,6 @@
+//! Stage 2 against its claims: densities poured under rho_max add up to the requested counts,
+//! open intervals are the runs free on both sides, components and obstacles as painted.
+
 use super::*;
 use crowd_core::Grid;
 use crowd_core::patch_graph::{BorderAxis, Cell, Interval};
