@@ -268,34 +268,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Check { dir, stage } => {
             let report = crate::report::check(&dir, stage)?;
             crate::report_md::write(&dir)?;
-            println!(
-                "{} walkers, {} segments: {} collisions ({} across borders); smallest clearance {:+.3} m{}",
-                report.walkers,
-                report.segments,
-                report.collisions,
-                report.across_borders,
-                report.min_clearance_m,
-                report
-                    .worst_at
-                    .map(|(x, y, t)| format!(" at ({x:.2}, {y:.2}) m, t = {t:.2} s"))
-                    .unwrap_or_default()
-            );
-            if let Some(m) = &report.motion {
-                println!(
-                    "{}: walking speed in 0.5-1.8 m/s {:.1} % of the time; acceleration p95 {:.3} m/s2; turning rate p95 {:.3} rad/s",
-                    report.stage,
-                    100.0 * m.speed_in_band,
-                    m.accel_p95,
-                    m.turn_rate_p95
-                );
-                println!(
-                    "borders: largest velocity jump {:.3} m/s; ends off their crossings by at most {:.2e} m and {:.2e} s; {} crossings not entered and left once",
-                    m.max_border_velocity_jump,
-                    m.max_boundary_error_m,
-                    m.max_boundary_time_error_s,
-                    m.unmatched_crossings
-                );
-            }
+            print!("{}", crate::report::check_summary(&report));
         }
         Command::Render {
             file,

@@ -266,5 +266,41 @@ pub fn check(dir: &Path, stage: Option<&'static Stage>) -> Result<crowd_check::C
     Ok(report)
 }
 
+/// What `crowd check` prints: collisions and clearance, then the motion figures.
+pub fn check_summary(report: &crowd_check::CheckReport) -> String {
+    let worst = report
+        .worst_at
+        .map(|(x, y, t)| format!(" at ({x:.2}, {y:.2}) m, t = {t:.2} s"))
+        .unwrap_or_default();
+    let mut s = format!(
+        "{} walkers, {} segments: {} collisions ({} across borders); smallest clearance \
+         {:+.3} m{worst}\n",
+        report.walkers,
+        report.segments,
+        report.collisions,
+        report.across_borders,
+        report.min_clearance_m,
+    );
+    if let Some(m) = &report.motion {
+        s += &format!(
+            "{}: walking speed in 0.5-1.8 m/s {:.1} % of the time; acceleration p95 {:.3} m/s2; \
+             turning rate p95 {:.3} rad/s\n",
+            report.stage,
+            100.0 * m.speed_in_band,
+            m.accel_p95,
+            m.turn_rate_p95
+        );
+        s += &format!(
+            "borders: largest velocity jump {:.3} m/s; ends off their crossings by at most \
+             {:.2e} m and {:.2e} s; {} crossings not entered and left once\n",
+            m.max_border_velocity_jump,
+            m.max_boundary_error_m,
+            m.max_boundary_time_error_s,
+            m.unmatched_crossings
+        );
+    }
+    s
+}
+
 /// What `crowd check` writes.
 pub const CHECK_FILE: &str = "check.ron";
