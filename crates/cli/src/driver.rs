@@ -404,8 +404,7 @@ pub fn collide_stage(
 ) -> (TrajectoriesFile, Vec<PatchMotion>, Writes) {
     let bar = ui.stage_bar("collide");
     let s = inputs;
-    let (motion, reports) =
-        crowd_collide::collide(graph, motion, s.period_s, s.max_iterations, s.seed, &bar);
+    let (motion, reports) = crowd_collide::collide(graph, motion, s, &bar);
     let (file, writes) = crowd_collide::encode(out, &motion, &reports, graph, s, hash);
     (file, motion, writes)
 }
@@ -464,12 +463,7 @@ pub fn smooth_inputs(pipeline: &PipelineFile) -> crowd_smooth::Inputs {
 
 /// What stage 5 reads of a pipeline.
 pub fn collide_inputs(pipeline: &PipelineFile) -> crowd_collide::Inputs {
-    let p = &pipeline.pipeline;
-    crowd_collide::Inputs {
-        period_s: p.period_s,
-        seed: p.seed,
-        max_iterations: p.collide.max_iterations,
-    }
+    crowd_collide::inputs(pipeline)
 }
 
 /// Writes the stage files of a build that succeeded, then the timings.
