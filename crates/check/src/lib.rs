@@ -3,15 +3,15 @@
 //! Every trajectory of every patch is put into world coordinates; every pair of walkers (and
 //! every walker with every stander and obstacle) that come near each other in space is checked
 //! with the analytic closest approach of their segments, over every copy a whole number of
-//! periods apart. A spatial grid keeps this near linear in the number of segments. Pairs in
+//! periods apart (all measured by `crowd_geometry`). A spatial grid keeps this near linear in the number of segments. Pairs in
 //! different patches are checked exactly like pairs in one patch, so collisions across borders
 //! are found too.
 
 pub mod motion;
 
-use crowd_collide::geometry::{self, Segment};
 use crowd_core::PatchGraph;
 use crowd_core::trajectories::PatchMotion;
+use crowd_geometry::{self as geometry, PieceGrid, Segment};
 use glam::DVec2;
 use rayon::prelude::*;
 use std::collections::HashMap;
@@ -98,21 +98,7 @@ pub fn check(graph: &PatchGraph, motion: &[PatchMotion], period_s: f64) -> Check
         );
     }
     // Spatial grid: a piece goes in every cell its box (grown by the clearance) touches.
-    let cell = 4.0;
-    let key = |p: DVec2| ((p.x / cell).floor() as i64, (p.y / cell).floor() as i64);
-    let mut grid: HashMap<(i64, i64), Vec<u32>> = HashMap::new();
-    for (i, piece) in pieces.iter().enumerate() {
-        let lo = piece.seg.p0.min(piece.seg.p1) - DVec2::splat(2.0 * r);
-        let hi = piece.seg.p0.max(piece.seg.p1) + DVec2::splat(2.0 * r);
-        let (a, b) = (key(lo), key(hi));
-        for x in a.0..=b.0 {
-            for y in a.1..=b.1 {
-                grid.entry((x, y)).or_default().push(i as u32);
-            }
-        }
-    }
-    let mut cells: Vec<(&(i64, i64), &Vec<u32>)> = grid.iter().collect();
-    cells.sort_by_key(|(k, _)| **k);
+    let grid = PieceGrid::new(pieces.iter().map(|p| &p.seg), 4.0, 2.0 * r);
     // Closest approach of two pieces over all copies a whole number of periods apart.
     let pair = |a: &Segment, b: &Segment, skip: [Option<i64>; 2]| -> Option<(f64, f64, DVec2)> {
         geometry::copies((a.t0, a.t1), (b.t0, b.t1), period_s)
@@ -124,14 +110,15 @@ pub fn check(graph: &PatchGraph, motion: &[PatchMotion], period_s: f64) -> Check
             .min_by(|x, y| x.0.total_cmp(&y.0))
     };
     // Walker pairs, found once each: in the cell holding the lower corner of their overlap.
-    let found: Vec<(u32, u32, f64, f64, DVec2, bool)> = cells
+    let found: Vec<(u32, u32, f64, f64, DVec2, bool)> = grid
+        .cells()
         .par_iter()
         .flat_map_iter(|(k, ids)| {
             let mut out = Vec::new();
             for (x, &i) in ids.iter().enumerate() {
                 for &j in &ids[x + 1..] {
                     let (a, b) = (&pieces[i as usize], &pieces[j as usize]);
-                    if !owns(**k, a, b, r, cell) {
+                    if !grid.owns(*k, &a.seg, &b.seg) {
                         continue;
                     }
                     // A walker meets only its own copies a period or more apart, and the
@@ -245,16 +232,6 @@ pub fn check(graph: &PatchGraph, motion: &[PatchMotion], period_s: f64) -> Check
 enum Fixed {
     Stander(u32),
     Wall(u32),
-}
-
-/// Whether cell `k` is the one that checks pieces `a` and `b`: each piece fills a rectangle of
-/// cells, and the lowest corner of the two rectangles' overlap checks the pair, so it is
-/// checked once.
-fn owns(k: (i64, i64), a: &Piece, b: &Piece, r: f64, cell: f64) -> bool {
-    let key = |p: DVec2| ((p.x / cell).floor() as i64, (p.y / cell).floor() as i64);
-    let lo = |s: &Segment| key(s.p0.min(s.p1) - DVec2::splat(2.0 * r));
-    let (la, lb) = (lo(&a.seg), lo(&b.seg));
-    (la.0.max(lb.0), la.1.max(lb.1)) == k
 }
 
 #[cfg(test)]

@@ -6,10 +6,10 @@
 //! is on screen; weighting its vertices by the time around them instead would spread a corner
 //! over seconds and reward coarse paths. Percentiles are over frames, so by time.
 
-use crowd_collide::geometry::Segment;
 use crowd_core::PatchGraph;
 use crowd_core::patterns::{Crossing, Way, border_point};
 use crowd_core::trajectories::{PatchMotion, Trajectory, position_at};
+use crowd_geometry::Segment;
 use glam::DVec2;
 use rayon::prelude::*;
 

@@ -134,7 +134,7 @@ pub static COLLIDE: Stage = Stage {
     version: crowd_collide::VERSION,
     hash: |a| {
         let (graph, matched) = (a.bytes(&GRAPH)?, a.bytes(&MATCH)?);
-        let inputs = collide_inputs(a.pipeline);
+        let inputs = crowd_collide::inputs(a.pipeline);
         Ok(crowd_collide::input_hash(&graph, &matched, &inputs))
     },
     fresh: |a, path, hash| motion_fresh(&COLLIDE, a, path, hash),
@@ -272,15 +272,8 @@ fn matching(a: &mut Artifacts, out: &Path, hash: Hash, ui: &Ui) -> Result<Ran> {
 fn collide(a: &mut Artifacts, out: &Path, hash: Hash, ui: &Ui) -> Result<Ran> {
     let bar = ui.stage_bar(COLLIDE.name);
     let (graph, matched) = (a.graph()?, a.take_motion(&MATCH)?);
-    let s = collide_inputs(a.pipeline);
-    let (motion, reports) = crowd_collide::collide(
-        &graph,
-        &matched.1,
-        s.period_s,
-        s.max_iterations,
-        s.seed,
-        &bar,
-    );
+    let s = crowd_collide::inputs(a.pipeline);
+    let (motion, reports) = crowd_collide::collide(&graph, &matched.1, &s, &bar);
     drop(matched);
     let (file, writes) = crowd_collide::encode(out, &motion, &reports, &graph, &s, hash);
     a.made_motion(&COLLIDE, (file, motion));
@@ -306,16 +299,6 @@ fn export(a: &mut Artifacts, out: &Path, hash: Hash, _: &Ui) -> Result<Ran> {
     let export = crowd_export::export(&graph, &patterns.1, &smoothed.1, &inputs, hash)
         .map_err(|e| anyhow!("{}: cannot export: {e}", out.display()))?;
     Ok(Ran::files(crowd_export::writes(out, export)))
-}
-
-/// What stage 5 reads of a pipeline.
-fn collide_inputs(pipeline: &crowd_core::config::PipelineFile) -> crowd_collide::Inputs {
-    let p = &pipeline.pipeline;
-    crowd_collide::Inputs {
-        period_s: p.period_s,
-        seed: p.seed,
-        max_iterations: p.collide.max_iterations,
-    }
 }
 
 #[cfg(test)]

@@ -3,13 +3,14 @@
 //! Prints pushes, time and failures per band of pair counts.
 //!
 //! The points are drawn at random under the rule stage 3 keeps on every border
-//! ([`crowd_collide::random`]).
+//! (`crowd_match::random`).
 //!
 //! `cargo bench -p crowd-collide --bench random_patches` (one thread per patch batch is not
 //! needed: patches run one after another here, on one core).
 
-use crowd_collide::random::{Shape, walkers};
-use crowd_collide::repair::Patch;
+use crowd_collide::path::Path;
+use crowd_collide::repair::{Patch, Speeds};
+use crowd_match::random::{Shape, walkers};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use std::time::Instant;
@@ -25,7 +26,10 @@ fn main() {
     let mut rows: Vec<(usize, u32, f64, bool)> = Vec::new();
     for i in 0..1000 {
         let n = 1 + i % 50;
-        let mut paths = walkers(n, shape, &mut rng);
+        let mut paths: Vec<Path> = walkers(n, shape, &mut rng)
+            .iter()
+            .map(Path::from_trajectory)
+            .collect();
         let patch = Patch {
             side_m: shape.side_m,
             period_s: shape.period_s,
@@ -35,7 +39,13 @@ fn main() {
         };
         let mut patch_rng = ChaCha8Rng::seed_from_u64(i as u64);
         let start = Instant::now();
-        let outcome = crowd_collide::with_restarts(&mut paths, &patch, 30_000, &mut patch_rng);
+        let outcome = crowd_collide::with_restarts(
+            &mut paths,
+            &patch,
+            Speeds::default(),
+            30_000,
+            &mut patch_rng,
+        );
         rows.push((
             n,
             outcome.iterations,

@@ -4,12 +4,13 @@
 //! In every patch, while two characters come closer than the sum of their radii (walkers with
 //! each other, with their own copies a period later, with standers) or a walker comes closer
 //! than its radius to an obstacle, the closest pair is pushed apart at the moment of closest
-//! approach ([`repair`]). Distances are exact: the closest approach of two straight space-time
-//! segments is analytic ([`geometry`]). Boundary points cannot move ([`path::Anchor`]).
+//! approach ([`repair`], [`push`]). Distances are exact: the closest approach of two straight
+//! space-time segments is analytic (`crowd_geometry`). Boundary points cannot move
+//! ([`path::Anchor`]).
 
-pub mod geometry;
 pub mod path;
-pub mod random;
+mod pause;
+pub mod push;
 pub mod repair;
 pub mod replan;
 
@@ -19,6 +20,8 @@ use path::Path;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
+
+pub use crowd_geometry::obstacles_near;
 
 /// How one patch came out.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -32,46 +35,6 @@ pub struct PatchReport {
     pub stall: Option<crowd_core::trajectories::Stall>,
 }
 
-/// The static obstacles a walker of patch `p` can touch: its own, and those of the eight
-/// neighbours that come within a diameter of its square, in `p`'s local metres (a walker near a
-/// border must keep clear of a wall just across it too).
-pub fn obstacles_near(graph: &PatchGraph, p: usize) -> Vec<crowd_core::Rect> {
-    let side = graph.world.patch_side_m;
-    let reach = 2.0 * graph.radius_m;
-    let cell = graph.patches[p].cell;
-    let mut out = graph.patches[p].obstacles.clone();
-    for dc in -1i64..=1 {
-        for dr in -1i64..=1 {
-            let (c, r) = (cell.col as i64 + dc, cell.row as i64 + dr);
-            if (dc, dr) == (0, 0) || c < 0 || r < 0 {
-                continue;
-            }
-            let neighbour = crowd_core::patch_graph::Cell {
-                col: c as u32,
-                row: r as u32,
-            };
-            let Some(q) = graph.patch_at(neighbour) else {
-                continue;
-            };
-            let offset = glam::DVec2::new(dc as f64, dr as f64) * side;
-            for o in &graph.patches[q].obstacles {
-                let moved = crowd_core::Rect {
-                    min: o.min + offset,
-                    max: o.max + offset,
-                };
-                let near = moved.max.x > -reach
-                    && moved.max.y > -reach
-                    && moved.min.x < side + reach
-                    && moved.min.y < side + reach;
-                if near {
-                    out.push(moved);
-                }
-            }
-        }
-    }
-    out
-}
-
 /// Restarts a stalled repair from the straight lines with fresh random pushes, [`RESTARTS`]
 /// attempts with doubling budgets that add up to `max_iterations`, and keeps the best attempt. The
 /// greedy repair of the paper can cycle (pushing one pair apart pushes another together);
@@ -82,6 +45,7 @@ pub fn obstacles_near(graph: &PatchGraph, p: usize) -> Vec<crowd_core::Rect> {
 pub fn with_restarts(
     paths: &mut Vec<Path>,
     patch: &repair::Patch,
+    speeds: repair::Speeds,
     max_iterations: u32,
     rng: &mut ChaCha8Rng,
 ) -> repair::Outcome {
@@ -94,14 +58,21 @@ pub fn with_restarts(
     for k in 0..RESTARTS {
         let per_try = unit << k;
         let mut attempt = start.clone();
-        let outcome = repair::remove_collisions(&mut attempt, patch, per_try, rng);
+        let outcome = repair::remove_collisions(&mut attempt, patch, speeds, per_try, rng);
         used += outcome.iterations;
         if keep_better(&mut best, attempt, outcome) {
             break;
         }
         if k + 1 >= RESCUE_AFTER {
             let (mut rescued, _) = best.clone().expect("an attempt");
-            let outcome = replan::rescue(&mut rescued, patch, RESCUE_ROUNDS, RESCUE_PUSHES, rng);
+            let outcome = replan::rescue(
+                &mut rescued,
+                patch,
+                speeds,
+                RESCUE_ROUNDS,
+                RESCUE_PUSHES,
+                rng,
+            );
             used += outcome.iterations;
             if keep_better(&mut best, rescued, outcome) {
                 break;
@@ -161,11 +132,15 @@ pub const RESCUE_PUSHES: u32 = 400;
 pub fn collide(
     graph: &PatchGraph,
     motion: &[PatchMotion],
-    period_s: f64,
-    max_iterations: u32,
-    seed: u64,
+    inputs: &Inputs,
     progress: &dyn crowd_core::Progress,
 ) -> (Vec<PatchMotion>, Vec<PatchReport>) {
+    let Inputs {
+        period_s,
+        seed,
+        max_iterations,
+        speeds,
+    } = *inputs;
     progress.begin("collide", motion.len() as u64);
     motion
         .par_iter()
@@ -183,7 +158,7 @@ pub fn collide(
             let mut rng = ChaCha8Rng::seed_from_u64(
                 seed ^ (p as u64 + 1).wrapping_mul(0xD1B5_4A32_D192_ED03),
             );
-            let outcome = with_restarts(&mut paths, &patch, max_iterations, &mut rng);
+            let outcome = with_restarts(&mut paths, &patch, speeds, max_iterations, &mut rng);
             progress.advance(1);
             let report = PatchReport {
                 patch: p as u32,
@@ -206,11 +181,27 @@ pub const STAGE: &str = "collide";
 pub const VERSION: u32 = 3;
 
 /// What stage 5 reads of a pipeline besides its input files.
-#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct Inputs {
     pub period_s: f64,
     pub seed: u64,
     pub max_iterations: u32,
+    /// `match.comfort_speed` and `match.max_speed`. Left out of the hash at their defaults,
+    /// the speeds stage 5 used before it read them, so that files built then stay up to date;
+    /// any other speed is hashed.
+    #[serde(skip_serializing_if = "repair::Speeds::is_default")]
+    pub speeds: repair::Speeds,
+}
+
+/// What stage 5 reads of `pipeline`.
+pub fn inputs(pipeline: &crowd_core::config::PipelineFile) -> Inputs {
+    let p = &pipeline.pipeline;
+    Inputs {
+        period_s: p.period_s,
+        seed: p.seed,
+        max_iterations: p.collide.max_iterations,
+        speeds: repair::Speeds::of(&p.matching),
+    }
 }
 
 /// The hash of stage 5's inputs: the graph and trajectories files' bytes and the settings.

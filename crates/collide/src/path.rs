@@ -6,8 +6,11 @@
 //! ghosts: the same straight walk before the entry and after the exit), so that the encounters
 //! of this patch include everyone near its borders.
 
-use crate::geometry::Segment;
+use crowd_geometry::{Segment, at_time, ghosts};
+
+// Where stage 5's callers found it before it moved to the shared geometry.
 use crowd_core::trajectories::{ControlPoint, PointKind, Trajectory};
+pub use crowd_geometry::trajectory_segments;
 use glam::DVec2;
 
 /// An entry or exit point, fixed by the patterns. Its fields are private and it has no
@@ -28,9 +31,6 @@ impl Anchor {
     }
 }
 
-/// The fastest stage 5 lets a walker walk to or from a moved pause, or in a time move, m/s
-/// (stage 4's `match.max_speed`).
-pub const MAX_WALK_SPEED: f64 = 1.8;
 /// The fastest a push may make a walker walk, m/s: above stage 4's limit, since a bend near a
 /// band end often needs a short hurried piece (3 m/s tripled the stalled patches of `ring`),
 /// but no more than a brief run (without a cap, a point pushed again and again ran off at
@@ -124,7 +124,8 @@ impl Path {
     }
 
     /// The straight pieces of the path in time order, with the band pieces it walks in the
-    /// neighbouring patches before its entry and after its exit (see [`ghosts`]).
+    /// neighbouring patches before its entry and after its exit (see
+    /// [`crowd_geometry::ghosts`]).
     pub fn segments(&self) -> Vec<Segment> {
         let at = |a: &Anchor| (a.pos, a.t);
         let mut points = Vec::with_capacity(self.free.len() + 6);
@@ -156,7 +157,7 @@ impl Path {
     }
 
     pub fn position(&self, t: f64) -> DVec2 {
-        crate::geometry::at_time(&self.segments(), t).unwrap_or(self.entry.pos)
+        at_time(&self.segments(), t).unwrap_or(self.entry.pos)
     }
 
     /// Speed around time `t`.
@@ -186,11 +187,13 @@ impl Path {
     }
 
     /// Moves the pause `(i, j)` (see [`Path::pause_at`]) whole by `force`, if `allowed`
-    /// accepts where it ends, as [`Path::push_at`] moves one point.
+    /// accepts where it ends, as [`Path::push_at`] moves one point. The walks to and from it
+    /// stay under `max_speed`.
     pub fn push_pause(
         &mut self,
         (i, j): (usize, usize),
         force: DVec2,
+        max_speed: f64,
         keep_inside: impl Fn(DVec2) -> DVec2,
         allowed: impl Fn(DVec2) -> bool,
     ) -> bool {
@@ -203,10 +206,10 @@ impl Path {
         let (prev, next) = self.neighbours(i, j);
         let t0 = self.free[i]
             .t
-            .max(prev.1 + prev.0.distance(target) / MAX_WALK_SPEED);
+            .max(prev.1 + prev.0.distance(target) / max_speed);
         let t1 = self.free[j]
             .t
-            .min(next.1 - next.0.distance(target) / MAX_WALK_SPEED);
+            .min(next.1 - next.0.distance(target) / max_speed);
         let inner_ok = (i + 1 < j)
             .then(|| (self.free[i + 1].t, self.free[j - 1].t))
             .is_none_or(|(a, b)| t0 <= a && t1 >= b);
@@ -240,12 +243,14 @@ impl Path {
     /// Steps aside during the pause `(i, j)`: the part of the pause from time `t` on (or up to
     /// `t`, when `t` is in its first half) moves by `force`, with a short walk from one spot to
     /// the other, so the walker waits at two spots. A pause too short to split moves whole
-    /// ([`Path::push_pause`]). Returns whether anything moved.
+    /// ([`Path::push_pause`]). The walk to or from the part that moves stays under
+    /// `max_speed`. Returns whether anything moved.
     pub fn split_pause(
         &mut self,
         (i, j): (usize, usize),
         t: f64,
         force: DVec2,
+        max_speed: f64,
         keep_inside: impl Fn(DVec2) -> DVec2,
         allowed: impl Fn(DVec2) -> bool,
     ) -> bool {
@@ -256,7 +261,7 @@ impl Path {
         let walk = (here.distance(there) / 1.0).max(0.2);
         let later = t - t0 >= t1 - t;
         if t1 - t0 < 2.0 * walk + 2.0 {
-            return self.push_pause((i, j), force, keep_inside, allowed);
+            return self.push_pause((i, j), force, max_speed, keep_inside, allowed);
         }
         // Each part keeps at least a second, and the walk between them fits.
         let cut = if later {
@@ -273,12 +278,12 @@ impl Path {
         let (prev, next) = self.neighbours(i, j);
         let (mut t0, mut t1) = (t0, t1);
         if later {
-            t1 = t1.min(next.1 - next.0.distance(there) / MAX_WALK_SPEED);
+            t1 = t1.min(next.1 - next.0.distance(there) / max_speed);
             if t1 < b + 0.5 || self.free[i..j].iter().any(|f| f.t > t1) {
                 return false;
             }
         } else {
-            t0 = t0.max(prev.1 + prev.0.distance(there) / MAX_WALK_SPEED);
+            t0 = t0.max(prev.1 + prev.0.distance(there) / max_speed);
             if t0 > a - 0.5 || self.free[i + 1..=j].iter().any(|f| f.t < t0) {
                 return false;
             }
@@ -382,7 +387,7 @@ impl Path {
     }
 
     /// Sends every piece of the path that cuts through a static obstacle round it (the
-    /// shortest way past the obstacles grown by `radius`, see `crowd_match::route`), keeping the
+    /// shortest way past the obstacles grown by `radius`, see `crowd_geometry::route`), keeping the
     /// times of the points it has: the corners share the piece's time by length.
     pub fn reroute(&mut self, obstacles: &[crowd_core::Rect], radius: f64, side: f64) {
         if obstacles.is_empty() {
@@ -397,7 +402,7 @@ impl Path {
         let mut free = Vec::with_capacity(self.free.len());
         for w in points.windows(2) {
             let ((p0, t0, _), (p1, t1, kind1)) = (w[0], w[1]);
-            let corners = crowd_match::route::route(p0, p1, obstacles, radius, side);
+            let corners = crowd_geometry::route::route(p0, p1, obstacles, radius, side);
             if corners.len() > 2 {
                 let length: f64 = corners.windows(2).map(|c| c[0].distance(c[1])).sum();
                 let mut walked = 0.0;
@@ -485,41 +490,4 @@ fn nearest_allowed(
             })
             .find(|&p| allowed(p))
     })
-}
-
-/// The straight pieces through `points` (a trajectory's, in time order), with the band pieces
-/// the walker walks in the neighbouring patches: given where the entry's band ends, the same
-/// straight walk continued as far back before the entry; likewise after the exit.
-pub fn ghosts(
-    points: &[(DVec2, f64)],
-    entry_band: Option<(DVec2, f64)>,
-    exit_band: Option<(DVec2, f64)>,
-) -> Vec<Segment> {
-    let mut out = Vec::with_capacity(points.len() + 1);
-    if let (Some(&(p0, t0)), Some((p1, t1))) = (points.first(), entry_band) {
-        out.push(Segment {
-            p0: p0 - (p1 - p0),
-            t0: t0 - (t1 - t0),
-            p1: p0,
-            t1: t0,
-        });
-    }
-    out.extend(crate::geometry::pieces(points.iter().copied()));
-    if let (Some(&(p1, t1)), Some((p0, t0))) = (points.last(), exit_band) {
-        out.push(Segment {
-            p0: p1,
-            t0: t1,
-            p1: p1 + (p1 - p0),
-            t1: t1 + (t1 - t0),
-        });
-    }
-    out
-}
-
-/// The straight pieces of a trajectory with its ghosts (see [`ghosts`]).
-pub fn trajectory_segments(tr: &Trajectory) -> Vec<Segment> {
-    let (e, x) = crowd_core::trajectories::band_ends(&tr.points);
-    let at = |i: usize| (tr.points[i].pos, tr.points[i].t);
-    let points: Vec<(DVec2, f64)> = tr.points.iter().map(|p| (p.pos, p.t)).collect();
-    ghosts(&points, e.map(at), x.map(at))
 }

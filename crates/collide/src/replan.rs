@@ -13,10 +13,10 @@
 //! layer taking the reachable cell nearest to where the walker used to be, and straightened
 //! wherever the straight walk is clear by the exact closest approach.
 
-use crate::geometry::{self, Segment};
 use crate::path::{Free, Path};
-use crate::repair::{self, Outcome, Patch};
+use crate::repair::{self, Outcome, Patch, Speeds};
 use crowd_core::trajectories::{ControlPoint, PointKind, split_at_periods};
+use crowd_geometry::{self as geometry, Segment};
 use glam::DVec2;
 use rand_chacha::ChaCha8Rng;
 
@@ -58,12 +58,13 @@ const LONGEST: usize = 60;
 pub fn rescue(
     paths: &mut [Path],
     patch: &Patch,
+    speeds: Speeds,
     rounds: u32,
     pushes: u32,
     rng: &mut ChaCha8Rng,
 ) -> Outcome {
     let margin = |o: &Outcome| o.worst.map_or(f64::INFINITY, |w| w.margin);
-    let mut outcome = repair::remove_collisions(paths, patch, 0, rng);
+    let mut outcome = repair::remove_collisions(paths, patch, speeds, 0, rng);
     let mut best = (paths.to_vec(), outcome);
     let mut iterations = 0;
     for round in 0..rounds {
@@ -86,7 +87,7 @@ pub fn rescue(
                 break;
             }
         }
-        outcome = repair::remove_collisions(paths, patch, pushes, rng);
+        outcome = repair::remove_collisions(paths, patch, speeds, pushes, rng);
         iterations += outcome.iterations + 1;
         if margin(&outcome) > margin(&best.1) {
             best = (paths.to_vec(), outcome);

@@ -14,7 +14,6 @@ pub mod maps;
 pub mod patch_graph;
 pub mod patterns;
 pub mod progress;
-pub mod spacing;
 pub mod trajectories;
 
 pub use config::{

@@ -10,10 +10,14 @@
 //! Stage 3 uses [`measure_patch`] to measure density and direction from the same matching.
 
 pub mod plan;
-pub mod route;
+pub mod random;
 pub mod score;
 pub mod stable;
 pub mod standers;
+
+// The shortest way past a patch's walls is shared geometry (stage 5 routes pushed pieces
+// with it too); `plan` reaches it as `crate::route`.
+pub use crowd_geometry::route;
 
 use crowd_core::config::MatchSettings;
 use crowd_core::patterns::{Crossing, Measured, Side};

@@ -2,7 +2,7 @@
 //! in space or time from the other crossings of its border that the two characters never come
 //! closer than the sum of their radii near the border.
 //!
-//! The rule between two crossings is `crowd_core::spacing::CrossingRule` (band pieces apart).
+//! The rule between two crossings is `crowd_geometry::spacing::CrossingRule` (band pieces apart).
 
 use crowd_core::patterns::{Crossing, Way};
 use crowd_core::{Interval, PatchGraph};
@@ -12,7 +12,7 @@ pub struct Spacing {
     /// and a margin, and kept clear of the corners).
     pub usable: Vec<Vec<Interval>>,
     /// The rule between two crossings of one border.
-    pub rule: crowd_core::spacing::CrossingRule,
+    pub rule: crowd_geometry::spacing::CrossingRule,
     /// Per border, the unit vector across it.
     pub normals: Vec<glam::DVec2>,
 }
@@ -21,7 +21,7 @@ impl Spacing {
     pub fn new(graph: &PatchGraph) -> Spacing {
         let r = graph.radius_m;
         let side = graph.world.patch_side_m;
-        let rule = crowd_core::spacing::CrossingRule::new(r);
+        let rule = crowd_geometry::spacing::CrossingRule::new(r);
         let (edge, corner) = (rule.edge, rule.corner);
         let usable = graph
             .borders

@@ -4,20 +4,18 @@
 //! Every trajectory is sampled into tacks, a clamped cubic spline goes through them with the
 //! crossing velocities of its patterns at the borders ([`curve`], [`spline`]), and the curve is
 //! sampled again where it bends. Then the patch is checked again exactly (stage 5's analytic
-//! closest approach): a trajectory whose curve brings it closer to anyone or anything than
+//! closest approach, `crowd_geometry`): a trajectory whose curve brings it closer to anyone or anything than
 //! it may be, where its polyline did not, ships as its polyline instead. Smoothing never ships a
 //! new collision.
 
 pub mod curve;
 pub mod spline;
 
-use crowd_collide::geometry::Segment;
-use crowd_collide::path::trajectory_segments;
-use crowd_collide::repair::{self, Encounter, Other};
 use crowd_core::config::SmoothSettings;
 use crowd_core::patterns::Crossing;
 use crowd_core::trajectories::{ControlPoint, PatchMotion, SmoothingSummary, Trajectory};
 use crowd_core::{Hash, Hasher, PatchGraph};
+use crowd_geometry::{Encounter, Other, Patch, Segment, Tracks, trajectory_segments};
 use glam::DVec2;
 use rayon::prelude::*;
 use std::collections::HashMap;
@@ -76,8 +74,8 @@ pub fn smooth(
         .par_iter()
         .enumerate()
         .map(|(p, m)| {
-            let obstacles = crowd_collide::obstacles_near(graph, p);
-            let patch = repair::Patch {
+            let obstacles = crowd_geometry::obstacles_near(graph, p);
+            let patch = Patch {
                 side_m: limits.side_m,
                 period_s: limits.period_s,
                 radius_m: graph.radius_m,
@@ -144,7 +142,7 @@ fn smooth_patch(
     trajectories: &[Trajectory],
     velocities: &[DVec2],
     limits: &curve::Limits,
-    patch: &repair::Patch,
+    patch: &Patch,
 ) -> (PatchMotion, [u64; 3]) {
     let mut dropped = 0;
     let curve_at = |tr: &Trajectory, level: u32| {
@@ -205,18 +203,18 @@ const LEVELS: u32 = 4;
 fn keep_clear(
     before: &[Trajectory],
     mut after: Vec<Trajectory>,
-    patch: &repair::Patch,
+    patch: &Patch,
     curve_at: impl Fn(usize, u32) -> Trajectory,
 ) -> Vec<Trajectory> {
     let old_segs: Vec<Vec<Segment>> = before.iter().map(trajectory_segments).collect();
-    let old: HashMap<_, f64> = repair::rows(&repair::Tracks::new(old_segs), patch)
+    let old: HashMap<_, f64> = crowd_geometry::rows(&Tracks::new(old_segs), patch)
         .iter()
         .flatten()
         .map(|e| (key(e), e.margin))
         .collect();
-    let mut tracks = repair::Tracks::new(after.iter().map(trajectory_segments).collect());
+    let mut tracks = Tracks::new(after.iter().map(trajectory_segments).collect());
     // Only the rows of walkers that changed are measured again.
-    let mut rows = repair::rows(&tracks, patch);
+    let mut rows = crowd_geometry::rows(&tracks, patch);
     let mut level = vec![0u32; before.len()];
     loop {
         let mut again: Vec<usize> = Vec::new();
@@ -244,7 +242,7 @@ fn keep_clear(
             };
             tracks.set(i, trajectory_segments(&after[i]));
         }
-        repair::refresh(&mut rows, &mut tracks, &again, patch);
+        crowd_geometry::refresh(&mut rows, &mut tracks, &again, patch);
     }
 }
 

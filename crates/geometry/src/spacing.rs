@@ -1,12 +1,15 @@
 //! How close two crossings of one border may be: the rule stage 3 keeps and stages 4-6 rely on.
+//! It lives with the geometry because it is a closest approach of two band walks, measured
+//! by the same [`approach`] as every encounter after it.
 //!
 //! Near a border every character walks its crossing's straight band piece (a radius deep on
-//! either side, at the crossing velocity; see [`crate::trajectories::PointKind::Band`]), so
+//! either side, at the crossing velocity; see [`crowd_core::trajectories::PointKind::Band`]), so
 //! what happens there is fixed once for both patches: two band pieces of one border never come
 //! within `gap`, at any time modulo the period. Beyond the band, two characters crossing the
 //! same spot keep a walk apart in time, so that stage 5 has room to bend their paths.
 
-use crate::patterns::Crossing;
+use crate::approach::approach;
+use crowd_core::patterns::Crossing;
 use glam::DVec2;
 
 /// How long past each end of its band piece a character is taken to walk on straight, s: a
@@ -88,13 +91,7 @@ impl CrossingRule {
             let pa = along(a) + a.velocity * (lo - a.t);
             let pb = along(b) + b.velocity * (lo - tb_c);
             let (w, dv) = (pa - pb, a.velocity - b.velocity);
-            let d2 = dv.length_squared();
-            let t = if d2 > 1e-18 {
-                (-w.dot(dv) / d2).clamp(0.0, hi - lo)
-            } else {
-                0.0
-            };
-            if (w + dv * t).length() < self.gap {
+            if approach(w, dv, hi - lo).0 < self.gap {
                 return false;
             }
         }

@@ -1,17 +1,18 @@
 //! Random patches in the shape of Ramirez et al.'s Figure 6: entry and exit points at random
-//! places and times on the four borders of an empty patch, matched by stage 4. For the
-//! benchmark of that figure and for the property test that every such patch converges.
+//! places and times on the four borders of an empty patch, matched by stage 4. For stage 5's
+//! benchmark of that figure and its property test that every such patch converges; here
+//! because the lines that figure measures are this stage's.
 //!
 //! The points are drawn under the rule stage 3 keeps on every border
-//! (`crowd_core::spacing::CrossingRule`: clear of the corners, band pieces apart): two
+//! (`crowd_geometry::spacing::CrossingRule`: clear of the corners, band pieces apart): two
 //! characters asked to cross one spot at one moment could not be separated by anyone, and our
 //! own patterns never ask for it.
 
-use crate::path::Path;
+use crate::{Endpoint, PatchContext};
 use crowd_core::config::MatchSettings;
 use crowd_core::patterns::{Crossing, Side, Way};
-use crowd_core::spacing::CrossingRule;
-use crowd_match::{Endpoint, PatchContext};
+use crowd_core::trajectories::Trajectory;
+use crowd_geometry::spacing::CrossingRule;
 use glam::DVec2;
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
@@ -25,7 +26,7 @@ pub struct Shape {
 }
 
 /// `pairs` walkers through a random empty patch of `shape`, as stage 4 draws them.
-pub fn walkers(pairs: usize, shape: Shape, rng: &mut ChaCha8Rng) -> Vec<Path> {
+pub fn walkers(pairs: usize, shape: Shape, rng: &mut ChaCha8Rng) -> Vec<Trajectory> {
     let Shape {
         side_m: side,
         period_s: period,
@@ -81,8 +82,5 @@ pub fn walkers(pairs: usize, shape: Shape, rng: &mut ChaCha8Rng) -> Vec<Path> {
     };
     let entries: Vec<_> = (0..pairs).map(|_| point(rng, true)).collect();
     let exits: Vec<_> = (0..pairs).map(|_| point(rng, false)).collect();
-    crowd_match::trajectories(&entries, &exits, &ctx)
-        .iter()
-        .map(Path::from_trajectory)
-        .collect()
+    crate::trajectories(&entries, &exits, &ctx)
 }

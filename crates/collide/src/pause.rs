@@ -1,0 +1,139 @@
+//! A pausing walker caught in an encounter moves its whole pause to the spot of the patch
+//! that stays clearest of everyone during it: pushing one moment of a long pause only made it
+//! zigzag, and treating the walker as a stander made five times more failures.
+
+use crate::path::Path;
+use crate::repair::{Patch, Speeds, Tracks};
+use crowd_geometry::{Segment, at_time, copies, to_rect};
+use glam::DVec2;
+
+/// Moves the pause `(i, j)` of walker `p` to the spot of the patch that stays farthest from
+/// every other walker (and stander and obstacle) during the pause, if that is farther than
+/// where it is. Returns whether it moved. `tracks` holds everyone's pieces except those of the
+/// walkers `moved` in this push, whose paths have changed since. The walks to and from the
+/// new spot go at the comfort speed (the pause starts later or ends sooner for them).
+pub(crate) fn relocate_pause(
+    paths: &mut [Path],
+    p: usize,
+    (i, j): (usize, usize),
+    patch: &Patch,
+    speeds: Speeds,
+    (tracks, moved): (&Tracks, &[usize]),
+) -> bool {
+    let r = patch.radius_m;
+    let (t0, t1) = (paths[p].free[i].t, paths[p].free[j].t);
+    let here = paths[p].free[i].pos;
+    let others = others_during(paths, p, (t0, t1), patch, (tracks, moved));
+    let clearance = |q: DVec2| clearance(q, &others, patch);
+    // Only spots the walker can reach and leave without walking faster than it may.
+    // From where the walker comes and to where it goes: the band ends, not the border points,
+    // when the pause is the first or last thing it does in the patch.
+    let path = &paths[p];
+    let (before, after) = path.neighbours(i, j);
+    // The pause may start later and end sooner to leave time for the walk (a time move).
+    // Points inside the pause (where it passes the period) keep their times: the walker must
+    // be there by the first of them and stay until the last.
+    let inner = (i + 1 < j).then(|| (path.free[i + 1].t, path.free[j - 1].t));
+    let times = |q: DVec2| {
+        let start = t0.max(before.1 + before.0.distance(q) / speeds.comfort);
+        let end = t1.min(after.1 - q.distance(after.0) / speeds.comfort);
+        let holds = inner.is_none_or(|(a, b)| start <= a && end >= b);
+        (start <= end && holds).then_some((start, end))
+    };
+    // ... and in a straight line, clear of every wall (never into a part a wall cuts off).
+    let clear_walk = |a: DVec2, b: DVec2| {
+        let walk = Segment {
+            p0: a,
+            t0: 0.0,
+            p1: b,
+            t1: 1.0,
+        };
+        patch
+            .obstacles
+            .iter()
+            .all(|o| to_rect(&walk, o.min, o.max).0 >= r)
+    };
+    let reachable =
+        |q: DVec2| times(q).is_some() && clear_walk(before.0, q) && clear_walk(q, after.0);
+    let margin = r + 0.3;
+    let n = 9;
+    let best = (0..n * n)
+        .map(|k| {
+            let f = |i: usize| margin + (patch.side_m - 2.0 * margin) * i as f64 / (n - 1) as f64;
+            DVec2::new(f(k % n), f(k / n))
+        })
+        .filter(|&q| reachable(q))
+        .map(|q| (clearance(q), q))
+        .max_by(|a, b| a.0.total_cmp(&b.0));
+    let Some(best) = best else { return false };
+    if best.0 <= clearance(here) + 1e-9 {
+        return false;
+    }
+    let (start, end) = times(best.1).expect("a reachable spot");
+    let path = &mut paths[p];
+    for f in &mut path.free[i..=j] {
+        f.pos = best.1;
+    }
+    path.free[i].t = start;
+    path.free[j].t = end;
+    true
+}
+
+/// Where everyone but walker `p` (and `p`'s own copies a period or more away) is during
+/// `[t0, t1]`: the standers, and every walker sampled every 0.2 s or so, bands and ghosts
+/// included.
+fn others_during(
+    paths: &[Path],
+    p: usize,
+    (t0, t1): (f64, f64),
+    patch: &Patch,
+    (tracks, moved): (&Tracks, &[usize]),
+) -> Vec<DVec2> {
+    let mut others: Vec<DVec2> = patch.standers.to_vec();
+    let steps = ((t1 - t0) / 0.2).ceil().max(1.0) as usize;
+    for (b, path) in paths.iter().enumerate() {
+        // Everywhere the walker is near the patch: its bands and their ghosts too.
+        let segs: std::borrow::Cow<[Segment]> = if moved.contains(&b) {
+            path.segments().into()
+        } else {
+            tracks.get(b).into()
+        };
+        let (Some(first), Some(last)) = (segs.first(), segs.last()) else {
+            continue;
+        };
+        let (b0, b1) = (first.t0, last.t1);
+        for k in copies((t0, t1), (b0, b1), patch.period_s) {
+            if b == p && k == 0 {
+                continue;
+            }
+            let shift = k as f64 * patch.period_s;
+            for s in 0..=steps {
+                let t = t0 + (t1 - t0) * s as f64 / steps as f64 - shift;
+                if t >= b0 && t <= b1 {
+                    others.extend(at_time(&segs, t));
+                }
+            }
+        }
+    }
+    others
+}
+
+/// How clear spot `q` is: the distance to the nearest of `others`, or to the nearest wall plus
+/// a radius (as if the wall were a walker's centre a radius away from it); a spot inside or
+/// within a radius of a wall is never chosen.
+fn clearance(q: DVec2, others: &[DVec2], patch: &Patch) -> f64 {
+    let r = patch.radius_m;
+    let walls = patch
+        .obstacles
+        .iter()
+        .map(|o| {
+            let d = (q.clamp(o.min, o.max) - q).length();
+            if d < r + 0.05 {
+                f64::NEG_INFINITY
+            } else {
+                d + r
+            }
+        })
+        .fold(f64::INFINITY, f64::min);
+    others.iter().map(|o| o.distance(q)).fold(walls, f64::min)
+}
