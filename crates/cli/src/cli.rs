@@ -62,9 +62,8 @@ pub enum Command {
     /// borders too; writes `check.ron` beside the stage files.
     Check {
         dir: PathBuf,
-        /// The stage whose trajectories to check: match, collide or smooth (default: the latest
-        /// in the folder).
-        #[arg(long, value_name = "STAGE", value_parser = stage::parser())]
+        /// The stage whose trajectories to check (default: the latest in the folder).
+        #[arg(long, value_name = "STAGE", value_parser = stage::parser_among(&stages::TRAJECTORY_STAGES))]
         stage: Option<&'static Stage>,
     },
     /// The figures of a build folder (`--json` for one JSON object).

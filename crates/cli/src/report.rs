@@ -238,15 +238,15 @@ impl Report {
 /// the latest there is: smoothed, else collided, else matched) and writes `check.ron`.
 pub fn check(dir: &Path, stage: Option<&'static Stage>) -> Result<crowd_check::CheckReport> {
     let graph = PatchGraph::load(&dir.join(GRAPH_FILE))?;
-    // The stages that write trajectories, latest first.
-    let candidates = [&stages::SMOOTH, &stages::COLLIDE, &stages::MATCH];
-    let Some(chosen) = candidates
-        .into_iter()
+    let Some(chosen) = stages::TRAJECTORY_STAGES
+        .iter()
+        .copied()
         .find(|c| stage.map_or(dir.join(c.output).exists(), |s| s == *c))
     else {
         bail!(
-            "{}: no trajectories to check; `--stage` takes match, collide or smooth",
-            dir.display()
+            "{}: no trajectories to check; expected one of {}",
+            dir.display(),
+            stages::TRAJECTORY_STAGES.map(|s| s.output).join(", ")
         );
     };
     let (kind, version) = (chosen.kind, chosen.version);

@@ -104,10 +104,17 @@ pub fn up_to(until: Option<&'static Stage>) -> impl Iterator<Item = &'static Sta
         .take(last.saturating_add(1))
 }
 
-/// A clap value parser for stage names (`--until`, `--stage`), listing them in `--help`.
+/// A clap value parser for stage names (`--until`), listing them in `--help`.
 pub fn parser() -> impl clap::builder::TypedValueParser<Value = &'static Stage> {
+    parser_among(&crate::stages::STAGES)
+}
+
+/// A clap value parser for the names of some stages only (`crowd check --stage` takes the
+/// stages that write trajectories).
+pub fn parser_among(
+    stages: &'static [&'static Stage],
+) -> impl clap::builder::TypedValueParser<Value = &'static Stage> {
     use clap::builder::TypedValueParser;
-    let names = crate::stages::STAGES.iter().map(|s| s.name);
-    clap::builder::PossibleValuesParser::new(names)
+    clap::builder::PossibleValuesParser::new(stages.iter().map(|s| s.name))
         .map(|name: String| named(&name).expect("the parser only takes stage names"))
 }

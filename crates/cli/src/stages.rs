@@ -28,6 +28,10 @@ pub static STAGES: [&Stage; 7] = [
     &MERGE, &GRAPH, &OPTIMIZE, &MATCH, &COLLIDE, &SMOOTH, &EXPORT,
 ];
 
+/// The stages that write trajectories (`crowd check` reads them), latest first. Stage 7 will
+/// join them.
+pub static TRAJECTORY_STAGES: [&Stage; 3] = [&SMOOTH, &COLLIDE, &MATCH];
+
 pub static MERGE: Stage = Stage {
     name: "merge",
     number: 1,
