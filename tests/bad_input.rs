@@ -341,3 +341,39 @@ fn patterns_of_another_graph_are_refused() {
     ]);
     assert_has(&err, &["patterns.ron", "build the patterns again"]);
 }
+
+/// A stage file of another format version (an older build's) is refused by `crowd inspect` and
+/// `crowd render`, which read the version this build writes, not the one the file claims.
+#[test]
+fn a_stage_file_of_another_version_is_refused_by_inspect_and_render() {
+    let dir = copy_of("bands");
+    for (file, stage, version) in [
+        (
+            "trajectories.ron",
+            "match",
+            crowd_core::trajectories::TrajectoriesFile::VERSION,
+        ),
+        ("collided.ron", crowd_collide::STAGE, crowd_collide::VERSION),
+        ("smoothed.ron", crowd_smooth::STAGE, crowd_smooth::VERSION),
+    ] {
+        let path = dir.path().join(file);
+        let text = std::fs::read_to_string(&path).unwrap();
+        let claimed = format!("version: {version},");
+        assert!(text.contains(&claimed), "{file}: {claimed} in\n{text}");
+        let old = version + 41;
+        std::fs::write(
+            &path,
+            text.replacen(&claimed, &format!("version: {old},"), 1),
+        )
+        .unwrap();
+        let expected = format!(
+            "is `{stage}` format version {old}; this build reads version {version}: build again"
+        );
+        let err = crowd_err(&["inspect", s(&path)]);
+        assert_has(&err, &[file, &expected]);
+        let png = dir.path().join("picture.png");
+        let err = crowd_err(&["render", s(&path), "-o", s(&png)]);
+        assert_has(&err, &[file, &expected]);
+        assert!(!png.exists(), "{file}: rendered anyway");
+    }
+}
