@@ -7,5 +7,6 @@ mod util;
 mod bad_input;
 mod build;
 mod export;
+mod golden;
 mod patterns;
 mod scenes;
