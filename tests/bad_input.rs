@@ -2,35 +2,57 @@
 //! and the outputs of an earlier good build left untouched. Every case uses a real broken file.
 
 use crate::util::*;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
 
-/// A folder with a good pipeline over copies of the city layers, already built once.
+/// A folder with a good pipeline over copies of the city layers, and the outputs of a good
+/// build of it.
 struct Setup {
     dir: tempfile::TempDir,
     pipeline: PathBuf,
     good: Vec<(String, Vec<u8>)>,
 }
 
+/// Copies the city layers into `dir` and writes a good pipeline over them.
+fn good_pipeline(dir: &Path) -> PathBuf {
+    for layer in ["density", "obstacles"] {
+        std::fs::copy(
+            shared_scenes().join("city").join(format!("{layer}.png")),
+            dir.join(format!("{layer}.png")),
+        )
+        .unwrap();
+    }
+    write_pipeline(
+        dir,
+        &[
+            ("Density", &dir.join("density.png")),
+            ("Obstacles", &dir.join("obstacles.png")),
+        ],
+        "",
+    )
+}
+
+/// The outputs of the good pipeline, built once per test run into `target/tmp/bad-input` (a
+/// stage file is tied to the contents of its inputs, not their paths, so a copy beside other
+/// copies of the layers is up to date there).
+fn good_build() -> &'static Path {
+    static OUT: OnceLock<PathBuf> = OnceLock::new();
+    OUT.get_or_init(|| {
+        let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("bad-input");
+        std::fs::create_dir_all(&dir).unwrap();
+        let pipeline = good_pipeline(&dir);
+        crowd_ok(&["build", "-q", "--force", "--pipeline", s(&pipeline)]);
+        dir.join("out")
+    })
+}
+
 impl Setup {
     fn new() -> Setup {
         let dir = tempfile::tempdir().unwrap();
-        for layer in ["density", "obstacles"] {
-            std::fs::copy(
-                shared_scenes().join("city").join(format!("{layer}.png")),
-                dir.path().join(format!("{layer}.png")),
-            )
-            .unwrap();
-        }
-        let pipeline = write_pipeline(
-            dir.path(),
-            &[
-                ("Density", &dir.path().join("density.png")),
-                ("Obstacles", &dir.path().join("obstacles.png")),
-            ],
-            "",
-        );
-        crowd_ok(&["build", "-q", "--pipeline", s(&pipeline)]);
-        let good = snapshot(&dir.path().join("out"));
+        let pipeline = good_pipeline(dir.path());
+        let out = dir.path().join("out");
+        copy_files(good_build(), &out);
+        let good = snapshot(&out);
         Setup {
             dir,
             pipeline,
@@ -257,8 +279,8 @@ fn a_stage_file_of_another_kind_is_refused_by_inspect() {
 
 #[test]
 fn an_edited_graph_file_is_refused_not_trusted() {
-    let (_dir, out) = build_shared_scene("bands", "graph");
-    let graph = out.join("graph.ron");
+    let dir = copy_of("bands");
+    let graph = dir.path().join("graph.ron");
     let text = std::fs::read_to_string(&graph).unwrap();
     let broken = text.replacen("(a: (0), b: (1),", "(a: (0), b: (99999),", 1);
     assert_ne!(text, broken);
@@ -271,7 +293,7 @@ fn an_edited_graph_file_is_refused_not_trusted() {
         "-i",
         s(&graph),
         "-o",
-        s(&out.join("patterns.ron")),
+        s(&dir.path().join("patterns.ron")),
     ]);
     assert_has(
         &err,
@@ -285,8 +307,8 @@ fn an_edited_graph_file_is_refused_not_trusted() {
 
 #[test]
 fn a_graph_file_with_patches_out_of_order_is_refused() {
-    let (_dir, out) = build_shared_scene("bands", "graph");
-    let graph = out.join("graph.ron");
+    let dir = copy_of("bands");
+    let graph = dir.path().join("graph.ron");
     let text = std::fs::read_to_string(&graph).unwrap();
     let broken = text.replacen("cell: (col: 1, row: 0)", "cell: (col: 0, row: 0)", 1);
     assert_ne!(text, broken);
@@ -304,9 +326,9 @@ fn a_graph_file_with_patches_out_of_order_is_refused() {
 
 #[test]
 fn patterns_of_another_graph_are_refused() {
-    let (_dir, out) = build_shared_scene("bands", "optimize");
-    let (_other, lanes) = build_shared_scene("lanes", "graph");
-    std::fs::copy(lanes.join("graph.ron"), out.join("graph.ron")).unwrap();
+    let dir = copy_of("bands");
+    let out = dir.path();
+    std::fs::copy(scene("lanes").join("graph.ron"), out.join("graph.ron")).unwrap();
     let p = scene_pipeline("bands");
     let err = crowd_err(&[
         "match",
@@ -318,4 +340,40 @@ fn patterns_of_another_graph_are_refused() {
         s(&out.join("t.ron")),
     ]);
     assert_has(&err, &["patterns.ron", "build the patterns again"]);
+}
+
+/// A stage file of another format version (an older build's) is refused by `crowd inspect` and
+/// `crowd render`, which read the version this build writes, not the one the file claims.
+#[test]
+fn a_stage_file_of_another_version_is_refused_by_inspect_and_render() {
+    let dir = copy_of("bands");
+    for (file, stage, version) in [
+        (
+            "trajectories.ron",
+            "match",
+            crowd_core::trajectories::TrajectoriesFile::VERSION,
+        ),
+        ("collided.ron", crowd_collide::STAGE, crowd_collide::VERSION),
+        ("smoothed.ron", crowd_smooth::STAGE, crowd_smooth::VERSION),
+    ] {
+        let path = dir.path().join(file);
+        let text = std::fs::read_to_string(&path).unwrap();
+        let claimed = format!("version: {version},");
+        assert!(text.contains(&claimed), "{file}: {claimed} in\n{text}");
+        let old = version + 41;
+        std::fs::write(
+            &path,
+            text.replacen(&claimed, &format!("version: {old},"), 1),
+        )
+        .unwrap();
+        let expected = format!(
+            "is `{stage}` format version {old}; this build reads version {version}: build again"
+        );
+        let err = crowd_err(&["inspect", s(&path)]);
+        assert_has(&err, &[file, &expected]);
+        let png = dir.path().join("picture.png");
+        let err = crowd_err(&["render", s(&path), "-o", s(&png)]);
+        assert_has(&err, &[file, &expected]);
+        assert!(!png.exists(), "{file}: rendered anyway");
+    }
 }

@@ -35,9 +35,9 @@ const EVERYWHERE: [f32; 4] = [-1e9, -1e9, 1e9, 1e9];
 #[test]
 fn every_scene_but_painting_exports_a_library_that_loads_with_every_walker_and_stander() {
     for name in ["bands", "center-flow", "city", "lanes", "ring"] {
-        let (_dir, out) = build_shared_scene(name, "export");
-        let lib = library(&out);
-        let motion = smoothed(&out);
+        let out = scene(name);
+        let lib = library(out);
+        let motion = smoothed(out);
         let standers: usize = motion.iter().map(|m| m.standers.len()).sum();
         let walker_time: f64 = motion
             .iter()
@@ -59,13 +59,13 @@ fn every_scene_but_painting_exports_a_library_that_loads_with_every_walker_and_s
 /// error of all of them, and within the quantisation alone of those export kept.
 #[test]
 fn sampling_at_the_keyframes_gives_stage_6_positions_within_the_stated_error() {
-    let (_dir, out) = build_shared_scene("city", "export");
-    let stated = stated_position_error(&out);
+    let out = scene("city");
+    let stated = stated_position_error(out);
     // The default drops keyframes within 0.75 mm, and quantises city's 8 m patches to 0.061 mm.
     assert!(stated > 7.5e-4 && stated < 1e-3, "{stated}");
     let graph = crowd_core::PatchGraph::load(&out.join("graph.ron")).unwrap();
-    let lib = library(&out);
-    let motion = smoothed(&out);
+    let lib = library(out);
+    let motion = smoothed(out);
     let (checked, worst) = worst_at_keyframes(&graph, &lib, &motion, stated + F32_ALLOWANCE_M);
     assert!(checked > 1000, "{checked}");
     eprintln!("{checked} keyframes, worst {worst:.2e} m (stated {stated:.2e} m)");
@@ -120,8 +120,7 @@ fn worst_at_keyframes(
 /// fastest walk allows, across patch borders and period ends alike.
 #[test]
 fn every_character_walks_on_continuously_across_patches_and_periods() {
-    let (_dir, out) = build_shared_scene("ring", "export");
-    let lib = library(&out);
+    let lib = library(scene("ring"));
     let mut fastest: f64 = 0.0;
     for t in &lib.trajectories {
         let patch = &lib.patches[t.patch as usize];
@@ -159,8 +158,7 @@ fn every_character_walks_on_continuously_across_patches_and_periods() {
 
 #[test]
 fn a_frame_is_the_same_whether_time_ran_forward_to_it_or_jumped_there() {
-    let (_dir, out) = build_shared_scene("bands", "export");
-    let lib = library(&out);
+    let lib = library(scene("bands"));
     let mut walked = Sampler::new(&lib);
     let (mut a, mut b) = (Vec::new(), Vec::new());
     for f in 0..=900 {
@@ -186,12 +184,7 @@ fn a_frame_is_the_same_whether_time_ran_forward_to_it_or_jumped_there() {
 
 fn bands_library() -> &'static Vec<u8> {
     static BYTES: OnceLock<Vec<u8>> = OnceLock::new();
-    BYTES.get_or_init(|| {
-        let (dir, out) = build_shared_scene("bands", "export");
-        let bytes = std::fs::read(out.join("library.crowd")).unwrap();
-        drop(dir);
-        bytes
-    })
+    BYTES.get_or_init(|| std::fs::read(scene("bands").join("library.crowd")).unwrap())
 }
 
 proptest! {
@@ -273,14 +266,14 @@ fn node_tool(script: &str, args: &[&str]) -> std::process::Output {
 /// adds its 0.06 mm quantisation).
 #[test]
 fn world_glb_validates_and_an_independent_reader_finds_our_characters_where_we_do() {
-    let (dir, out) = build_shared_scene("city", "export");
+    let out = scene("city");
     let glb = out.join("world.glb");
     let validated = node_tool("validate.mjs", &[s(&glb)]);
     let text = String::from_utf8_lossy(&validated.stdout);
     assert!(validated.status.success(), "{text}");
     assert!(text.contains("0 errors, 0 warnings"), "{text}");
 
-    let lib = library(&out);
+    let lib = library(out);
     let mut sampler = Sampler::new(&lib);
     let (mut seen, mut samples) = (Vec::new(), Vec::new());
     for t in [0.0, 3.3, 9.95, 17.0, lib.period_s()] {
@@ -299,6 +292,7 @@ fn world_glb_validates_and_an_independent_reader_finds_our_characters_where_we_d
         "period": lib.period_s(),
         "samples": samples,
     });
+    let dir = tempfile::tempdir().unwrap();
     let expected_path = dir.path().join("expected.json");
     std::fs::write(&expected_path, expected.to_string()).unwrap();
     let read = node_tool("read_back.mjs", &[s(&glb), s(&expected_path)]);
@@ -315,7 +309,8 @@ fn world_glb_validates_and_an_independent_reader_finds_our_characters_where_we_d
 /// the section when it is corrupt.
 #[test]
 fn inspect_checks_the_library_and_names_a_corrupt_section() {
-    let (_dir, out) = build_shared_scene("bands", "export");
+    let dir = copy_of("bands");
+    let out = dir.path();
     let manifest = out.join("export.ron");
     let text = String::from_utf8(crowd_ok(&["inspect", s(&manifest)]).stdout).unwrap();
     assert!(text.contains("loads and checks: 1102 walkers"), "{text}");
@@ -338,7 +333,8 @@ fn inspect_checks_the_library_and_names_a_corrupt_section() {
 /// world in the library, and refuses a region that is not one.
 #[test]
 fn export_region_puts_part_of_the_world_in_the_gltf() {
-    let (_dir, out) = build_shared_scene("bands", "smooth");
+    let dir = copy_of("bands");
+    let out = dir.path();
     let pipeline = scene_pipeline("bands");
     let (p, i, o) = (
         s(&pipeline),

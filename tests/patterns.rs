@@ -9,23 +9,21 @@ use glam::DVec2;
 use std::path::Path;
 
 struct Built {
-    _dir: tempfile::TempDir,
     graph: PatchGraph,
     patterns: Patterns,
     crossings: Vec<Crossing>,
     out: std::path::PathBuf,
 }
 
+/// A shipped scene's stage files, from the run's build of it.
 fn build(name: &str) -> Built {
-    let (dir, out) = build_shared_scene(name, "match");
-    load(dir, &out)
+    load(scene(name))
 }
 
-fn load(dir: tempfile::TempDir, out: &Path) -> Built {
+fn load(out: &Path) -> Built {
     let graph = PatchGraph::load(&out.join("graph.ron")).unwrap();
     let (patterns, crossings) = Patterns::load(&out.join("patterns.ron")).unwrap();
     Built {
-        _dir: dir,
         graph,
         patterns,
         crossings,
@@ -148,33 +146,73 @@ fn ring_and_city_beat_the_papers_error() {
     }
 }
 
+/// A patch's error as `worst` ranks it: density error in units of rho_max plus direction error.
+fn size(p: &Patterns, e: &crowd_core::patterns::PatchError) -> f64 {
+    (e.requested - e.measured).abs() / p.rho_max + e.direction_error.unwrap_or(0.0)
+}
+
+/// Dense on the west, nearly empty on the east, and a flow asking everyone to walk east: the
+/// walkers must come back west somewhere, so the flow cannot be met. The build still ends, with
+/// a compromise whose error is many times a consistent painting's (the same density, no flow),
+/// and `crowd inspect` names the patches where it stays, the worst far off what was painted.
 #[test]
 fn a_contradictory_painting_ends_with_a_compromise_and_says_where() {
-    // Dense on the west, nearly empty on the east, and a flow asking everyone to walk east.
     let dir = tempfile::tempdir().unwrap();
     let density =
         image::GrayImage::from_fn(128, 64, |x, _| image::Luma([if x < 64 { 255 } else { 3 }]));
     let flow = image::RgbaImage::from_pixel(128, 64, image::Rgba([255, 128, 128, 255]));
-    density.save(dir.path().join("density.png")).unwrap();
-    flow.save(dir.path().join("flow.png")).unwrap();
-    let pipeline = write_pipeline(
-        dir.path(),
-        &[
-            ("Density", &dir.path().join("density.png")),
-            ("Flow", &dir.path().join("flow.png")),
-        ],
-        "",
+    let (density_png, flow_png) = (dir.path().join("density.png"), dir.path().join("flow.png"));
+    density.save(&density_png).unwrap();
+    flow.save(&flow_png).unwrap();
+    let build = |name: &str, layers: &[(&str, &Path)], until: &str| {
+        let sub = dir.path().join(name);
+        std::fs::create_dir_all(&sub).unwrap();
+        let pipeline = write_pipeline(&sub, layers, "");
+        crowd_ok(&["build", "-q", "--pipeline", s(&pipeline), "--until", until]);
+        sub.join("out")
+    };
+    let consistent = load(&build(
+        "consistent",
+        &[("Density", &density_png)],
+        "optimize",
+    ));
+    let out = build(
+        "contradictory",
+        &[("Density", &density_png), ("Flow", &flow_png)],
+        "export",
     );
-    crowd_ok(&["build", "-q", "--pipeline", s(&pipeline)]);
-    let out = dir.path().join("out");
-    let b = load(dir, &out);
-    assert!(b.patterns.error.e.is_finite());
-    assert!(!b.patterns.worst.is_empty());
+    let b = load(&out);
+
+    let (good, bad) = (&consistent.patterns, &b.patterns);
+    assert!(good.error.e < 0.03, "consistent painting: {:?}", good.error);
+    assert!(
+        size(good, &good.worst[0]) < 0.1,
+        "consistent painting: {:?}",
+        good.worst[0]
+    );
+    assert!(
+        bad.error.e > 0.08 && bad.error.e > 3.0 * good.error.e && bad.error.e_d > 0.02,
+        "contradictory {:?} against consistent {:?}",
+        bad.error,
+        good.error
+    );
+    let worst = &bad.worst[0];
+    assert!(
+        size(bad, worst) > 0.5 && worst.direction_error.is_some_and(|d| d > 0.5),
+        "the worst patch of the contradiction: {worst:?}"
+    );
     let text =
         String::from_utf8(crowd_ok(&["inspect", s(&out.join("patterns.ron"))]).stdout).unwrap();
+    let listed = text
+        .split_once("worst patches (where the error stays):\n")
+        .map(|(_, rest)| rest.lines().next().unwrap_or(""))
+        .unwrap_or_else(|| panic!("no worst patches in\n{text}"));
+    let cell = format!("cell ({:>3}, {:>3})", worst.cell.col, worst.cell.row);
     assert!(
-        text.contains("worst patches (where the error stays)"),
-        "{text}"
+        listed.contains(&format!("#{}", worst.patch.0))
+            && listed.contains(&cell)
+            && listed.contains("direction off by"),
+        "{cell} first in\n{text}"
     );
 }
 
@@ -207,7 +245,7 @@ fn standers_stand_apart_inside_their_patch_and_clear_of_obstacles() {
 
 #[test]
 fn the_collide_stage_never_moves_a_boundary_point() {
-    let (dir, out) = build_shared_scene("bands", "collide");
+    let out = scene("bands");
     let (_, before) = TrajectoriesFile::load(&out.join("trajectories.ron")).unwrap();
     let (file, after) = TrajectoriesFile::load_stage(
         &out.join("collided.ron"),
@@ -232,27 +270,81 @@ fn the_collide_stage_never_moves_a_boundary_point() {
         c.unconverged.len(),
         after.len()
     );
-    drop(dir);
 }
 
+/// `crowd check` on bands' tiled world: stage 5's file holds no collision anywhere and keeps
+/// every pair at least its clearance apart; the same file with one stander dropped in a
+/// walker's way, and stage 4's straight lines (which walk through each other, across borders
+/// too), are reported with their collisions and a clearance below zero.
 #[test]
 fn crowd_check_reports_collisions_and_clearance_for_the_tiled_world() {
-    let (_dir, out) = build_shared_scene("bands", "collide");
-    let text = String::from_utf8(crowd_ok(&["check", s(&out)]).stdout).unwrap();
+    let dir = copy_of("bands");
+    let out = dir.path();
+    let check = |stage: &str| -> serde_json::Value {
+        let text =
+            String::from_utf8(crowd_ok(&["check", s(out), "--stage", stage]).stdout).unwrap();
+        assert!(
+            text.contains("collisions") && text.contains("smallest clearance"),
+            "{text}"
+        );
+        let json: serde_json::Value =
+            serde_json::from_slice(&crowd_ok(&["report", s(out), "--json"]).stdout).unwrap();
+        assert_eq!(json["checked_stage"], stage, "{json}");
+        json
+    };
+    let figures = |json: &serde_json::Value| {
+        (
+            json["collisions"].as_u64().unwrap(),
+            json["collisions_across_borders"].as_u64().unwrap(),
+            json["min_clearance_m"].as_f64().unwrap(),
+        )
+    };
+
+    // A collision is a pair closer than 2r by more than 1e-6 m, the checker's tolerance.
+    let shipped = check("collide");
+    let (collisions, across, clearance) = figures(&shipped);
+    assert_eq!((collisions, across), (0, 0), "{shipped}");
+    assert!((-1e-6..0.5).contains(&clearance), "{shipped}");
+
+    // Stage 4's straight lines meet, inside patches and across borders.
+    let (collisions, across, clearance) = figures(&check("match"));
     assert!(
-        text.contains("collisions") && text.contains("smallest clearance"),
-        "{text}"
+        collisions > 100 && across > 0 && across < collisions && clearance < -0.3,
+        "straight lines: {collisions} collisions, {across} across borders, clearance {clearance}"
     );
-    let json: serde_json::Value =
-        serde_json::from_slice(&crowd_ok(&["report", s(&out), "--json"]).stdout).unwrap();
-    let collisions = json["collisions"].as_u64().unwrap();
-    let across = json["collisions_across_borders"].as_u64().unwrap();
-    assert!(across <= collisions);
-    assert!(json["min_clearance_m"].as_f64().unwrap() >= -0.6);
-    // Inside patches, only the patches stage 5 could not clear hold collisions.
-    if json["unconverged_patches"] == 0 {
-        assert_eq!(collisions, across);
+
+    // One stander where a walker is halfway through its walk.
+    let collided = out.join("collided.ron");
+    let (file, mut motion) =
+        TrajectoriesFile::load_stage(&collided, crowd_collide::STAGE, crowd_collide::VERSION)
+            .unwrap();
+    let m = motion
+        .iter_mut()
+        .find(|m| !m.trajectories.is_empty())
+        .unwrap();
+    let tr = &m.trajectories[0];
+    let (t0, t1) = (tr.points[0].t, tr.points.last().unwrap().t);
+    let there = crowd_core::trajectories::position_at(&tr.points, (t0 + t1) / 2.0);
+    m.standers.push(there);
+    let (_, writes) = crowd_core::trajectories::encode_file(
+        &collided,
+        file.header.clone(),
+        file.period_s,
+        file.radius_m,
+        &motion,
+        file.collisions.clone(),
+        None,
+    );
+    for (path, bytes) in writes {
+        std::fs::write(path, bytes).unwrap();
     }
+    let broken = check("collide");
+    let (collisions, across, clearance) = figures(&broken);
+    assert!(collisions >= 1 && across == 0, "{broken}");
+    assert!(
+        (clearance + 2.0 * file.radius_m).abs() < 1e-9,
+        "a stander on a walker's path: clearance {clearance}, expected -2r"
+    );
 }
 
 /// The tiled world's claim, scene by scene: every patch converges, nobody overlaps anybody
@@ -261,7 +353,8 @@ fn crowd_check_reports_collisions_and_clearance_for_the_tiled_world() {
 /// `crowd check` on the smoothed trajectories, the ones that ship. And smoothing lowers the
 /// 95th percentiles of acceleration and turning rate below stage 5's polylines'.
 fn assert_collision_free_in_the_tiled_world(name: &str) {
-    let (_dir, out) = build_shared_scene(name, "export");
+    let dir = copy_of(name);
+    let out = dir.path();
     // What engines load of it passes the Khronos validator (painting's in its region).
     let glb = out.join("world.glb");
     let validated = std::process::Command::new("node")
@@ -275,18 +368,20 @@ fn assert_collision_free_in_the_tiled_world(name: &str) {
         "{report}"
     );
     let report = || -> serde_json::Value {
-        serde_json::from_slice(&crowd_ok(&["report", s(&out), "--json"]).stdout).unwrap()
+        serde_json::from_slice(&crowd_ok(&["report", s(out), "--json"]).stdout).unwrap()
     };
-    crowd_ok(&["check", s(&out), "--stage", "collide"]);
+    crowd_ok(&["check", s(out), "--stage", "collide"]);
     let polylines = report();
-    crowd_ok(&["check", s(&out)]);
+    crowd_ok(&["check", s(out)]);
     let json = report();
     for figure in ["accel_p95", "turn_rate_p95"] {
-        let (before, after) = (&polylines[figure], &json[figure]);
-        assert!(
-            after.as_f64() < before.as_f64(),
-            "{name} {figure}: {before} -> {after}"
-        );
+        let of = |json: &serde_json::Value, stage: &str| {
+            json[figure]
+                .as_f64()
+                .unwrap_or_else(|| panic!("{name}: no {figure} after checking {stage}: {json}"))
+        };
+        let (before, after) = (of(&polylines, "collide"), of(&json, "smooth"));
+        assert!(after < before, "{name} {figure}: {before} -> {after}");
     }
     assert_eq!(json["unconverged_patches"], 0, "{name}: {json}");
     assert_eq!(json["collisions"], 0, "{name}: {json}");
@@ -339,7 +434,8 @@ fn painting_is_collision_free_in_the_tiled_world() {
 
 #[test]
 fn smoothing_keeps_boundary_points_exact_and_never_brings_a_pair_closer_than_stage_5_left_it() {
-    let (_dir, out) = build_shared_scene("bands", "smooth");
+    let dir = copy_of("bands");
+    let out = dir.path();
     let graph = crowd_core::PatchGraph::load(&out.join("graph.ron")).unwrap();
     let load = |name: &str, stage: &str, version: u32| {
         TrajectoriesFile::load_stage(&out.join(name), stage, version)
@@ -384,9 +480,9 @@ fn smoothing_keeps_boundary_points_exact_and_never_brings_a_pair_closer_than_sta
     let picture = out.join("patch.png");
     crowd_ok(&["render", s(&smoothed), "-o", s(&picture)]);
     assert!(image::open(&picture).is_ok());
-    crowd_ok(&["check", s(&out)]);
+    crowd_ok(&["check", s(out)]);
     let json: serde_json::Value =
-        serde_json::from_slice(&crowd_ok(&["report", s(&out), "--json"]).stdout).unwrap();
+        serde_json::from_slice(&crowd_ok(&["report", s(out), "--json"]).stdout).unwrap();
     assert_eq!(json["checked_stage"], "smooth");
     assert_eq!(json["max_boundary_error_m"].as_f64(), Some(0.0));
     assert!(json["max_boundary_time_error_s"].as_f64().unwrap() < 1e-9);

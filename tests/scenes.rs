@@ -4,10 +4,9 @@ use crate::util::*;
 use crowd_core::PatchGraph;
 use glam::DVec2;
 
-fn build_scene(name: &str) -> (tempfile::TempDir, PatchGraph) {
-    let (dir, out) = build_shared_scene(name, "graph");
-    let graph = PatchGraph::load(&out.join("graph.ron")).unwrap();
-    (dir, graph)
+/// The patch graph of a shipped scene, from the run's build of it.
+fn graph_of(name: &str) -> PatchGraph {
+    PatchGraph::load(&scene(name).join("graph.ron")).unwrap()
 }
 
 #[test]
@@ -18,7 +17,7 @@ fn every_scene_requests_exactly_its_walkers() {
         )
         .unwrap();
         let characters = json["characters"].as_u64().unwrap();
-        let (_dir, g) = build_scene(&name);
+        let g = graph_of(&name);
         assert_eq!(g.walkers_requested, characters, "{name}");
         let total: f64 = g
             .patches
@@ -35,7 +34,7 @@ fn every_scene_requests_exactly_its_walkers() {
 
 #[test]
 fn painting_is_cut_into_its_grid_of_patches() {
-    let (_dir, g) = build_scene("painting");
+    let g = graph_of("painting");
     // 1120 m x 720 m in 8 m patches: 140 x 90 = 12,600 cells. The painting leaves 1,694 cells
     // entirely unpainted (black); those are empty and dropped.
     assert_eq!((g.world.cols, g.world.rows), (140, 90));
@@ -49,7 +48,7 @@ fn painting_is_cut_into_its_grid_of_patches() {
 
 #[test]
 fn city_obstacles_remove_patches_and_close_border_intervals() {
-    let (_dir, g) = build_scene("city");
+    let g = graph_of("city");
     assert!(
         g.dropped.blocked.len() > 500,
         "{} blocked",
@@ -92,7 +91,7 @@ fn city_obstacles_remove_patches_and_close_border_intervals() {
 
 #[test]
 fn ring_directions_run_counter_clockwise() {
-    let (_dir, g) = build_scene("ring");
+    let g = graph_of("ring");
     let centre = g.world.size_m / 2.0;
     let mut directed = 0;
     for p in &g.patches {
@@ -114,7 +113,7 @@ fn ring_directions_run_counter_clockwise() {
 
 #[test]
 fn center_flow_asks_for_east_exactly_where_its_alpha_paints_a_direction() {
-    let (_dir, g) = build_scene("center-flow");
+    let g = graph_of("center-flow");
     let alpha = image::open(shared_scenes().join("center-flow/direction.png"))
         .unwrap()
         .to_luma_alpha8();
@@ -142,10 +141,11 @@ fn center_flow_asks_for_east_exactly_where_its_alpha_paints_a_direction() {
 
 #[test]
 fn graph_pictures_render() {
+    let dir = tempfile::tempdir().unwrap();
     for name in ["city", "ring"] {
-        let (dir, out) = build_shared_scene(name, "graph");
+        let out = scene(name);
         for stage in ["merge", "graph"] {
-            let png = dir.path().join(format!("{stage}.png"));
+            let png = dir.path().join(format!("{name}-{stage}.png"));
             crowd_ok(&[
                 "render",
                 s(&out.join(format!("{stage}.ron"))),

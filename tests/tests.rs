@@ -1,10 +1,12 @@
 //! End-to-end tests: the real `crowd` binary on the shared scenes and on real broken files.
-//! Each test works in its own temporary folder.
+//! Each shipped scene is built once per run and shared read-only (`util::scene`); a test that
+//! changes files works in its own temporary folder.
 
 mod util;
 
 mod bad_input;
 mod build;
 mod export;
+mod golden;
 mod patterns;
 mod scenes;

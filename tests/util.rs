@@ -1,7 +1,9 @@
 //! Helpers shared by the end-to-end tests.
 
+use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::process::Output;
+use std::sync::{LazyLock, Mutex, OnceLock};
 
 /// The workspace root.
 pub fn root() -> PathBuf {
@@ -38,28 +40,85 @@ pub fn scene_pipeline(name: &str) -> PathBuf {
     root().join("assets/pipelines").join(format!("{name}.ron"))
 }
 
-/// Builds a shared scene up to `until` (a stage name) into a new temporary folder; returns it
-/// and the build folder in it.
-pub fn build_shared_scene(name: &str, until: &str) -> (tempfile::TempDir, PathBuf) {
-    let dir = tempfile::tempdir().unwrap();
-    let out = dir.path().join("out");
-    let pipeline = scene_pipeline(name);
-    let (p, o) = (s(&pipeline), s(&out));
-    crowd_ok(&[
-        "build",
-        "-q",
-        "--pipeline",
-        p,
-        "--output",
-        o,
-        "--until",
-        until,
-    ]);
-    (dir, out)
+/// The build folder of a shipped scene (`assets/pipelines/<name>.ron`) built whole, to
+/// export: built once per test run (with `--force`, so no output of an earlier run or another
+/// version is reused) into `target/tmp/scenes/<name>`, and shared by every test of the run.
+/// Read it only: a test that changes, adds or removes files (`crowd check` writes `check.ron`
+/// and `report.md`) works on [`copy_of`]. Tests that ask for a scene while it builds wait.
+///
+/// It builds with [`CACHE_THREADS`] worker threads, so that the determinism test can compare a
+/// one-thread build against it.
+pub fn scene(name: &str) -> &'static Path {
+    static SCENES: OnceLock<Mutex<HashMap<String, &'static OnceLock<PathBuf>>>> = OnceLock::new();
+    let cell: &'static OnceLock<PathBuf> = SCENES
+        .get_or_init(Default::default)
+        .lock()
+        .unwrap_or_else(|e| e.into_inner())
+        .entry(name.to_string())
+        .or_insert_with(|| Box::leak(Box::default()));
+    cell.get_or_init(|| {
+        let out = PathBuf::from(env!("CARGO_TARGET_TMPDIR"))
+            .join("scenes")
+            .join(name);
+        let pipeline = scene_pipeline(name);
+        let threads = CACHE_THREADS.to_string();
+        crowd_ok(&[
+            "--threads",
+            &threads,
+            "build",
+            "-q",
+            "--force",
+            "--pipeline",
+            s(&pipeline),
+            "--output",
+            s(&out),
+        ]);
+        out
+    })
 }
 
-/// Runs `crowd` with `args`.
+/// Worker threads of the builds of [`scene`]: at least two, more on a machine with more cores.
+pub static CACHE_THREADS: LazyLock<usize> = LazyLock::new(|| {
+    std::thread::available_parallelism()
+        .map_or(2, |n| n.get())
+        .max(2)
+});
+
+/// A private copy of [`scene`]'s build folder, for a test that changes files in it: the
+/// folder's files, directly in the returned temporary folder.
+pub fn copy_of(name: &str) -> tempfile::TempDir {
+    let dir = tempfile::tempdir().unwrap();
+    copy_files(scene(name), dir.path());
+    dir
+}
+
+/// Copies every file of `from` into `to` (created if missing).
+pub fn copy_files(from: &Path, to: &Path) {
+    std::fs::create_dir_all(to).unwrap();
+    for entry in std::fs::read_dir(from).unwrap() {
+        let path = entry.unwrap().path();
+        assert!(
+            path.is_file(),
+            "{}: a build folder holds files only",
+            path.display()
+        );
+        std::fs::copy(&path, to.join(path.file_name().unwrap())).unwrap();
+    }
+}
+
+/// Runs `crowd` with `args`. With `CROWD_TEST_LOG=FILE` set, appends a line with the
+/// arguments to FILE first (to count the builds of a test run).
 pub fn crowd(args: &[&str]) -> Output {
+    if let Some(log) = std::env::var_os("CROWD_TEST_LOG") {
+        use std::io::Write;
+        let mut file = std::fs::OpenOptions::new()
+            .create(true)
+            .append(true)
+            .open(log)
+            .expect("CROWD_TEST_LOG is writable");
+        file.write_all(format!("crowd {}\n", args.join(" ")).as_bytes())
+            .unwrap();
+    }
     std::process::Command::new(env!("CARGO_BIN_EXE_crowd"))
         .args(args)
         .output()

@@ -23,6 +23,8 @@ const FRAME_S: f64 = 0.1;
 /// Histogram resolution of accelerations (m/s2) and turning rates (rad/s), and their range.
 const BIN: f64 = 0.005;
 const BINS: usize = 20_000;
+/// Patches tallied together on one thread (a tally holds two histograms of `BINS` bins).
+const CHUNK: usize = 64;
 
 /// Motion figures of a set of trajectories.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -127,16 +129,21 @@ pub fn figures(
     motion: &[PatchMotion],
     period_s: f64,
 ) -> MotionFigures {
+    // Floating-point sums depend on their order: each run of CHUNK patches is tallied on one
+    // thread, and the tallies are added in patch order, so the figures are the same bytes
+    // whatever the thread count (a parallel `reduce` pairs them by how the work was split).
     let tally = motion
-        .par_iter()
-        .map(|m| {
+        .par_chunks(CHUNK)
+        .map(|chunk| {
             let mut t = Tally::new();
-            for tr in &m.trajectories {
+            for tr in chunk.iter().flat_map(|m| &m.trajectories) {
                 t.trajectory(tr);
             }
             t
         })
-        .reduce(Tally::new, Tally::add);
+        .collect::<Vec<Tally>>()
+        .into_iter()
+        .fold(Tally::new(), Tally::add);
 
     // Every crossing seen from both sides: where each end lies, and the velocity there.
     let side = graph.world.patch_side_m;

@@ -25,7 +25,7 @@ pub fn inspect(path: &Path) -> Result<String> {
             Ok(inspect_patterns(&patterns, &crossings))
         }
         stage @ (TrajectoriesFile::STAGE | crowd_collide::STAGE | crowd_smooth::STAGE) => Ok(
-            inspect_trajectories(&TrajectoriesFile::load_stage(path, stage, header.version)?.0),
+            inspect_trajectories(&TrajectoriesFile::load_stage(path, stage, version_of(stage))?.0),
         ),
         crowd_export::STAGE => inspect_export(path),
         other => bail!(
@@ -33,6 +33,17 @@ pub fn inspect(path: &Path) -> Result<String> {
             path.display()
         ),
     }
+}
+
+/// The format version this build reads of the files of `stage` (the header's stage name): the
+/// stage's `VERSION`, never the version the file claims, so an old file is refused. Called
+/// with the stage names of the table only.
+fn version_of(stage: &str) -> u32 {
+    crate::stages::STAGES
+        .iter()
+        .find(|s| s.kind == stage)
+        .expect("a stage of the table")
+        .version
 }
 
 /// Stage 8's manifest, and its library loaded and checked as crowd-runtime loads it.
@@ -100,7 +111,7 @@ pub fn render(path: &Path, out: &Path, patch: Option<u32>) -> Result<&'static st
             let graph = PatchGraph::load(&beside(GRAPH_FILE))?;
             let (patterns, crossings) = Patterns::load_for(&beside(PATTERNS_FILE), &graph)?;
             let patches = graph.patches.len();
-            let (_, motion) = TrajectoriesFile::load_for(path, stage, header.version, patches)?;
+            let (_, motion) = TrajectoriesFile::load_for(path, stage, version_of(stage), patches)?;
             let busiest = (0..motion.len())
                 .max_by_key(|&p| (motion[p].trajectories.len(), std::cmp::Reverse(p)));
             let Some(p) = patch.map(|p| p as usize).or(busiest) else {
