@@ -247,7 +247,8 @@ pub fn run(cli: Cli) -> Result<()> {
                 until,
             };
             driver::build(&pipeline, &options, &ui)?;
-            let report = crate::report_md::write(&out)?;
+            let scope = crate::report::Scope { last: until };
+            let report = crate::report_md::write(&out, scope)?;
             ui.say(format!("  report: {}", report.display()));
         }
         Command::Stage(StageCommand {
@@ -266,7 +267,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Inspect { file } => print!("{}", crate::inspect::inspect(&file)?),
         Command::Check { dir, stage } => {
             let report = crate::report::check(&dir, stage)?;
-            crate::report_md::write(&dir)?;
+            crate::report_md::write(&dir, Default::default())?;
             print!("{}", crate::report::check_summary(&report));
         }
         Command::Render {
@@ -294,7 +295,10 @@ pub fn run(cli: Cli) -> Result<()> {
                 anyhow::bail!("give one build folder, or `--table` for several");
             };
             if markdown {
-                println!("{}", crate::report_md::write(dir)?.display());
+                println!(
+                    "{}",
+                    crate::report_md::write(dir, Default::default())?.display()
+                );
                 return Ok(());
             }
             let report = crate::report::Report::gather(dir)?;

@@ -1,7 +1,7 @@
 //! `crowd report`: the figures a build folder holds so far, as text or one JSON object.
 
 use crate::driver::{StageRun, read_timings};
-use crate::stage::Stage;
+use crate::stage::{self, Stage};
 use crate::stages::{
     self, COLLIDED_FILE, EXPORT_FILE, GRAPH_FILE, MERGE_FILE, PATTERNS_FILE, SMOOTHED_FILE,
     TRAJECTORIES_FILE,
@@ -13,7 +13,7 @@ use crowd_core::patterns::Patterns;
 use crowd_core::trajectories::TrajectoriesFile;
 use serde_json::{Map, Value, json};
 use std::collections::BTreeMap;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// Figures gathered from the stage files of a build folder.
 pub struct Report {
@@ -31,8 +31,45 @@ pub struct Report {
     pub outputs: BTreeMap<String, u64>,
 }
 
+/// Which stage files of a folder a report reads. After `crowd build --until graph` the files of
+/// later stages may be left from an earlier build of other inputs: the build did not look at
+/// them, so its report must not present them (nor fail on them) as if they were its own.
+#[derive(Clone, Copy, Default)]
+pub struct Scope {
+    /// The last stage the build covered; `None` reads every stage file there is.
+    pub last: Option<&'static Stage>,
+}
+
+impl Scope {
+    /// The path of `file` in `dir` when it exists and is in scope.
+    pub fn file(&self, dir: &Path, file: &str) -> Option<PathBuf> {
+        let in_scope = match self.last {
+            None => true,
+            Some(last) => {
+                let covered: Vec<&Stage> = stage::up_to(Some(last)).collect();
+                if file == CHECK_FILE {
+                    covered.contains(&&stages::SMOOTH)
+                } else {
+                    stages::STAGES
+                        .iter()
+                        .find(|s| s.writes.contains(&file))
+                        .is_none_or(|owner| covered.contains(owner))
+                }
+            }
+        };
+        let path = dir.join(file);
+        (in_scope && path.exists()).then_some(path)
+    }
+}
+
 impl Report {
+    /// Every figure of the folder's stage files.
     pub fn gather(dir: &Path) -> Result<Report> {
+        Report::gather_in(dir, Scope::default())
+    }
+
+    /// The figures of the stage files in `scope`.
+    pub fn gather_in(dir: &Path, scope: Scope) -> Result<Report> {
         if !dir.join(MERGE_FILE).exists() && !dir.join(GRAPH_FILE).exists() {
             bail!(
                 "{}: no stage files here; expected a build folder (the `output` of a pipeline) \
@@ -41,15 +78,12 @@ impl Report {
             );
         }
         // Each stage file is read if the build got that far.
-        fn optional<T: serde::de::DeserializeOwned>(path: &Path) -> Result<Option<T>> {
-            Ok(if path.exists() {
-                Some(files::read_ron(path)?)
-            } else {
-                None
-            })
+        fn read<T: serde::de::DeserializeOwned>(path: Option<PathBuf>) -> Result<Option<T>> {
+            Ok(path.map(|p| files::read_ron(&p)).transpose()?)
         }
+        let optional = |file: &str| scope.file(dir, file);
         let graph_path = dir.join(GRAPH_FILE);
-        let graph: Option<PatchGraph> = optional(&graph_path)?;
+        let graph: Option<PatchGraph> = read(optional(GRAPH_FILE))?;
         if let Some(g) = &graph {
             files::expect_stage(
                 &graph_path,
@@ -58,12 +92,12 @@ impl Report {
                 PatchGraph::VERSION,
             )?;
         }
-        let patterns = optional(&dir.join(PATTERNS_FILE))?;
-        let trajectories = optional(&dir.join(TRAJECTORIES_FILE))?;
-        let collided = optional(&dir.join(COLLIDED_FILE))?;
-        let smoothed = optional(&dir.join(SMOOTHED_FILE))?;
-        let check = optional(&dir.join(CHECK_FILE))?;
-        let export = optional(&dir.join(EXPORT_FILE))?;
+        let patterns = read(optional(PATTERNS_FILE))?;
+        let trajectories = read(optional(TRAJECTORIES_FILE))?;
+        let collided = read(optional(COLLIDED_FILE))?;
+        let smoothed = read(optional(SMOOTHED_FILE))?;
+        let check = read(optional(CHECK_FILE))?;
+        let export = read(optional(EXPORT_FILE))?;
         let mut outputs = BTreeMap::new();
         for entry in std::fs::read_dir(dir).with_context(|| format!("{}", dir.display()))? {
             let entry = entry.with_context(|| format!("{}", dir.display()))?;

@@ -2,7 +2,7 @@
 //! `crowd build` writes it beside the outputs after every build, and `crowd check` refreshes
 //! it with the collision and motion figures.
 
-use crate::report::Report;
+use crate::report::{Report, Scope};
 use crate::stages::{
     COLLIDED_FILE, GRAPH_FILE, MERGE_FILE, PATTERNS_FILE, SMOOTHED_FILE, STAGES, TRAJECTORIES_FILE,
 };
@@ -15,10 +15,11 @@ use std::path::{Path, PathBuf};
 /// The report's name in a build folder.
 pub const REPORT_FILE: &str = "report.md";
 
-/// Draws the pictures of the stage files in `dir`, then writes `report.md` there.
-pub fn write(dir: &Path) -> Result<PathBuf> {
-    let pictures = draw_pictures(dir)?;
-    let report = Report::gather(dir)?;
+/// Draws the pictures of the stage files in `dir` that are in `scope`, then writes `report.md`
+/// there.
+pub fn write(dir: &Path, scope: Scope) -> Result<PathBuf> {
+    let pictures = draw_pictures(dir, scope)?;
+    let report = Report::gather_in(dir, scope)?;
     let path = dir.join(REPORT_FILE);
     files::write_atomic(&path, markdown(dir, &report, &pictures).as_bytes())?;
     Ok(path)
@@ -32,10 +33,10 @@ struct Picture {
 }
 
 /// One PNG per stage file the folder holds (the latest trajectories only), named `report_*`.
-fn draw_pictures(dir: &Path) -> Result<Vec<Picture>> {
+fn draw_pictures(dir: &Path, scope: Scope) -> Result<Vec<Picture>> {
     let trajectories = [SMOOTHED_FILE, COLLIDED_FILE, TRAJECTORIES_FILE]
         .into_iter()
-        .find(|f| dir.join(f).exists());
+        .find(|f| scope.file(dir, f).is_some());
     let wanted = [
         (
             Some(MERGE_FILE),
@@ -60,10 +61,10 @@ fn draw_pictures(dir: &Path) -> Result<Vec<Picture>> {
     ];
     let mut pictures = Vec::new();
     for (stage_file, file, caption) in wanted {
-        let Some(stage_file) = stage_file.filter(|f| dir.join(f).exists()) else {
+        let Some(path) = stage_file.and_then(|f| scope.file(dir, f)) else {
             continue;
         };
-        let legend = crate::inspect::render(&dir.join(stage_file), &dir.join(file), None)?;
+        let legend = crate::inspect::render(&path, &dir.join(file), None)?;
         pictures.push(Picture {
             file,
             caption,
@@ -143,6 +144,7 @@ fn markdown(dir: &Path, report: &Report, pictures: &[Picture]) -> String {
     ];
     for (title, rows) in sections {
         if title.starts_with("Collisions")
+            && report.check.is_some()
             && let Some(stale) = stale_check(dir)
         {
             let _ = writeln!(
@@ -162,7 +164,7 @@ fn markdown(dir: &Path, report: &Report, pictures: &[Picture]) -> String {
             let _ = writeln!(s, "## {title}\n\nNot built yet.\n");
             continue;
         }
-        if title.starts_with("Collisions") && !dir.join(crate::report::CHECK_FILE).exists() {
+        if title.starts_with("Collisions") && report.check.is_none() {
             let _ = writeln!(
                 s,
                 "## {title}\n\nNot checked yet: run `crowd check {}` for the collision and \
