@@ -8,3 +8,4 @@ mod build;
 mod export;
 mod patterns;
 mod scenes;
+mod settings;
