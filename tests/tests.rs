@@ -10,3 +10,4 @@ mod export;
 mod golden;
 mod patterns;
 mod scenes;
+mod settings;

@@ -2,7 +2,8 @@
 //!
 //! - `cargo xtask build-crowd [--pipeline FILE] [crowd build flags]`: builds the crowd described
 //!   by `pipeline.ron` (or FILE) with the release `crowd` binary.
-//! - `cargo xtask bench`: runs the criterion benchmarks.
+//! - `cargo xtask bench [pipeline|collide|runtime|all] [criterion args]`: runs one criterion
+//!   benchmark, or all three in turn (the default).
 //!
 //! Kept light on purpose: no dependencies, cargo is found through the `CARGO` variable.
 
@@ -20,8 +21,14 @@ tasks:
   build-crowd [--pipeline FILE] [--force] [--quiet] [--threads N]
       build the crowd of pipeline.ron (or FILE) with the release `crowd` binary;
       stages whose output is up to date are skipped
-  bench [criterion args]
-      run the benchmarks (figures go to BENCHMARKS.md by hand)
+  bench [pipeline|collide|runtime|all] [criterion args]
+      run a criterion benchmark (figures go to BENCHMARKS.md by hand):
+        pipeline  merge + graph of painting and city, in memory (crates/cli/benches)
+        collide   stage 5 on 1000 random patches (crates/collide/benches)
+        runtime   one frame of the runtime over painting's 100k walkers (crates/runtime/benches);
+                  build its library first: cargo xtask build-crowd --pipeline
+                  assets/bench/painting-100k.ron (BENCHMARKS.md pins it to one core with taskset)
+        all       the three in turn (the default)
   scenes
       build every pipeline of assets/pipelines/ from scratch (release) and print the
       Table 1 figures of each as markdown
@@ -52,11 +59,7 @@ fn main() -> ExitCode {
             }
             command.args(&rest);
         }
-        Some("bench") => {
-            command.arg("bench").arg("--manifest-path").arg(&manifest);
-            command.args(["--package", "crowd", "--bench", "pipeline", "--"]);
-            command.args(&rest);
-        }
+        Some("bench") => return bench(&cargo, &manifest, &rest),
         Some("scenes") => return scenes(&cargo, &root),
         Some("help" | "--help" | "-h") => {
             print!("{HELP}");
@@ -75,6 +78,51 @@ fn main() -> ExitCode {
             ExitCode::FAILURE
         }
     }
+}
+
+/// The criterion benchmarks: a name for `cargo xtask bench`, its package and its bench target.
+const BENCHES: &[(&str, &str, &str)] = &[
+    ("pipeline", "crowd", "pipeline"),
+    ("collide", "crowd-collide", "random_patches"),
+    ("runtime", "crowd-runtime", "sample"),
+];
+
+/// Runs the benchmark named by the first argument (all of them if it names none), passing the
+/// other arguments to criterion.
+fn bench(cargo: &str, manifest: &std::path::Path, args: &[String]) -> ExitCode {
+    let (which, criterion) = match args.first().map(String::as_str) {
+        Some("all") => (None, &args[1..]),
+        Some(name) if !name.starts_with('-') => {
+            if !BENCHES.iter().any(|(n, _, _)| *n == name) {
+                eprint!("unknown benchmark {name:?}\n\n{HELP}");
+                return ExitCode::FAILURE;
+            }
+            (Some(name), &args[1..])
+        }
+        _ => (None, args),
+    };
+    for (name, package, target) in BENCHES {
+        if which.is_some_and(|w| w != *name) {
+            continue;
+        }
+        eprintln!("bench {name}: cargo bench --package {package} --bench {target}");
+        let status = Command::new(cargo)
+            .arg("bench")
+            .arg("--manifest-path")
+            .arg(manifest)
+            .args(["--package", package, "--bench", target, "--"])
+            .args(criterion)
+            .status();
+        match status {
+            Ok(s) if s.success() => {}
+            Ok(s) => return ExitCode::from(s.code().unwrap_or(1).clamp(1, 255) as u8),
+            Err(e) => {
+                eprintln!("cannot run cargo: {e}");
+                return ExitCode::FAILURE;
+            }
+        }
+    }
+    ExitCode::SUCCESS
 }
 
 /// Builds every scene pipeline with `--force` and prints the table of their figures.

@@ -1,4 +1,4 @@
-//! Stage benchmarks on the shared scenes: `cargo xtask bench` (or `cargo bench --bench pipeline`).
+//! Stage benchmarks on the shared scenes: `cargo xtask bench pipeline` (or `cargo bench --bench pipeline`).
 //! Figures go to BENCHMARKS.md with the command that produced them.
 
 use criterion::{Criterion, criterion_group, criterion_main};

@@ -47,10 +47,6 @@ impl<T> Grid<T> {
         &self.data[y as usize * w..(y as usize + 1) * w]
     }
 
-    pub fn rows_mut(&mut self) -> std::slice::ChunksExactMut<'_, T> {
-        self.data.chunks_exact_mut(self.width.max(1) as usize)
-    }
-
     pub fn as_slice(&self) -> &[T] {
         &self.data
     }

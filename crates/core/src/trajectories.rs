@@ -54,11 +54,6 @@ impl PointKind {
     fn from_code(code: u8) -> Option<PointKind> {
         Self::ALL.get(code as usize).copied()
     }
-
-    /// Boundary points are fixed by the patterns and never move.
-    pub fn is_boundary(self) -> bool {
-        matches!(self, PointKind::Entry | PointKind::Exit)
-    }
 }
 
 /// The indices of the points that end the entry's border band and start the exit's, if the

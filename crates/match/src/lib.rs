@@ -14,6 +14,7 @@ pub mod random;
 pub mod score;
 pub mod stable;
 pub mod standers;
+pub mod way;
 
 // The shortest way past a patch's walls is shared geometry (stage 5 routes pushed pieces
 // with it too); `plan` reaches it as `crate::route`.

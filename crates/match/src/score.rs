@@ -1,5 +1,6 @@
 //! The matching score of an entry-exit pair (Ramirez et al. eq. 4 plus a direction term).
 
+use crate::way::{path_length, wrapped_dt};
 use crate::{Endpoint, PatchContext};
 
 /// Walking speed at a density, by Weidmann's fundamental diagram (1993; the form Seyfried et al.
@@ -15,16 +16,10 @@ pub fn comfort_speed(free_speed: f64, density: f64) -> f64 {
     v.max(0.1 * free_speed)
 }
 
-/// Time from `entry` to `exit` in the looping animation, in (0, period].
-pub fn wrapped_dt(entry_t: f64, exit_t: f64, period: f64) -> f64 {
-    let dt = (exit_t - entry_t).rem_euclid(period);
-    if dt <= 1e-9 { period } else { dt }
-}
-
 /// Lower is better: arctan(|u_comfort - u|) + side penalty (0 opposite, 2 neighbouring, 4 same
 /// border) + gain x weight x (1 - cos(angle to the requested direction)) / 2.
 pub fn score(entry: &Endpoint, exit: &Endpoint, ctx: &PatchContext) -> f64 {
-    let length = crate::plan::path_length(entry, exit, ctx);
+    let length = path_length(entry, exit, ctx);
     let u = length / wrapped_dt(entry.t, exit.t, ctx.period_s);
     let mut s = (ctx.comfort_speed - u).abs().atan() + entry.side.penalty(exit.side);
     if let Some(d) = ctx.direction {
@@ -44,12 +39,5 @@ mod tests {
         assert!((comfort_speed(1.33, 0.35) - 1.33).abs() < 0.02);
         assert!(comfort_speed(1.33, 2.0) < 1.0);
         assert!(comfort_speed(1.33, 4.0) < comfort_speed(1.33, 2.0));
-    }
-
-    #[test]
-    fn time_wraps_around_the_period() {
-        assert_eq!(wrapped_dt(2.0, 5.0, 20.0), 3.0);
-        assert_eq!(wrapped_dt(18.0, 1.0, 20.0), 3.0);
-        assert_eq!(wrapped_dt(4.0, 4.0, 20.0), 20.0);
     }
 }

@@ -33,7 +33,7 @@ pub fn align(state: &mut State) -> usize {
             let mut out = Vec::with_capacity(2 * entries.len());
             for (e, &o) in entries.iter().zip(&pairs) {
                 let x = &exits[o];
-                let way = crowd_match::plan::waypoints(e, x, &ctx);
+                let way = crowd_match::way::waypoints(e, x, &ctx);
                 let n = way.len();
                 out.push((e.crossing, (way[1].0 - way[0].0).normalize_or_zero()));
                 out.push((

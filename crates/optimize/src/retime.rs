@@ -38,7 +38,7 @@ pub fn retime(state: &mut State) -> usize {
                 .zip(matched)
                 .map(|(e, o)| {
                     let x = &exits[o];
-                    let walk = crowd_match::plan::path_length(e, x, &ctx) / ctx.comfort_speed;
+                    let walk = crowd_match::way::path_length(e, x, &ctx) / ctx.comfort_speed;
                     (id(e.crossing), id(x.crossing), walk)
                 })
                 .collect()

@@ -101,11 +101,6 @@ impl Spline {
         let d11 = 3.0 * s2 - 2.0 * s;
         (d00 * self.p[i] + d01 * self.p[i + 1]) / h + d10 * self.v[i] + d11 * self.v[i + 1]
     }
-
-    /// Velocity at knot `i`.
-    pub fn knot_velocity(&self, i: usize) -> DVec2 {
-        self.v[i]
-    }
 }
 
 #[cfg(test)]

@@ -1,0 +1,297 @@
+//! The pipeline file: `Pipeline` (the top level of `pipeline.ron`: scene, counts, sizes, and
+//! each stage's settings) and `PipelineFile`, which reads, parses and checks it and resolves
+//! its paths. `Pipeline::validate` checks the top level and calls each stage's `validate`.
+
+use super::checks::{Check, invalid, not_negative, positive};
+use super::ron_text::{describe_ron_error, locate_field};
+use super::settings::{
+    CollideSettings, ExportSettings, GraphSettings, MatchSettings, MergeSettings, OptimizeSettings,
+    SmoothSettings,
+};
+use crate::error::{Error, LineCol, Result};
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+/// The build description. Paths are relative to the folder of the pipeline file.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Pipeline {
+    /// The painted layers and their scale.
+    pub scene: Scene,
+    /// Walking (exogenous) characters in the whole scene.
+    pub walkers: u64,
+    /// Standing (endogenous, static) characters in the whole scene.
+    #[serde(default)]
+    pub standers: u64,
+    /// Side of the square crowd patches, in metres.
+    pub patch_side_m: f64,
+    /// Period of the animation, in seconds.
+    pub period_s: f64,
+    /// Character radius, in metres.
+    pub radius_m: f64,
+    /// Seed of every random choice of the build.
+    pub seed: u64,
+    /// Folder the stage files are written to.
+    pub output: PathBuf,
+    #[serde(default)]
+    pub merge: MergeSettings,
+    #[serde(default)]
+    pub graph: GraphSettings,
+    #[serde(default)]
+    pub optimize: OptimizeSettings,
+    #[serde(default, rename = "match")]
+    pub matching: MatchSettings,
+    #[serde(default)]
+    pub collide: CollideSettings,
+    #[serde(default)]
+    pub smooth: SmoothSettings,
+    #[serde(default)]
+    pub export: ExportSettings,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Scene {
+    /// World size of one pixel, in metres.
+    pub meters_per_pixel: f64,
+    pub layers: Vec<LayerSpec>,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LayerSpec {
+    pub kind: LayerKind,
+    pub path: PathBuf,
+    /// Layer opacity: multiplies every pixel's alpha when layers of a kind are merged.
+    #[serde(default = "one")]
+    pub weight: f64,
+}
+
+fn one() -> f64 {
+    1.0
+}
+
+/// The painted layer kinds of DESIGN.md.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+pub enum LayerKind {
+    /// Gray, brighter = more walkers (relative).
+    Density,
+    /// Gray, brighter = more standing characters (relative).
+    Static,
+    /// Gray (+ alpha as weight): people walk from dark to bright.
+    Direction,
+    /// RGBA flow map: R = east, G = north, 128 = zero, A = weight.
+    Flow,
+    /// Gray, bright = blocked.
+    Obstacles,
+}
+
+impl LayerKind {
+    pub fn name(self) -> &'static str {
+        match self {
+            LayerKind::Density => "density",
+            LayerKind::Static => "static",
+            LayerKind::Direction => "direction",
+            LayerKind::Flow => "flow",
+            LayerKind::Obstacles => "obstacles",
+        }
+    }
+}
+
+impl Pipeline {
+    /// Refuses any value a stage cannot use, naming the field; the settings and painted data
+    /// are checked against each other later, by the stages.
+    pub fn validate(&self) -> Check {
+        self.scene.validate()?;
+        for (field, value, unit) in [
+            ("patch_side_m", self.patch_side_m, "metres"),
+            ("period_s", self.period_s, "seconds"),
+            ("radius_m", self.radius_m, "metres"),
+        ] {
+            positive(field, value, &format!("a positive number of {unit}"))?;
+        }
+        if 2.0 * self.radius_m >= self.patch_side_m {
+            return Err(invalid(
+                "radius_m",
+                format!(
+                    "is {} m; expected less than half the patch side ({} m)",
+                    self.radius_m, self.patch_side_m
+                ),
+            ));
+        }
+        let pixels = self.patch_side_m / self.scene.meters_per_pixel;
+        if (pixels - pixels.round()).abs() > 1e-6 || pixels.round() < 1.0 {
+            return Err(invalid(
+                "patch_side_m",
+                format!(
+                    "is {} m, which is {pixels} pixels at {} m per pixel; expected a whole \
+                     number of pixels so that patches follow the painted pixels",
+                    self.patch_side_m, self.scene.meters_per_pixel
+                ),
+            ));
+        }
+        let has = |kind: LayerKind| self.scene.layers.iter().any(|l| l.kind == kind);
+        if self.walkers > 0 && !has(LayerKind::Density) {
+            return Err(invalid(
+                "walkers",
+                format!(
+                    "is {} but the scene has no `Density` layer saying where they walk",
+                    self.walkers
+                ),
+            ));
+        }
+        if self.standers > 0 && !has(LayerKind::Static) {
+            return Err(invalid(
+                "standers",
+                format!(
+                    "is {} but the scene has no `Static` layer saying where they stand",
+                    self.standers
+                ),
+            ));
+        }
+        self.merge.validate()?;
+        self.graph.validate()?;
+        self.optimize.validate()?;
+        self.matching.validate()?;
+        self.collide.validate()?;
+        self.smooth.validate()?;
+        self.export.validate()
+    }
+}
+
+impl Scene {
+    pub fn validate(&self) -> Check {
+        positive(
+            "scene.meters_per_pixel",
+            self.meters_per_pixel,
+            "a positive number of metres",
+        )?;
+        if self.layers.is_empty() {
+            return Err(invalid(
+                "scene.layers",
+                "is empty; expected at least one painted layer",
+            ));
+        }
+        for (i, layer) in self.layers.iter().enumerate() {
+            not_negative(
+                &format!("scene.layers[{i}].weight"),
+                layer.weight,
+                "a weight of 0 or more",
+            )?;
+        }
+        Ok(())
+    }
+}
+
+/// A parsed, checked pipeline together with its source text, so that later checks (which need
+/// the painted data) can still point at the line of the setting they refuse.
+#[derive(Debug, Clone)]
+pub struct PipelineFile {
+    pub path: PathBuf,
+    pub text: String,
+    pub pipeline: Pipeline,
+}
+
+impl PipelineFile {
+    /// Reads, parses and checks a pipeline file.
+    pub fn load(path: &Path) -> Result<PipelineFile> {
+        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, "read", e))?;
+        PipelineFile::parse(path, text)
+    }
+
+    /// Parses and checks pipeline text that was read from `path`.
+    pub fn parse(path: &Path, text: String) -> Result<PipelineFile> {
+        let pipeline: Pipeline =
+            ron::Options::default()
+                .from_str(&text)
+                .map_err(|e| Error::Syntax {
+                    path: path.to_path_buf(),
+                    place: LineCol {
+                        line: e.span.start.line,
+                        col: e.span.start.col,
+                    },
+                    message: describe_ron_error(&e.code),
+                })?;
+        let file = PipelineFile {
+            path: path.to_path_buf(),
+            text,
+            pipeline,
+        };
+        file.check()?;
+        Ok(file)
+    }
+
+    /// The folder relative paths are resolved against.
+    pub fn base_dir(&self) -> &Path {
+        self.path.parent().unwrap_or(Path::new(""))
+    }
+
+    /// A path of the pipeline, resolved against the pipeline's folder.
+    pub fn resolve(&self, path: &Path) -> PathBuf {
+        if path.is_absolute() {
+            path.to_path_buf()
+        } else {
+            tidy(&self.base_dir().join(path))
+        }
+    }
+
+    /// The output folder, resolved.
+    pub fn output_dir(&self) -> PathBuf {
+        self.resolve(&self.pipeline.output)
+    }
+
+    /// Where the key `field` (a dotted path like `graph.empty_below` or `scene.layers[2].path`)
+    /// is written in the source text, if it is.
+    pub fn place_of(&self, field: &str) -> Option<LineCol> {
+        locate_field(&self.text, field)
+    }
+
+    /// An error about one setting, at its line, or at its section's when it is not written
+    /// (a default refused beside a setting that is: `match.comfort_speed` under `max_speed`).
+    pub fn field_error(&self, field: &str, message: impl Into<String>) -> Error {
+        let section = || field.rsplit_once('.').and_then(|(s, _)| self.place_of(s));
+        Error::Field {
+            path: self.path.clone(),
+            place: self.place_of(field).or_else(section),
+            field: field.to_string(),
+            message: message.into(),
+        }
+    }
+
+    /// An error where the settings and the painted data contradict each other.
+    pub fn scene_error(&self, field: &str, message: impl Into<String>) -> Error {
+        Error::Scene {
+            path: self.path.clone(),
+            place: self.place_of(field),
+            message: message.into(),
+        }
+    }
+
+    /// Refuses a setting its stage cannot use, at the line of the setting.
+    fn check(&self) -> Result<()> {
+        self.pipeline
+            .validate()
+            .map_err(|bad| self.field_error(&bad.field, bad.message))
+    }
+}
+
+/// Removes `.` and `dir/..` from a relative path, for readable messages
+/// (`assets/pipelines/../../build` is `build`).
+fn tidy(path: &Path) -> PathBuf {
+    use std::path::Component;
+    let mut out: Vec<Component> = Vec::new();
+    for c in path.components() {
+        match c {
+            Component::CurDir => {}
+            Component::ParentDir if matches!(out.last(), Some(Component::Normal(_))) => {
+                out.pop();
+            }
+            other => out.push(other),
+        }
+    }
+    if out.is_empty() {
+        PathBuf::from(".")
+    } else {
+        out.iter().collect()
+    }
+}

@@ -1,0 +1,32 @@
+//! The library's bytes (`FORMAT.md`): a header, a section table, packed little-endian records.
+//! [`Library::to_bytes`] writes them (stage 8 calls it); [`Library::from_bytes`] reads and
+//! checks them without trusting anything.
+//!
+//! - `records.rs`: the records (`World`, `Patch`, `Point`, ...) and `Library`, what they mean;
+//! - `container.rs`: the header, the section table with its checksums, each record's bytes;
+//! - `rules.rs`: every rule a loaded library must keep, which the sampler relies on.
+
+mod container;
+mod records;
+mod rules;
+
+pub use records::{Character, Crossing, Library, Patch, Point, Trajectory, World};
+
+/// The first 8 bytes of every library.
+pub const MAGIC: [u8; 8] = *b"CRWDLIB\0";
+/// The format version this crate reads and writes.
+pub const VERSION: u32 = 1;
+/// Times are whole ticks of this many seconds (0.1 ms): quantised to within 0.05 ms.
+pub const TICK_S: f64 = 1e-4;
+/// Positions are patch-local, in steps of side / QUANT_STEPS: within side / 131,070 (0.06 mm
+/// for an 8 m patch).
+pub const QUANT_STEPS: f64 = 65535.0;
+
+/// The longest a trajectory may last, in periods. It bounds the walkers a library can claim
+/// (at most this many per trajectory record), so that loading allocates in proportion to the
+/// file's size, whatever it says.
+pub const MAX_PERIODS_PER_TRAJECTORY: u32 = 64;
+
+/// The most patches a world has across and up (so a patch's place fits two u16s, as the
+/// sampler keeps it): 524 km at 8 m a patch.
+pub const MAX_GRID: u32 = 1 << 16;
