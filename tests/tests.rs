@@ -8,6 +8,7 @@ mod bad_input;
 mod build;
 mod export;
 mod golden;
+mod paintings;
 mod patterns;
 mod scenes;
 mod settings;

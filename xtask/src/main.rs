@@ -5,6 +5,9 @@
 //! - `cargo xtask bench [pipeline|collide|runtime|all] [criterion args]`: runs one criterion
 //!   benchmark, or all three in turn (the default).
 //!
+//! - `cargo xtask soak [--scenes N] [--from SEED] [--max-patches P]`: random paintings through
+//!   the whole pipeline, each held to every guarantee (`crowd-paintings soak`).
+//!
 //! Kept light on purpose: no dependencies, cargo is found through the `CARGO` variable.
 
 #[cfg(test)]
@@ -29,6 +32,10 @@ tasks:
                   build its library first: cargo xtask build-crowd --pipeline
                   assets/bench/painting-100k.ron (BENCHMARKS.md pins it to one core with taskset)
         all       the three in turn (the default)
+  soak [--scenes N] [--from SEED] [--max-patches P]
+      build N random paintings (default 200, seeds SEED.., up to P x P patches, default 12)
+      with the release `crowd`, check each and hold it to every guarantee; failing scenes stay
+      in target/soak/seed-N and their seeds are printed
   scenes
       build every pipeline of assets/pipelines/ from scratch (release) and print the
       Table 1 figures of each as markdown
@@ -61,6 +68,7 @@ fn main() -> ExitCode {
         }
         Some("bench") => return bench(&cargo, &manifest, &rest),
         Some("scenes") => return scenes(&cargo, &root),
+        Some("soak") => return soak(&cargo, &root, &rest),
         Some("help" | "--help" | "-h") => {
             print!("{HELP}");
             return ExitCode::SUCCESS;
@@ -176,6 +184,49 @@ fn scenes(cargo: &str, root: &std::path::Path) -> ExitCode {
     let ok = Command::new(&crowd)
         .args(["report", "--table"])
         .args(&dirs)
+        .status()
+        .is_ok_and(|s| s.success());
+    if ok {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::FAILURE
+    }
+}
+
+/// `cargo xtask soak`: the release `crowd` over many random paintings (`crowd-paintings soak`).
+fn soak(cargo: &str, root: &std::path::Path, rest: &[String]) -> ExitCode {
+    let manifest = root.join("Cargo.toml");
+    let built = Command::new(cargo)
+        .args([
+            "build",
+            "--release",
+            "--quiet",
+            "--bin",
+            "crowd",
+            "--manifest-path",
+        ])
+        .arg(&manifest)
+        .status()
+        .is_ok_and(|s| s.success());
+    if !built {
+        eprintln!("cannot build crowd");
+        return ExitCode::FAILURE;
+    }
+    let ok = Command::new(cargo)
+        .args([
+            "run",
+            "--release",
+            "--quiet",
+            "-p",
+            "crowd-paintings",
+            "--manifest-path",
+        ])
+        .arg(&manifest)
+        .args(["--", "soak", "--crowd"])
+        .arg(root.join("target/release/crowd"))
+        .arg("--out")
+        .arg(root.join("target/soak"))
+        .args(rest)
         .status()
         .is_ok_and(|s| s.success());
     if ok {
