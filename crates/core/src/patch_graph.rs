@@ -152,7 +152,7 @@ pub struct PatchGraph {
 
 impl PatchGraph {
     pub const STAGE: &'static str = "graph";
-    pub const VERSION: u32 = 1;
+    pub const VERSION: u32 = 2;
 
     /// Area of one patch in m2.
     pub fn patch_area(&self) -> f64 {

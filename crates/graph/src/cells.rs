@@ -36,6 +36,24 @@ impl Layout {
     pub fn meters(&self, px: u32) -> f64 {
         px as f64 * self.mpp
     }
+
+    pub fn meters_per_pixel(&self) -> f64 {
+        self.mpp
+    }
+
+    /// Whether cell-local pixel (i east, k north) of `cell` is blocked; `i` and `k` may reach
+    /// into the neighbouring cells. Pixels off the maps are free (nobody walks there anyway).
+    pub fn blocked(&self, maps: &MergedMaps, cell: Cell, i: i64, k: i64) -> bool {
+        let s = self.side_px as i64;
+        let x = cell.col as i64 * s + i;
+        let north = cell.row as i64 * s + k;
+        if x < 0 || north < 0 || x >= maps.width() as i64 || north >= self.height_px as i64 {
+            return false;
+        }
+        *maps
+            .blocked
+            .get(x as u32, (self.height_px as i64 - 1 - north) as u32)
+    }
 }
 
 /// The painted means of one cell.

@@ -216,8 +216,8 @@ pub fn build_graph(
         .collect();
     progress.advance(1);
     let min_opening = s.min_opening_m.unwrap_or(2.0 * inputs.radius_m);
-    let mut borders = borders::find(maps, &layout, &patches, min_opening);
-    borders::close_cut_off_regions(maps, &layout, &patches, &mut borders);
+    let mut borders = borders::find(maps, &layout, &patches, min_opening, inputs.radius_m);
+    borders::close_cut_off_regions(maps, &layout, &patches, &mut borders, inputs.radius_m);
     let components = components::label(&mut patches, &borders, area);
     progress.advance(1);
 

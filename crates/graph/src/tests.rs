@@ -218,3 +218,81 @@ proptest! {
         }
     }
 }
+
+/// Maps of `w x h` pixels at 0.5 m per pixel with `blocked` pixels given by (x east, north
+/// index from the south edge), and inputs of 4 m patches and r = 0.25 (random painting 3's).
+fn half_metre(w: u32, h: u32, blocked: impl Fn(u32, u32) -> bool) -> (MergedMaps, GraphInputs) {
+    let mut m = maps(w, h, |x, y| blocked(x, h - 1 - y));
+    m.meters_per_pixel = 0.5;
+    let mut i = inputs(10);
+    i.radius_m = 0.25;
+    (m, i)
+}
+
+fn open_of(g: &PatchGraph, a: u32, b: u32) -> Vec<Interval> {
+    let border = g.borders.iter().find(|x| x.a.0 == a && x.b.0 == b);
+    border.unwrap().open.clone()
+}
+
+#[test]
+fn a_strip_no_wider_than_a_character_behind_a_border_is_closed() {
+    // Random painting 3's patch 30: in the north-west patch of 2 x 2, a wall 0.5 m above its
+    // south edge runs from side to side, and the strip below it (3 m of south border, a
+    // diameter wide) ties in open length with the part above (3 m of east border). Walkers let
+    // into the strip had to leave above the wall, through it; a walker's centre has no room
+    // there at all, so the south border closes and the part above keeps its east opening.
+    let (m, i) = half_metre(16, 16, |x, y| {
+        (y == 9 && x < 8) || (y == 8 && (6..8).contains(&x))
+    });
+    let g = build_graph(&m, &i, Hash::of(b"t"), &()).unwrap();
+    assert_eq!(open_of(&g, 0, 2), vec![], "south border of the strip");
+    assert_eq!(
+        open_of(&g, 2, 3),
+        vec![Interval {
+            start: 1.0,
+            end: 4.0
+        }]
+    );
+}
+
+#[test]
+fn a_border_behind_which_a_wall_runs_a_diameter_away_is_closed() {
+    // Random painting 3's patch 1: in the south-east patch of 2 x 2, a wall 0.5 m east of its
+    // west border runs along it but for a gap of one pixel (0.5 m, a diameter): a band piece
+    // there ends r from the wall, and the strip it enters leads on only through the gap. No
+    // crossing may go there; the part east of the wall keeps its north opening.
+    let (m, i) = half_metre(16, 16, |x, y| x == 9 && y < 8 && y != 4);
+    let g = build_graph(&m, &i, Hash::of(b"t"), &()).unwrap();
+    assert_eq!(open_of(&g, 0, 1), vec![]);
+    assert_eq!(
+        open_of(&g, 1, 3),
+        vec![Interval {
+            start: 1.0,
+            end: 4.0
+        }]
+    );
+}
+
+#[test]
+fn a_gap_narrower_than_a_character_with_room_splits_a_patch() {
+    // In the south-east patch of 2 x 2, a wall 1 m east of its west border runs from south to
+    // north but for a gap of 0.5 m: the strip west of it (its west border, 1 m of its north
+    // border) is wide enough to walk but joined to the rest only through a gap a walker
+    // cannot keep clear of. The strip's 5 m of border win; the rest's north opening closes.
+    let (m, i) = half_metre(16, 16, |x, y| x == 10 && y < 8 && y != 4);
+    let g = build_graph(&m, &i, Hash::of(b"t"), &()).unwrap();
+    assert_eq!(
+        open_of(&g, 0, 1),
+        vec![Interval {
+            start: 0.0,
+            end: 4.0
+        }]
+    );
+    assert_eq!(
+        open_of(&g, 1, 3),
+        vec![Interval {
+            start: 0.0,
+            end: 1.0
+        }]
+    );
+}
