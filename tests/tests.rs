@@ -7,6 +7,7 @@ mod util;
 mod bad_input;
 mod build;
 mod export;
+mod export_clip;
 mod golden;
 mod paintings;
 mod patterns;

@@ -182,6 +182,8 @@ fn piece(
     // Out of the border bands, as stage 5 keeps every free point.
     let (lo, hi) = (limits.band_m, limits.side_m - limits.band_m);
     let inside = |p: DVec2| p.x >= lo && p.y >= lo && p.x <= hi && p.y <= hi;
+    // Split points whose curve point was dropped: placed on the walk afterwards.
+    let mut on_walk = Vec::new();
     for k in &times[1..times.len() - 1] {
         let t = k.t;
         let is_split = splits.iter().any(|&s| (s - t).abs() < 1e-9);
@@ -198,9 +200,13 @@ fn piece(
         } else {
             dropped += 1;
             if is_split {
-                // A character still passes the period here: keep the mark, on the old path.
+                // A character still passes the period here: keep the mark, where the walk
+                // between the points kept either side passes then (on the old path instead,
+                // it was a jump of up to alpha in a few hundredths of a second, at the loop
+                // seam of every player).
+                on_walk.push(out.len());
                 out.push(ControlPoint {
-                    pos: position_at(pts, t),
+                    pos: on_line,
                     t,
                     kind: PointKind::Split,
                 });
@@ -208,6 +214,21 @@ fn piece(
         }
     }
     out.push(last);
+    for &i in &on_walk {
+        let a = (0..i)
+            .rev()
+            .find(|j| !on_walk.contains(j))
+            .expect("the piece's start");
+        let b = (i + 1..out.len())
+            .find(|j| !on_walk.contains(j))
+            .expect("its end");
+        let (a, b) = (out[a], out[b]);
+        out[i].pos = if a.pos == b.pos {
+            a.pos
+        } else {
+            a.pos.lerp(b.pos, (out[i].t - a.t) / (b.t - a.t))
+        };
+    }
     dropped
 }
 
@@ -394,6 +415,43 @@ mod tests {
         let (_, corner) = chord_changes(&tr);
         let (_, step) = chord_changes(&s);
         assert!(corner > 0.5 && step < corner / 5.0, "{corner} {step}");
+    }
+
+    #[test]
+    fn a_split_point_whose_curve_point_is_dropped_lies_on_the_walk_kept_around_it() {
+        // The period passes at a bend stage 5 made there, between two tacks, where the curve
+        // strays farther than alpha allows.
+        let tr = Trajectory {
+            entry: 0,
+            exit: 1,
+            points: vec![
+                cp(0.0, 2.0, 16.0, PointKind::Entry),
+                cp(0.3, 2.0, 16.0 + 0.3 / 1.3, PointKind::Band),
+                cp(4.0, 3.0, 20.0, PointKind::Split),
+                cp(7.7, 2.0, 23.0 - 0.3 / 1.3, PointKind::Band),
+                cp(8.0, 2.0, 23.0, PointKind::Exit),
+            ],
+        };
+        let limits = Limits {
+            max_displacement_m: 0.05,
+            tack_spacing_s: 3.0,
+            ..limits()
+        };
+        let v = DVec2::new(1.3, 0.0);
+        let (s, dropped) = smooth(&tr, v, v, &limits);
+        assert!(dropped > 0);
+        let k = s.points.iter().position(|p| p.t == 20.0).unwrap();
+        assert_eq!(s.points[k].kind, PointKind::Split);
+        let (a, b, c) = (s.points[k - 1], s.points[k], s.points[k + 1]);
+        let chord = a.pos.lerp(c.pos, (b.t - a.t) / (c.t - a.t));
+        assert!(chord.distance(b.pos) < 1e-9, "{:?} off {chord:?}", b.pos);
+        // No piece of the walk is faster than the polyline's.
+        let fastest = |p: &[ControlPoint]| {
+            p.windows(2)
+                .map(|w| w[0].pos.distance(w[1].pos) / (w[1].t - w[0].t))
+                .fold(0.0, f64::max)
+        };
+        assert!(fastest(&s.points) <= fastest(&tr.points) * 1.01);
     }
 
     #[test]

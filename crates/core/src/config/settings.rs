@@ -259,8 +259,9 @@ impl SmoothSettings {
 #[serde(deny_unknown_fields)]
 pub struct ExportSettings {
     /// The part of the world `world.glb` holds, `(x0, y0, x1, y1)` in world metres: the
-    /// characters there at time 0 (DCC tools slow down with tens of thousands of animated
-    /// nodes). None: the whole world. The library always holds the whole world.
+    /// characters while they are there, hidden (scale 0) while outside (DCC tools slow down
+    /// with tens of thousands of animated nodes). None: the whole world. The library always
+    /// holds the whole world.
     #[serde(default)]
     pub gltf_region: Option<(f64, f64, f64, f64)>,
     /// Keyframes are dropped where the walk between the kept ones stays within this many

@@ -5,16 +5,21 @@
 //! and `stander_<i>`); one animation, `crowd_loop`, that lasts exactly one period, with
 //! translation and rotation keys at the trajectory points inside it and at 0 and the period.
 //! A slot of a one-period loop has equal keys at 0 and at the period, so a looping player shows
-//! no jump. A loop of k periods has k slots: slot j walks the loop's j-th period, and at the
-//! clip's end stands where slot j + 1 starts, so the set of positions is continuous at every
-//! time while each node, looping, hands its walker over to the next.
+//! no jump. A loop of k periods has k slots: slot j is the walker a runtime calls lap j, one
+//! period behind slot j - 1, so at the clip's end it stands where slot j - 1 starts, facing the
+//! same way: the set of positions is continuous at every time while each node, looping, hands
+//! its walker over to the next. Each walker node names that successor in its `extras`
+//! (`{"next": "walker_<id>"}`; itself for a one-period loop), so that a player that plays
+//! nodes one by one can chain them.
 //!
-//! `keys.rs` makes each slot's keys, `mesh.rs` the capsule, `buffers.rs` the binary chunk's
-//! views and accessors; this file assembles the document.
+//! `keys.rs` makes each slot's keys, `region.rs` shows only what is inside
+//! `export.gltf_region`, `mesh.rs` the capsule, `buffers.rs` the binary chunk's views and
+//! accessors; this file assembles the document.
 
 mod buffers;
 mod keys;
 mod mesh;
+mod region;
 
 use crate::characters::Links;
 use buffers::{accessor, bytes_of, bytes_of_3, bytes_of_4, view};
@@ -35,7 +40,7 @@ pub struct World<'a> {
     pub period_s: f64,
     pub seed: u64,
     pub input_hash: String,
-    /// Characters at time 0 inside `(x0, y0, x1, y1)` only.
+    /// Characters only while inside `(x0, y0, x1, y1)` (`region.rs`).
     pub region: Option<(f64, f64, f64, f64)>,
 }
 
@@ -55,10 +60,14 @@ pub fn world_glb(w: &World) -> Vec<u8> {
     // Animation data goes into three views, one per kind, after the mesh.
     let (mut times, mut moves, mut turns): (Vec<f32>, Vec<[f32; 3]>, Vec<[f32; 4]>) =
         (Vec::new(), Vec::new(), Vec::new());
+    // Region only: STEP scale keys that hide a character outside it.
+    let (mut scale_times, mut scales): (Vec<f32>, Vec<[f32; 3]>) = (Vec::new(), Vec::new());
     struct Track {
         node: json::Index<json::Node>,
         first: usize,
         count: usize,
+        /// First and count of its scale keys, if it leaves the region.
+        scale: Option<(usize, usize)>,
     }
     let mut tracks = Vec::new();
     let mut nodes = Vec::new();
@@ -67,38 +76,79 @@ pub fn world_glb(w: &World) -> Vec<u8> {
         w.region
             .is_none_or(|(x0, y0, x1, y1)| p.x >= x0 && p.x < x1 && p.y >= y0 && p.y < y1)
     };
+    // Every slot's keys, and the spans of the clip it is shown (all of it without a region).
+    struct Slot {
+        id: u32,
+        next: u32,
+        keys: Keys,
+        shown: Vec<(f64, f64)>,
+    }
+    let mut slots = Vec::new();
     let mut id = 0u32;
     for path in loop_paths(w) {
-        let length = f64::from(path.laps) * period;
+        let first = id;
         for lap in 0..path.laps {
-            let this = id;
-            id += 1;
-            // Loop time at clip time 0, as the runtime counts it.
-            let tau0 = (-path.start - f64::from(lap) * period).rem_euclid(length);
-            if !inside(path.at(tau0)) {
-                continue;
-            }
-            let Keys {
-                times: key_t,
-                points: key_p,
-                turns: q,
-            } = slot_keys(&path, tau0, period);
-            let node = root.push(json::Node {
-                mesh: Some(mesh),
-                name: Some(format!("walker_{this}")),
-                translation: Some(gltf_point(key_p[0])),
-                rotation: Some(json::scene::UnitQuaternion(q[0])),
-                ..Default::default()
+            let keys = slot_keys(&path, lap);
+            let shown = match w.region {
+                Some(r) => region::shown(&keys.times, &keys.points, r),
+                None => vec![(0.0, period)],
+            };
+            slots.push(Slot {
+                id: first + lap,
+                next: first + path.next_lap(lap),
+                keys,
+                shown,
             });
-            nodes.push(node);
-            tracks.push(Track {
-                node,
-                first: times.len(),
-                count: key_t.len(),
-            });
-            times.extend(key_t.iter().map(|&t| t as f32));
-            moves.extend(key_p.iter().map(|&p| gltf_point(p)));
-            turns.extend(q);
+        }
+        id += path.laps;
+    }
+    let named: std::collections::HashSet<u32> = slots
+        .iter()
+        .filter(|s| !s.shown.is_empty())
+        .map(|s| s.id)
+        .collect();
+    for slot in slots.into_iter().filter(|s| !s.shown.is_empty()) {
+        let Keys {
+            times: key_t,
+            points: key_p,
+            turns: q,
+        } = slot.keys;
+        let scale = region::scale_keys(&slot.shown, period);
+        // The successor, if it is in this file (with a region, a slot hidden at the clip's
+        // end may hand over to one that stays outside all clip).
+        let next = if named.contains(&slot.next) {
+            format!("\"walker_{}\"", slot.next)
+        } else {
+            "null".to_string()
+        };
+        let node = root.push(json::Node {
+            mesh: Some(mesh),
+            name: Some(format!("walker_{}", slot.id)),
+            translation: Some(gltf_point(key_p[0])),
+            rotation: Some(json::scene::UnitQuaternion(q[0])),
+            scale: scale
+                .as_ref()
+                .filter(|(_, s)| s[0] == 0.0)
+                .map(|_| [0.0; 3]),
+            extras: Some(
+                json::extras::RawValue::from_string(format!("{{\"next\":{next}}}"))
+                    .expect("valid JSON"),
+            ),
+            ..Default::default()
+        });
+        nodes.push(node);
+        tracks.push(Track {
+            node,
+            first: times.len(),
+            count: key_t.len(),
+            scale: scale.as_ref().map(|(t, _)| (scale_times.len(), t.len())),
+        });
+        times.extend(key_t.iter().map(|&t| t as f32));
+        moves.extend(key_p.iter().map(|&p| gltf_point(p)));
+        turns.extend(q);
+        if let Some((t, s)) = scale {
+            scale_times.extend(t.iter().map(|&t| t as f32));
+            scales.extend(s.iter().map(|&s| [s; 3]));
         }
     }
     let mut stander = 0;
@@ -122,6 +172,12 @@ pub fn world_glb(w: &World) -> Vec<u8> {
         let time_view = view(&mut root, &mut bin, bytes_of(&times), None);
         let move_view = view(&mut root, &mut bin, bytes_of_3(&moves), None);
         let turn_view = view(&mut root, &mut bin, bytes_of_4(&turns), None);
+        let scale_views = (!scales.is_empty()).then(|| {
+            (
+                view(&mut root, &mut bin, bytes_of(&scale_times), None),
+                view(&mut root, &mut bin, bytes_of_3(&scales), None),
+            )
+        });
         let mut animation = json::Animation {
             name: Some("crowd_loop".to_string()),
             extras: Some(
@@ -135,52 +191,54 @@ pub fn world_glb(w: &World) -> Vec<u8> {
             samplers: Vec::new(),
             extensions: None,
         };
+        let mut channel = |node, input, output, path, interpolation| {
+            let sampler = json::Index::new(animation.samplers.len() as u32);
+            animation.samplers.push(json::animation::Sampler {
+                input,
+                interpolation: Valid(interpolation),
+                output,
+                extensions: None,
+                extras: None,
+            });
+            animation.channels.push(json::animation::Channel {
+                sampler,
+                target: json::animation::Target {
+                    node,
+                    path: Valid(path),
+                    extensions: None,
+                    extras: None,
+                },
+                extensions: None,
+                extras: None,
+            });
+        };
+        use json::accessor::Type::{Scalar, Vec3, Vec4};
+        use json::animation::Interpolation::{Linear, Step};
+        use json::animation::Property::{Rotation, Scale, Translation};
         for tr in &tracks {
             let input = root.push(accessor(
                 time_view,
                 tr.first * 4,
                 tr.count,
-                json::accessor::Type::Scalar,
+                Scalar,
                 // Every track runs over the whole clip: keys at 0 and at the period.
                 Some((vec![0.0], vec![period as f32])),
             ));
-            let mut channel = |output, path| {
-                let sampler = json::Index::new(animation.samplers.len() as u32);
-                animation.samplers.push(json::animation::Sampler {
-                    input,
-                    interpolation: Valid(json::animation::Interpolation::Linear),
-                    output,
-                    extensions: None,
-                    extras: None,
-                });
-                animation.channels.push(json::animation::Channel {
-                    sampler,
-                    target: json::animation::Target {
-                        node: tr.node,
-                        path: Valid(path),
-                        extensions: None,
-                        extras: None,
-                    },
-                    extensions: None,
-                    extras: None,
-                });
-            };
-            for (view, size, type_, path) in [
-                (
-                    move_view,
-                    12,
-                    json::accessor::Type::Vec3,
-                    json::animation::Property::Translation,
-                ),
-                (
-                    turn_view,
-                    16,
-                    json::accessor::Type::Vec4,
-                    json::animation::Property::Rotation,
-                ),
-            ] {
-                let output = root.push(accessor(view, tr.first * size, tr.count, type_, None));
-                channel(output, path);
+            let output = root.push(accessor(move_view, tr.first * 12, tr.count, Vec3, None));
+            channel(tr.node, input, output, Translation, Linear);
+            let output = root.push(accessor(turn_view, tr.first * 16, tr.count, Vec4, None));
+            channel(tr.node, input, output, Rotation, Linear);
+            if let (Some((first, count)), Some((time_view, scale_view))) = (tr.scale, scale_views) {
+                let last = scale_times[first + count - 1];
+                let input = root.push(accessor(
+                    time_view,
+                    first * 4,
+                    count,
+                    Scalar,
+                    Some((vec![0.0], vec![last])),
+                ));
+                let output = root.push(accessor(scale_view, first * 12, count, Vec3, None));
+                channel(tr.node, input, output, Scale, Step);
             }
         }
         root.push(animation);
