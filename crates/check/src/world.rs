@@ -1,0 +1,248 @@
+//! The collision core of every check: walkers' pieces in world coordinates, standers and
+//! obstacle boxes, and the exact closest approach of every pair that comes near (a spatial
+//! grid of 4 m cells, `crowd_geometry::PieceGrid`), each pair counted once at its closest.
+//!
+//! Two ways walkers repeat in time: trajectories of a tiled world ([`Repeat::Periodic`]: every
+//! copy a whole number of periods apart, and a trajectory meets the one that continues it only
+//! at other shifts than the one where they are the same character), and the nodes of a looping
+//! clip ([`Repeat::Clip`]: every node plays over the same clip time, so pairs are compared at
+//! equal times only and a node never meets itself).
+
+use crowd_geometry::{self as geometry, PieceGrid, Segment};
+use glam::DVec2;
+use rayon::prelude::*;
+use std::collections::HashMap;
+
+/// One straight piece of a walker's path, in world metres and seconds.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Piece {
+    pub seg: Segment,
+    pub walker: u32,
+    pub patch: u32,
+    /// The crossings the walker's trajectory enters and leaves by, and when (unwrapped).
+    /// Only [`Repeat::Periodic`] reads them.
+    pub entry: (u32, f64),
+    pub exit: (u32, f64),
+}
+
+/// How the walkers of a scene repeat in time.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) enum Repeat {
+    /// Every walker forever, a period apart (the tiled world of the stage files and library).
+    Periodic(f64),
+    /// Every walker over one clip of this length, all at the same clip time (`world.glb`).
+    Clip(f64),
+}
+
+impl Repeat {
+    fn period(self) -> f64 {
+        match self {
+            Repeat::Periodic(p) | Repeat::Clip(p) => p,
+        }
+    }
+}
+
+/// Everything that takes up room in a world.
+pub(crate) struct Scene {
+    pub radius: f64,
+    pub repeat: Repeat,
+    pub pieces: Vec<Piece>,
+    pub standers: Vec<DVec2>,
+    /// Obstacle boxes, world metres (min, max).
+    pub walls: Vec<crate::Wall>,
+}
+
+/// How close the characters of a scene come.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct Clearance {
+    pub collisions: u64,
+    pub across_borders: u64,
+    pub min_clearance_m: f64,
+    pub worst_at: Option<(f64, f64, f64)>,
+}
+
+/// The period shifts at which `b`'s trajectory continues `a`'s or `a`'s continues `b`'s (the
+/// same character going on through the crossing between them; both when it goes back and
+/// forth).
+fn continuations(a: &Piece, b: &Piece, period: f64) -> [Option<i64>; 2] {
+    let shift = |x: f64, y: f64| Some(((x - y) / period).round() as i64);
+    [
+        if a.exit.0 == b.entry.0 {
+            shift(a.exit.1, b.entry.1)
+        } else {
+            None
+        },
+        if b.exit.0 == a.entry.0 {
+            shift(a.entry.1, b.exit.1)
+        } else {
+            None
+        },
+    ]
+}
+
+/// A pair's closest approach: distance, time, place, and whether in different patches.
+type Near = (f64, f64, DVec2, bool);
+/// A walker's closest approach to something standing still: clearance margin, time, place.
+type Margin = (f64, f64, DVec2);
+
+impl Scene {
+    /// The closest approach of pieces `a` and `b` over the copies that can meet, if any.
+    fn pair(&self, a: &Piece, b: &Piece) -> Option<(f64, f64, DVec2)> {
+        let (ks, skip) = match self.repeat {
+            Repeat::Clip(_) if a.walker == b.walker => return None,
+            Repeat::Clip(_) => (0..=0, [None; 3]),
+            Repeat::Periodic(period) => {
+                // A walker meets only its own copies a period or more apart, and the
+                // trajectory that continues it across a border (itself, when it leaves by the
+                // crossing it entered by) only at other shifts than the one where it is the
+                // same character going on.
+                let [x, y] = continuations(a, b, period);
+                let skip = [(a.walker == b.walker).then_some(0), x, y];
+                let ks = geometry::copies((a.seg.t0, a.seg.t1), (b.seg.t0, b.seg.t1), period);
+                (ks, skip)
+            }
+        };
+        let period = self.repeat.period();
+        ks.filter(|&k| !skip.contains(&Some(k)))
+            .filter_map(|k| {
+                let s = b.seg.shifted(k as f64 * period);
+                geometry::closest(&a.seg, &s).map(|(d, t)| (d, t, a.seg.at(t)))
+            })
+            .min_by(|x, y| x.0.total_cmp(&y.0))
+    }
+
+    /// Every walker pair within reach, at its closest, in pair order.
+    fn walker_pairs(&self) -> Vec<((u32, u32), Near)> {
+        let r = self.radius;
+        let grid = PieceGrid::new(self.pieces.iter().map(|p| &p.seg), 4.0, 2.0 * r);
+        // Found once each: in the cell holding the lower corner of their overlap.
+        let found: Vec<((u32, u32), Near)> = grid
+            .cells()
+            .par_iter()
+            .flat_map_iter(|(k, ids)| {
+                let mut out = Vec::new();
+                for (x, &i) in ids.iter().enumerate() {
+                    for &j in &ids[x + 1..] {
+                        let (a, b) = (&self.pieces[i as usize], &self.pieces[j as usize]);
+                        if !grid.owns(*k, &a.seg, &b.seg) {
+                            continue;
+                        }
+                        if let Some((d, t, at)) = self.pair(a, b)
+                            && d < 2.0 * r + 1.0
+                        {
+                            let key = (a.walker.min(b.walker), a.walker.max(b.walker));
+                            out.push((key, (d, t, at, a.patch != b.patch)));
+                        }
+                    }
+                }
+                out.into_iter()
+            })
+            .collect();
+        closest_per_key(found)
+    }
+
+    /// Every walker against every stander and obstacle within reach (they stand still: no
+    /// copies), each pair at its closest however many pieces of the walker come near:
+    /// clearance margin, time, place.
+    fn fixed_pairs(&self) -> Vec<((u32, Fixed), Margin)> {
+        let r = self.radius;
+        let found: Vec<((u32, Fixed), Margin)> = self
+            .pieces
+            .par_iter()
+            .flat_map_iter(|piece| {
+                let s = &piece.seg;
+                let mut out = Vec::new();
+                for (i, &q) in self.standers.iter().enumerate() {
+                    if let Some((d, t)) = geometry::closest(s, &Segment::standing(q, s.t0, s.t1))
+                        && d < 2.0 * r + 1.0
+                    {
+                        let key = (piece.walker, Fixed::Stander(i as u32));
+                        out.push((key, (d - 2.0 * r, t, s.at(t))));
+                    }
+                }
+                for (i, &(lo, hi)) in self.walls.iter().enumerate() {
+                    if (s.p0.min(s.p1) - hi).max_element() > r + 1.0
+                        || (lo - s.p0.max(s.p1)).max_element() > r + 1.0
+                    {
+                        continue;
+                    }
+                    let (d, t, _) = geometry::to_rect(s, lo, hi);
+                    if d < r + 1.0 {
+                        out.push(((piece.walker, Fixed::Wall(i as u32)), (d - r, t, s.at(t))));
+                    }
+                }
+                out.into_iter()
+            })
+            .collect();
+        closest_per_key(found)
+    }
+
+    /// Collisions and the smallest clearance over every pair, added up in pair order.
+    pub fn clearance(&self) -> Clearance {
+        let period = self.repeat.period();
+        let mut c = Clearance {
+            collisions: 0,
+            across_borders: 0,
+            min_clearance_m: f64::INFINITY,
+            worst_at: None,
+        };
+        let mut note = |margin: f64, at: DVec2, t: f64, across: bool| {
+            if margin < -1e-6 {
+                c.collisions += 1;
+                c.across_borders += across as u64;
+            }
+            if margin < c.min_clearance_m {
+                c.min_clearance_m = margin;
+                c.worst_at = Some((at.x, at.y, t.rem_euclid(period)));
+            }
+        };
+        for (_, (d, t, at, across)) in self.walker_pairs() {
+            note(d - 2.0 * self.radius, at, t, across);
+        }
+        for (_, (margin, t, at)) in self.fixed_pairs() {
+            note(margin, at, t, false);
+        }
+        c
+    }
+}
+
+/// The smallest-first entry of each key, sorted by key (so sums over them do not depend on
+/// how the parallel work was split).
+fn closest_per_key<K: Ord + std::hash::Hash + Copy, V: Copy + First>(
+    found: Vec<(K, V)>,
+) -> Vec<(K, V)> {
+    let mut closest: HashMap<K, V> = HashMap::new();
+    for (k, v) in found {
+        let e = closest.entry(k).or_insert(v);
+        if v.first() < e.first() {
+            *e = v;
+        }
+    }
+    let mut pairs: Vec<_> = closest.into_iter().collect();
+    pairs.sort_by_key(|(k, _)| *k);
+    pairs
+}
+
+/// A tuple's first field: the distance or margin pairs are compared by.
+trait First {
+    fn first(&self) -> f64;
+}
+
+impl First for Near {
+    fn first(&self) -> f64 {
+        self.0
+    }
+}
+
+impl First for Margin {
+    fn first(&self) -> f64 {
+        self.0
+    }
+}
+
+/// What stands still in the world: a stander or an obstacle box, by index.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+enum Fixed {
+    Stander(u32),
+    Wall(u32),
+}
