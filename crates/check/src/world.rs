@@ -8,7 +8,7 @@
 //! clip ([`Repeat::Clip`]: every node plays over the same clip time, so pairs are compared at
 //! equal times only and a node never meets itself).
 
-use crowd_geometry::{self as geometry, PieceGrid, Segment};
+use crowd_geometry::{self as geometry, BoxGrid, PieceGrid, Segment};
 use glam::DVec2;
 use rayon::prelude::*;
 use std::collections::HashMap;
@@ -111,6 +111,51 @@ impl Scene {
             .min_by(|x, y| x.0.total_cmp(&y.0))
     }
 
+    /// The pairs of pieces `ids` (ascending) whose times overlap, modulo the period when
+    /// walkers repeat: `(lower, higher)` indices, each once, ascending. A piece's time span is
+    /// swept against the others' starts (sorted), so a cell's pieces are not all compared with
+    /// all: they are spread over the whole period. Spans are widened by a nanosecond so that
+    /// rounding in the modulo never drops a pair that [`Scene::pair`] would compare.
+    fn coexisting(&self, ids: &[u32]) -> Vec<(u32, u32)> {
+        const WIDEN: f64 = 1e-9;
+        let (period, periodic) = match self.repeat {
+            Repeat::Periodic(p) => (p, true),
+            Repeat::Clip(p) => (p, false),
+        };
+        let mut spans: Vec<(f64, f64, u32)> = ids
+            .iter()
+            .map(|&i| {
+                let s = &self.pieces[i as usize].seg;
+                let start = if periodic {
+                    s.t0.rem_euclid(period)
+                } else {
+                    s.t0
+                };
+                (start, start + (s.t1 - s.t0) + WIDEN, i)
+            })
+            .collect();
+        spans.sort_by(|x, y| x.0.total_cmp(&y.0).then(x.2.cmp(&y.2)));
+        let mut out = Vec::new();
+        for (x, &(start, end, i)) in spans.iter().enumerate() {
+            let pair = |j: u32| (i.min(j), i.max(j));
+            if periodic && end - start >= period {
+                out.extend(spans.iter().filter(|o| o.2 != i).map(|o| pair(o.2)));
+                continue;
+            }
+            // Those starting during this one: after it in order, and from the period's start
+            // again when it runs past the period's end.
+            let later = spans[x + 1..].iter().take_while(|o| o.0 <= end);
+            out.extend(later.map(|o| pair(o.2)));
+            if periodic && end > period {
+                let wrapped = spans[..x].iter().take_while(|o| o.0 <= end - period);
+                out.extend(wrapped.map(|o| pair(o.2)));
+            }
+        }
+        out.sort_unstable();
+        out.dedup();
+        out
+    }
+
     /// Every walker pair within reach, at its closest, in pair order.
     fn walker_pairs(&self) -> Vec<((u32, u32), Near)> {
         let r = self.radius;
@@ -121,18 +166,16 @@ impl Scene {
             .par_iter()
             .flat_map_iter(|(k, ids)| {
                 let mut out = Vec::new();
-                for (x, &i) in ids.iter().enumerate() {
-                    for &j in &ids[x + 1..] {
-                        let (a, b) = (&self.pieces[i as usize], &self.pieces[j as usize]);
-                        if !grid.owns(*k, &a.seg, &b.seg) {
-                            continue;
-                        }
-                        if let Some((d, t, at)) = self.pair(a, b)
-                            && d < 2.0 * r + 1.0
-                        {
-                            let key = (a.walker.min(b.walker), a.walker.max(b.walker));
-                            out.push((key, (d, t, at, a.patch != b.patch)));
-                        }
+                for (i, j) in self.coexisting(ids) {
+                    let (a, b) = (&self.pieces[i as usize], &self.pieces[j as usize]);
+                    if !grid.owns(*k, &a.seg, &b.seg) {
+                        continue;
+                    }
+                    if let Some((d, t, at)) = self.pair(a, b)
+                        && d < 2.0 * r + 1.0
+                    {
+                        let key = (a.walker.min(b.walker), a.walker.max(b.walker));
+                        out.push((key, (d, t, at, a.patch != b.patch)));
                     }
                 }
                 out.into_iter()
@@ -146,29 +189,29 @@ impl Scene {
     /// clearance margin, time, place.
     fn fixed_pairs(&self) -> Vec<((u32, Fixed), Margin)> {
         let r = self.radius;
+        let standers = BoxGrid::new(self.standers.iter().map(|&q| (q, q)), 2.0 * r + 1.0);
+        let walls = BoxGrid::new(self.walls.iter().copied(), r + 1.0);
         let found: Vec<((u32, Fixed), Margin)> = self
             .pieces
             .par_iter()
             .flat_map_iter(|piece| {
                 let s = &piece.seg;
+                let (lo, hi) = (s.p0.min(s.p1), s.p0.max(s.p1));
                 let mut out = Vec::new();
-                for (i, &q) in self.standers.iter().enumerate() {
+                for i in standers.near(lo, hi) {
+                    let q = self.standers[i as usize];
                     if let Some((d, t)) = geometry::closest(s, &Segment::standing(q, s.t0, s.t1))
                         && d < 2.0 * r + 1.0
                     {
-                        let key = (piece.walker, Fixed::Stander(i as u32));
+                        let key = (piece.walker, Fixed::Stander(i));
                         out.push((key, (d - 2.0 * r, t, s.at(t))));
                     }
                 }
-                for (i, &(lo, hi)) in self.walls.iter().enumerate() {
-                    if (s.p0.min(s.p1) - hi).max_element() > r + 1.0
-                        || (lo - s.p0.max(s.p1)).max_element() > r + 1.0
-                    {
-                        continue;
-                    }
-                    let (d, t, _) = geometry::to_rect(s, lo, hi);
+                for i in walls.near(lo, hi) {
+                    let (min, max) = self.walls[i as usize];
+                    let (d, t, _) = geometry::to_rect(s, min, max);
                     if d < r + 1.0 {
-                        out.push(((piece.walker, Fixed::Wall(i as u32)), (d - r, t, s.at(t))));
+                        out.push(((piece.walker, Fixed::Wall(i)), (d - r, t, s.at(t))));
                     }
                 }
                 out.into_iter()
@@ -208,13 +251,13 @@ impl Scene {
 
 /// The smallest-first entry of each key, sorted by key (so sums over them do not depend on
 /// how the parallel work was split).
-fn closest_per_key<K: Ord + std::hash::Hash + Copy, V: Copy + First>(
+fn closest_per_key<K: Ord + std::hash::Hash + Copy, V: Copy + Closer>(
     found: Vec<(K, V)>,
 ) -> Vec<(K, V)> {
     let mut closest: HashMap<K, V> = HashMap::new();
     for (k, v) in found {
         let e = closest.entry(k).or_insert(v);
-        if v.first() < e.first() {
+        if v.closer(e) {
             *e = v;
         }
     }
@@ -223,20 +266,30 @@ fn closest_per_key<K: Ord + std::hash::Hash + Copy, V: Copy + First>(
     pairs
 }
 
-/// A tuple's first field: the distance or margin pairs are compared by.
-trait First {
-    fn first(&self) -> f64;
+/// Which of two approaches of one pair is kept: the smaller distance (or margin), then the
+/// earlier time and the lower place, so that the kept one does not depend on the order they
+/// were found in.
+trait Closer {
+    fn closer(&self, other: &Self) -> bool;
 }
 
-impl First for Near {
-    fn first(&self) -> f64 {
-        self.0
+fn closer(a: (f64, f64, DVec2), b: (f64, f64, DVec2)) -> bool {
+    let order = a.0.total_cmp(&b.0).then(a.1.total_cmp(&b.1));
+    let order = order
+        .then(a.2.x.total_cmp(&b.2.x))
+        .then(a.2.y.total_cmp(&b.2.y));
+    order.is_lt()
+}
+
+impl Closer for Near {
+    fn closer(&self, o: &Self) -> bool {
+        closer((self.0, self.1, self.2), (o.0, o.1, o.2))
     }
 }
 
-impl First for Margin {
-    fn first(&self) -> f64 {
-        self.0
+impl Closer for Margin {
+    fn closer(&self, o: &Self) -> bool {
+        closer(*self, *o)
     }
 }
 
@@ -245,4 +298,60 @@ impl First for Margin {
 enum Fixed {
     Stander(u32),
     Wall(u32),
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    fn scene(spans: &[(f64, f64)], repeat: Repeat) -> Scene {
+        let pieces = spans
+            .iter()
+            .enumerate()
+            .map(|(i, &(t0, dt))| Piece {
+                seg: Segment::standing(DVec2::ZERO, t0, t0 + dt),
+                walker: i as u32,
+                patch: 0,
+                entry: (0, 0.0),
+                exit: (0, 0.0),
+            })
+            .collect();
+        Scene {
+            radius: 0.3,
+            repeat,
+            pieces,
+            standers: vec![],
+            walls: vec![],
+        }
+    }
+
+    proptest! {
+        /// The time sweep keeps every pair of pieces that exist at a common time (modulo the
+        /// period, when walkers repeat): every pair `Scene::pair` would find a copy of.
+        #[test]
+        fn the_sweep_keeps_every_pair_that_coexists(
+            spans in proptest::collection::vec((0.0f64..60.0, 0.0f64..25.0), 2..30),
+            periodic in any::<bool>(),
+        ) {
+            let repeat = if periodic { Repeat::Periodic(20.0) } else { Repeat::Clip(20.0) };
+            let s = scene(&spans, repeat);
+            let ids: Vec<u32> = (0..spans.len() as u32).collect();
+            let kept = s.coexisting(&ids);
+            prop_assert!(kept.windows(2).all(|w| w[0] < w[1]));
+            for i in 0..spans.len() {
+                for j in i + 1..spans.len() {
+                    let (a, b) = (&s.pieces[i].seg, &s.pieces[j].seg);
+                    let meet = if periodic {
+                        !geometry::copies((a.t0, a.t1), (b.t0, b.t1), 20.0).is_empty()
+                    } else {
+                        a.t0.max(b.t0) <= a.t1.min(b.t1)
+                    };
+                    if meet {
+                        prop_assert!(kept.contains(&(i as u32, j as u32)), "{} {}", i, j);
+                    }
+                }
+            }
+        }
+    }
 }
