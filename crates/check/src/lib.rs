@@ -21,7 +21,7 @@ use crowd_core::trajectories::PatchMotion;
 use crowd_geometry as geometry;
 use glam::DVec2;
 pub use products::{ProductFigures, Sampled};
-use world::{Piece, Repeat, Scene};
+use world::{Ends, Piece, Repeat, Scene};
 
 /// What the check found.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -64,6 +64,7 @@ pub fn check(graph: &PatchGraph, motion: &[PatchMotion], period_s: f64) -> Check
         radius: graph.radius_m,
         repeat: Repeat::Periodic(period_s),
         pieces: Vec::new(),
+        ends: Vec::new(),
         standers: Vec::new(),
         walls: walls(graph),
     };
@@ -78,10 +79,12 @@ pub fn check(graph: &PatchGraph, motion: &[PatchMotion], period_s: f64) -> Check
                     seg,
                     walker,
                     patch: p as u32,
-                    entry: (tr.entry, first),
-                    exit: (tr.exit, last),
                 });
             }
+            scene.ends.push(Ends {
+                entry: (tr.entry, first),
+                exit: (tr.exit, last),
+            });
             walker += 1;
         }
         scene

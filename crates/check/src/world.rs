@@ -19,8 +19,11 @@ pub(crate) struct Piece {
     pub seg: Segment,
     pub walker: u32,
     pub patch: u32,
-    /// The crossings the walker's trajectory enters and leaves by, and when (unwrapped).
-    /// Only [`Repeat::Periodic`] reads them.
+}
+
+/// The crossings a walker's trajectory enters and leaves by, and when (unwrapped).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Ends {
     pub entry: (u32, f64),
     pub exit: (u32, f64),
 }
@@ -47,6 +50,8 @@ pub(crate) struct Scene {
     pub radius: f64,
     pub repeat: Repeat,
     pub pieces: Vec<Piece>,
+    /// Each walker's ends, by walker ([`Repeat::Periodic`] only).
+    pub ends: Vec<Ends>,
     pub standers: Vec<DVec2>,
     /// Obstacle boxes, world metres (min, max).
     pub walls: Vec<crate::Wall>,
@@ -64,7 +69,7 @@ pub(crate) struct Clearance {
 /// The period shifts at which `b`'s trajectory continues `a`'s or `a`'s continues `b`'s (the
 /// same character going on through the crossing between them; both when it goes back and
 /// forth).
-fn continuations(a: &Piece, b: &Piece, period: f64) -> [Option<i64>; 2] {
+fn continuations(a: &Ends, b: &Ends, period: f64) -> [Option<i64>; 2] {
     let shift = |x: f64, y: f64| Some(((x - y) / period).round() as i64);
     [
         if a.exit.0 == b.entry.0 {
@@ -96,7 +101,8 @@ impl Scene {
                 // trajectory that continues it across a border (itself, when it leaves by the
                 // crossing it entered by) only at other shifts than the one where it is the
                 // same character going on.
-                let [x, y] = continuations(a, b, period);
+                let ends = |p: &Piece| &self.ends[p.walker as usize];
+                let [x, y] = continuations(ends(a), ends(b), period);
                 let skip = [(a.walker == b.walker).then_some(0), x, y];
                 let ks = geometry::copies((a.seg.t0, a.seg.t1), (b.seg.t0, b.seg.t1), period);
                 (ks, skip)
@@ -160,6 +166,7 @@ impl Scene {
     fn walker_pairs(&self) -> Vec<((u32, u32), Near)> {
         let r = self.radius;
         let grid = PieceGrid::new(self.pieces.iter().map(|p| &p.seg), 4.0, 2.0 * r);
+        let reach = 2.0 * r + 1.0;
         // Found once each: in the cell holding the lower corner of their overlap.
         let found: Vec<((u32, u32), Near)> = grid
             .cells()
@@ -168,11 +175,16 @@ impl Scene {
                 let mut out = Vec::new();
                 for (i, j) in self.coexisting(ids) {
                     let (a, b) = (&self.pieces[i as usize], &self.pieces[j as usize]);
-                    if !grid.owns(*k, &a.seg, &b.seg) {
+                    // Paths farther apart along an axis than the reach are farther apart.
+                    let (la, ha) = (a.seg.p0.min(a.seg.p1), a.seg.p0.max(a.seg.p1));
+                    let (lb, hb) = (b.seg.p0.min(b.seg.p1), b.seg.p0.max(b.seg.p1));
+                    if (lb - ha).max(la - hb).max_element() >= reach
+                        || !grid.owns(*k, &a.seg, &b.seg)
+                    {
                         continue;
                     }
                     if let Some((d, t, at)) = self.pair(a, b)
-                        && d < 2.0 * r + 1.0
+                        && d < reach
                     {
                         let key = (a.walker.min(b.walker), a.walker.max(b.walker));
                         out.push((key, (d, t, at, a.patch != b.patch)));
@@ -200,6 +212,9 @@ impl Scene {
                 let mut out = Vec::new();
                 for i in standers.near(lo, hi) {
                     let q = self.standers[i as usize];
+                    if (q - hi).max(lo - q).max_element() >= 2.0 * r + 1.0 {
+                        continue;
+                    }
                     if let Some((d, t)) = geometry::closest(s, &Segment::standing(q, s.t0, s.t1))
                         && d < 2.0 * r + 1.0
                     {
@@ -209,6 +224,9 @@ impl Scene {
                 }
                 for i in walls.near(lo, hi) {
                     let (min, max) = self.walls[i as usize];
+                    if (min - hi).max(lo - max).max_element() > r + 1.0 {
+                        continue; // farther apart along an axis than the reach
+                    }
                     let (d, t, _) = geometry::to_rect(s, min, max);
                     if d < r + 1.0 {
                         out.push(((piece.walker, Fixed::Wall(i)), (d - r, t, s.at(t))));
@@ -313,14 +331,13 @@ mod tests {
                 seg: Segment::standing(DVec2::ZERO, t0, t0 + dt),
                 walker: i as u32,
                 patch: 0,
-                entry: (0, 0.0),
-                exit: (0, 0.0),
             })
             .collect();
         Scene {
             radius: 0.3,
             repeat,
             pieces,
+            ends: vec![],
             standers: vec![],
             walls: vec![],
         }

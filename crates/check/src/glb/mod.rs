@@ -150,6 +150,7 @@ pub fn figures(bytes: &[u8], inputs: &Inputs) -> Result<ProductFigures, GlbError
         radius: inputs.radius_m,
         repeat: Repeat::Clip(clip),
         pieces: Vec::new(),
+        ends: Vec::new(),
         standers: nodes.standers.clone(),
         walls: inputs.walls.to_vec(),
     };
@@ -159,8 +160,6 @@ pub fn figures(bytes: &[u8], inputs: &Inputs) -> Result<ProductFigures, GlbError
                 seg,
                 walker: i as u32,
                 patch: 0,
-                entry: (0, 0.0),
-                exit: (0, 0.0),
             });
         }
     }

@@ -7,7 +7,7 @@
 //! `Sampler` played frame after frame.
 
 use crate::products::{OPEN_GAP_M, ProductFigures, Sampled, Seams, Tally, velocity};
-use crate::world::{Clearance, Piece, Repeat, Scene};
+use crate::world::{Clearance, Ends, Piece, Repeat, Scene};
 use crowd_geometry as geometry;
 use crowd_runtime::{Library, Sample, Sampler, TICK_S};
 use glam::DVec2;
@@ -84,6 +84,7 @@ fn clearance(lib: &Library, paths: &[Vec<(DVec2, f64)>], walls: &[crate::Wall]) 
         radius: f64::from(lib.world.radius_m),
         repeat: Repeat::Periodic(lib.period_s()),
         pieces: Vec::new(),
+        ends: Vec::new(),
         standers: Vec::new(),
         walls: walls.to_vec(),
     };
@@ -94,10 +95,12 @@ fn clearance(lib: &Library, paths: &[Vec<(DVec2, f64)>], walls: &[crate::Wall]) 
                 seg,
                 walker: i as u32,
                 patch: t.patch,
-                entry: (t.entry, first),
-                exit: (t.exit, last),
             });
         }
+        scene.ends.push(Ends {
+            entry: (t.entry, first),
+            exit: (t.exit, last),
+        });
     }
     for patch in &lib.patches {
         let first = patch.first_stander as usize;
