@@ -93,6 +93,25 @@ pub(crate) fn velocity(a: (DVec2, f64), b: (DVec2, f64), min_dt: f64) -> DVec2 {
     }
 }
 
+/// The pieces of a path an engine shows: consecutive points but those repeated at the same
+/// time and place (a split point on an entry, say), which last no time and go nowhere.
+pub(crate) fn pieces(
+    pts: &[(DVec2, f64)],
+) -> impl DoubleEndedIterator<Item = ((DVec2, f64), (DVec2, f64))> + '_ {
+    pts.windows(2)
+        .map(|w| (w[0], w[1]))
+        .filter(|(a, b)| a.1 < b.1 || a.0 != b.0)
+}
+
+/// The velocities a path starts and ends with (its first and last pieces that are shown;
+/// standing when it has none).
+pub(crate) fn end_velocities(pts: &[(DVec2, f64)], min_dt: f64) -> (DVec2, DVec2) {
+    let v = |p: Option<((DVec2, f64), (DVec2, f64))>| {
+        p.map_or(DVec2::ZERO, |(a, b)| velocity(a, b, min_dt))
+    };
+    (v(pieces(pts).next()), v(pieces(pts).next_back()))
+}
+
 impl Tally {
     /// Tallies `paths` (world points and seconds each), in parallel and added in order.
     pub fn of(paths: &[Vec<(DVec2, f64)>], limit: f64, min_dt: f64, period: f64) -> Tally {
@@ -110,7 +129,8 @@ impl Tally {
 
     fn path(&mut self, pts: &[(DVec2, f64)], limit: f64, min_dt: f64, period: f64) {
         let mut before: Option<DVec2> = None;
-        for w in pts.windows(2) {
+        for w in pieces(pts) {
+            let w = [w.0, w.1];
             let v = velocity(w[0], w[1], min_dt);
             let (speed, dt) = (v.length(), w[1].1 - w[0].1);
             if speed > STANDING {
@@ -205,6 +225,19 @@ mod tests {
         let p = path(&[(0.0, 0.0, 0.0), (1.0, 0.0, 1.0), (1.5, 0.0, 1.0)]);
         let t = Tally::of(&[p], 1.89, 1e-4, 20.0);
         assert!((t.max_speed - 5000.0).abs() < 1e-6, "{}", t.max_speed);
+    }
+
+    #[test]
+    fn a_point_repeated_at_the_same_time_and_place_is_no_stop() {
+        let p = path(&[
+            (0.0, 0.0, 0.0),
+            (0.0, 0.0, 0.0),
+            (1.0, 0.0, 1.0),
+            (1.0, 0.0, 1.0),
+        ]);
+        let t = Tally::of(std::slice::from_ref(&p), 1.89, 1e-4, 20.0);
+        assert_eq!(t.max_jump, 0.0);
+        assert_eq!(end_velocities(&p, 1e-4), (DVec2::X, DVec2::X));
     }
 
     #[test]

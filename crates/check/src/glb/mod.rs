@@ -10,7 +10,7 @@
 //! Nodes are read as roots of the scene, each with its own transform: `world.glb`'s are
 //! (children are not composed with their parents).
 
-use crate::products::{OPEN_GAP_M, ProductFigures, Seams, Tally, velocity};
+use crate::products::{OPEN_GAP_M, ProductFigures, Seams, Tally, end_velocities};
 use crate::world::{Piece, Repeat, Scene};
 use crowd_geometry as geometry;
 use glam::{DQuat, DVec2};
@@ -239,9 +239,8 @@ fn handovers(tracks: &[Track]) -> Seams {
             continue;
         };
         let n = &tracks[next];
-        let k = t.path.len();
-        let v_in = velocity(t.path[k - 2], t.path[k - 1], MIN_DT);
-        let v_out = velocity(n.path[0], n.path[1], MIN_DT);
+        let v_in = end_velocities(&t.path, MIN_DT).1;
+        let v_out = end_velocities(&n.path, MIN_DT).0;
         let heading = match (t.turns.last(), n.turns.first()) {
             (Some(a), Some(b)) => angle(a.0, b.0),
             _ => 0.0,

@@ -6,7 +6,7 @@
 //! its `next` (a border) and every loop's end to its start (the seam), and the runtime's own
 //! `Sampler` played frame after frame.
 
-use crate::products::{OPEN_GAP_M, ProductFigures, Sampled, Seams, Tally, velocity};
+use crate::products::{OPEN_GAP_M, ProductFigures, Sampled, Seams, Tally, end_velocities};
 use crate::world::{Clearance, Ends, Piece, Repeat, Scene};
 use crowd_geometry as geometry;
 use crowd_runtime::{Library, Sample, Sampler, TICK_S};
@@ -126,9 +126,8 @@ fn handovers(lib: &Library, paths: &[Vec<(DVec2, f64)>]) -> (Seams, Seams) {
     let (mut borders, mut seams) = (Seams::default(), Seams::default());
     for (i, t) in lib.trajectories.iter().enumerate() {
         let (a, b) = (&paths[i], &paths[t.next as usize]);
-        let n = a.len();
-        let end = (a[n - 1].0, velocity(a[n - 2], a[n - 1], TICK_S));
-        let start = (b[0].0, velocity(b[0], b[1], TICK_S));
+        let end = (a[a.len() - 1].0, end_velocities(a, TICK_S).1);
+        let start = (b[0].0, end_velocities(b, TICK_S).0);
         if last_of_loop[i] {
             seams.note(end, start);
             seams.open += u64::from(end.0.distance(start.0) > OPEN_GAP_M);
