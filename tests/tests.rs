@@ -6,6 +6,7 @@ mod util;
 
 mod bad_input;
 mod build;
+mod check;
 mod export;
 mod export_clip;
 mod golden;

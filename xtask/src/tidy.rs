@@ -22,6 +22,11 @@ const JUSTIFIED: &[(&str, &str, &str)] = &[
         "crowd-runtime",
         "the library is written in the runtime's own format (FORMAT.md)",
     ),
+    (
+        "crowd-check",
+        "crowd-runtime",
+        "the check reads what ships as an engine does, through the runtime",
+    ),
 ];
 
 /// Crates every stage may use: the vocabulary and the space-time geometry.

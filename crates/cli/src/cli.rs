@@ -41,6 +41,10 @@ pub enum Command {
         /// Stop after this stage.
         #[arg(long, value_name = "STAGE", value_parser = stage::parser())]
         until: Option<&'static Stage>,
+        /// Do not check the build after stage 8 (`crowd check`: the final trajectories,
+        /// `library.crowd` and `world.glb`, into `check.ron` and `report.md`).
+        #[arg(long)]
+        no_check: bool,
     },
     /// The stages one at a time: `crowd merge`, `crowd graph`, ... (one subcommand per entry
     /// of the stage table).
@@ -59,12 +63,17 @@ pub enum Command {
         patch: Option<u32>,
     },
     /// Check a build folder's world as an engine plays it: every pair, every time, across
-    /// borders too; writes `check.ron` beside the stage files.
+    /// borders too, on the latest trajectories and on what ships (`library.crowd`,
+    /// `world.glb`); writes `check.ron` beside the stage files.
     Check {
         dir: PathBuf,
         /// The stage whose trajectories to check (default: the latest in the folder).
         #[arg(long, value_name = "STAGE", value_parser = stage::parser_among(&stages::TRAJECTORY_STAGES))]
         stage: Option<&'static Stage>,
+        /// The build's pipeline, for its `match.max_speed` (default: 1.8 m/s); shipped speeds
+        /// are held to 5 % above it.
+        #[arg(long, value_name = "FILE")]
+        pipeline: Option<PathBuf>,
     },
     /// The figures of a build folder (`--json` for one JSON object).
     Report {
@@ -236,17 +245,20 @@ pub fn run(cli: Cli) -> Result<()> {
             force,
             output,
             until,
+            no_check,
         } => {
-            let out = match &output {
-                Some(dir) => dir.clone(),
-                None => PipelineFile::load(&pipeline)?.output_dir(),
-            };
+            let file = PipelineFile::load(&pipeline)?;
+            let out = output.clone().unwrap_or_else(|| file.output_dir());
             let options = BuildOptions {
                 force,
                 output,
                 until,
             };
             driver::build(&pipeline, &options, &ui)?;
+            if !no_check && stage::up_to(until).any(|s| *s == stages::EXPORT) {
+                let max_speed = file.pipeline.matching.max_speed;
+                crate::check::after_build(&out, max_speed, force, &ui)?;
+            }
             let scope = crate::report::Scope { last: until };
             let report = crate::report_md::write(&out, scope)?;
             ui.say(format!("  report: {}", report.display()));
@@ -265,11 +277,14 @@ pub fn run(cli: Cli) -> Result<()> {
             driver::run_stage(stage, &p, input, output, &ui)?;
         }
         Command::Inspect { file } => print!("{}", crate::inspect::inspect(&file)?),
-        Command::Check { dir, stage } => {
-            let report = crate::report::check(&dir, stage)?;
-            crate::report_md::write(&dir, Default::default())?;
-            print!("{}", crate::report::check_summary(&report));
-        }
+        Command::Check {
+            dir,
+            stage,
+            pipeline,
+        } => print!(
+            "{}",
+            crate::check::command(&dir, stage, pipeline.as_deref())?
+        ),
         Command::Render {
             file,
             output,

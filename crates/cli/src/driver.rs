@@ -124,7 +124,7 @@ pub fn run_stage(
 }
 
 /// Runs `run`, measuring its wall time and the most memory the process held meanwhile.
-fn timed<T>(run: impl FnOnce() -> Result<T>) -> Result<(T, StageRun)> {
+pub(crate) fn timed<T>(run: impl FnOnce() -> Result<T>) -> Result<(T, StageRun)> {
     memory::reset_peak();
     let start = Instant::now();
     let value = run()?;

@@ -1,5 +1,6 @@
 //! `crowd report`: the figures a build folder holds so far, as text or one JSON object.
 
+use crate::check::CHECK_FILE;
 use crate::driver::{StageRun, read_timings};
 use crate::stage::{self, Stage};
 use crate::stages::{
@@ -7,6 +8,7 @@ use crate::stages::{
     TRAJECTORIES_FILE,
 };
 use anyhow::{Context, Result, bail};
+use crowd_check::ProductFigures;
 use crowd_core::PatchGraph;
 use crowd_core::files;
 use crowd_core::patterns::Patterns;
@@ -180,6 +182,11 @@ impl Report {
                 out.insert("unmatched_crossings".into(), json!(m.unmatched_crossings));
             }
         }
+        for (prefix, p) in [("library", &c_library(self)), ("gltf", &c_gltf(self))] {
+            for (key, value) in p.iter().flat_map(product_json) {
+                out.insert(format!("{prefix}_{key}"), value);
+            }
+        }
         if let Some(s) = self.smoothed.as_ref().and_then(|s| s.smoothing.as_ref()) {
             out.insert("smoothed_trajectories".into(), json!(s.smoothed));
             out.insert("kept_straight".into(), json!(s.kept_straight));
@@ -231,6 +238,88 @@ impl Report {
     }
 }
 
+fn c_library(r: &Report) -> Option<ProductFigures> {
+    r.check.as_ref().and_then(|c| c.library.clone())
+}
+
+fn c_gltf(r: &Report) -> Option<ProductFigures> {
+    r.check.as_ref().and_then(|c| c.gltf.clone())
+}
+
+/// A shipped file's figures in the report: JSON key (after `library_` or `gltf_`) and label.
+pub const PRODUCT_ROWS: [(&str, &str); 16] = [
+    ("collisions", "collisions"),
+    ("min_clearance_m", "smallest clearance (m)"),
+    ("max_speed", "largest speed (m/s)"),
+    ("speed_limit", "speed limit, `match.max_speed` + 5 % (m/s)"),
+    ("share_above_speed_limit", "share of walking time above it"),
+    (
+        "max_key_velocity_jump",
+        "largest velocity jump at a key (m/s)",
+    ),
+    (
+        "max_border_velocity_jump",
+        "largest velocity jump at a border (m/s)",
+    ),
+    ("max_border_gap_m", "largest gap at a border (m)"),
+    (
+        "max_seam_velocity_jump",
+        "largest velocity jump at a seam (m/s)",
+    ),
+    (
+        "max_seam_heading_jump_rad",
+        "largest heading jump at a seam (rad)",
+    ),
+    ("max_seam_gap_m", "largest gap at a seam (m)"),
+    ("loops", "loops (glTF: animated nodes)"),
+    ("open_loops", "open loops (end 1 cm or more from any start)"),
+    (
+        "max_turn_rate_rad_s",
+        "fastest turn between rotation keys (rad/s)",
+    ),
+    ("sampled_max_speed", "runtime's sampler: fastest step (m/s)"),
+    (
+        "sampler_jumps",
+        "runtime's sampler: steps beyond the fastest piece",
+    ),
+];
+
+/// The figures of [`PRODUCT_ROWS`] a shipped file has.
+fn product_json(p: &ProductFigures) -> Vec<(&'static str, Value)> {
+    let mut v = vec![
+        ("collisions", json!(p.collisions)),
+        ("min_clearance_m", json!(p.min_clearance_m)),
+        ("max_speed", json!(p.max_speed_m_s)),
+        ("speed_limit", json!(p.speed_limit_m_s)),
+        ("share_above_speed_limit", json!(p.share_above_limit)),
+        ("max_key_velocity_jump", json!(p.max_key_velocity_jump)),
+        ("max_seam_velocity_jump", json!(p.max_seam_velocity_jump)),
+        (
+            "max_seam_heading_jump_rad",
+            json!(p.max_seam_heading_jump_rad),
+        ),
+        ("max_seam_gap_m", json!(p.max_seam_gap_m)),
+        ("loops", json!(p.loops)),
+        ("open_loops", json!(p.open_loops)),
+    ];
+    let sampled = p.sampled.as_ref();
+    let optional = [
+        (
+            "max_border_velocity_jump",
+            p.max_border_velocity_jump.map(|x| json!(x)),
+        ),
+        ("max_border_gap_m", p.max_border_gap_m.map(|x| json!(x))),
+        (
+            "max_turn_rate_rad_s",
+            p.max_turn_rate_rad_s.map(|x| json!(x)),
+        ),
+        ("sampled_max_speed", sampled.map(|s| json!(s.max_speed_m_s))),
+        ("sampler_jumps", sampled.map(|s| json!(s.jumps))),
+    ];
+    v.extend(optional.into_iter().filter_map(|(k, x)| Some((k, x?))));
+    v
+}
+
 /// Columns of [`Report::table_row`].
 pub const TABLE_HEADER: &str = "| scene | patches | walkers requested | walkers measured | standers | \
 iterations | optimise (s) | match (s) | E_rho | E_d | E |\n\
@@ -267,74 +356,3 @@ impl Report {
         )
     }
 }
-
-/// `crowd check DIR`: checks the trajectories of a build folder written by `stage` (default:
-/// the latest there is: smoothed, else collided, else matched) and writes `check.ron`.
-pub fn check(dir: &Path, stage: Option<&'static Stage>) -> Result<crowd_check::CheckReport> {
-    let graph = PatchGraph::load(&dir.join(GRAPH_FILE))?;
-    let Some(chosen) = stages::TRAJECTORY_STAGES
-        .iter()
-        .copied()
-        .find(|c| stage.map_or(dir.join(c.output).exists(), |s| s == *c))
-    else {
-        bail!(
-            "{}: no trajectories to check; expected one of {}",
-            dir.display(),
-            stages::TRAJECTORY_STAGES.map(|s| s.output).join(", ")
-        );
-    };
-    let (kind, version) = (chosen.kind, chosen.version);
-    let path = dir.join(chosen.output);
-    let (file, motion) = TrajectoriesFile::load_for(&path, kind, version, graph.patches.len())?;
-    let mut report = crowd_check::check(&graph, &motion, file.period_s);
-    report.stage = kind.to_string();
-    let patterns_path = dir.join(PATTERNS_FILE);
-    let (_, crossings) = Patterns::load_for(&patterns_path, &graph)?;
-    report.motion = Some(crowd_check::motion::figures(
-        &graph,
-        &crossings,
-        &motion,
-        file.period_s,
-    ));
-    files::write_atomic(&dir.join(CHECK_FILE), files::to_ron(&report).as_bytes())?;
-    Ok(report)
-}
-
-/// What `crowd check` prints: collisions and clearance, then the motion figures.
-pub fn check_summary(report: &crowd_check::CheckReport) -> String {
-    let worst = report
-        .worst_at
-        .map(|(x, y, t)| format!(" at ({x:.2}, {y:.2}) m, t = {t:.2} s"))
-        .unwrap_or_default();
-    let mut s = format!(
-        "{} walkers, {} segments: {} collisions ({} across borders); smallest clearance \
-         {:+.3} m{worst}\n",
-        report.walkers,
-        report.segments,
-        report.collisions,
-        report.across_borders,
-        report.min_clearance_m,
-    );
-    if let Some(m) = &report.motion {
-        s += &format!(
-            "{}: walking speed in 0.5-1.8 m/s {:.1} % of the time; acceleration p95 {:.3} m/s2; \
-             turning rate p95 {:.3} rad/s\n",
-            report.stage,
-            100.0 * m.speed_in_band,
-            m.accel_p95,
-            m.turn_rate_p95
-        );
-        s += &format!(
-            "borders: largest velocity jump {:.3} m/s; ends off their crossings by at most \
-             {:.2e} m and {:.2e} s; {} crossings not entered and left once\n",
-            m.max_border_velocity_jump,
-            m.max_boundary_error_m,
-            m.max_boundary_time_error_s,
-            m.unmatched_crossings
-        );
-    }
-    s
-}
-
-/// What `crowd check` writes.
-pub const CHECK_FILE: &str = "check.ron";

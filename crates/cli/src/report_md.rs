@@ -151,7 +151,7 @@ fn markdown(dir: &Path, report: &Report, pictures: &[Picture]) -> String {
                 s,
                 "## {title}\n\n`{}` is older than `{stale}`: run `crowd check {}` for figures \
                  of this build.\n",
-                crate::report::CHECK_FILE,
+                crate::check::CHECK_FILE,
                 dir.display()
             );
             continue;
@@ -184,12 +184,13 @@ fn markdown(dir: &Path, report: &Report, pictures: &[Picture]) -> String {
         s.push('\n');
     }
 
+    shipped(&mut s, dir, report, &json);
     let _ = writeln!(
         s,
-        "## Cost\n\nWall time and peak resident memory of each stage when it last ran.\n\n\
-         | stage | wall (s) | peak memory (MB) |\n| --- | ---: | ---: |"
+        "## Cost\n\nWall time and peak resident memory of each stage (and of the check) when it \
+         last ran.\n\n| stage | wall (s) | peak memory (MB) |\n| --- | ---: | ---: |"
     );
-    for stage in STAGES.map(|s| s.name) {
+    for stage in STAGES.map(|s| s.name).into_iter().chain(["check"]) {
         if let Some(run) = report.stages.get(stage) {
             let peak = run.peak_mb.map_or("-".into(), |mb| format!("{mb:.0}"));
             let _ = writeln!(s, "| {stage} | {:.2} | {peak} |", run.seconds);
@@ -223,17 +224,63 @@ fn markdown(dir: &Path, report: &Report, pictures: &[Picture]) -> String {
     s
 }
 
-/// The trajectories file that changed after `check.ron` was written, if one did.
+/// The section of what ships: `crowd check`'s figures of `library.crowd` and `world.glb`, side
+/// by side.
+fn shipped(s: &mut String, dir: &Path, report: &Report, json: &Value) {
+    let title =
+        "What ships (`crowd check` on `library.crowd` and `world.glb`, as an engine reads them)";
+    let checked = report.check.as_ref();
+    if checked.is_none_or(|c| c.library.is_none() && c.gltf.is_none()) {
+        if report.export.is_some() {
+            let _ = writeln!(
+                s,
+                "## {title}\n\nNot checked yet: run `crowd check {}`.\n",
+                dir.display()
+            );
+        }
+        return;
+    }
+    if stale_check(dir).is_some() {
+        return; // said in the section above
+    }
+    let _ = writeln!(
+        s,
+        "## {title}\n\nThe library is rebuilt as the runtime plays it and also played by its \
+         `Sampler` every {} s over a period; the glTF's nodes are read through its LINEAR \
+         samplers. A seam is where a path hands over after its last key: a library loop's end to \
+         its start, a glTF node at the clip's end to the node that starts there.\n\n\
+         | figure | `library.crowd` | `world.glb` |\n| --- | ---: | ---: |",
+        crate::check::SAMPLE_STEP_S
+    );
+    for (key, label) in crate::report::PRODUCT_ROWS {
+        let value = |prefix: &str| json.get(format!("{prefix}_{key}")).map(cell);
+        let (a, b) = (value("library"), value("gltf"));
+        if a.is_some() || b.is_some() {
+            let dash = || "-".to_string();
+            let (a, b) = (a.unwrap_or_else(dash), b.unwrap_or_else(dash));
+            let _ = writeln!(s, "| {label} | {a} | {b} |");
+        }
+    }
+    s.push('\n');
+}
+
+/// The file that changed after `check.ron` was written, if one did.
 fn stale_check(dir: &Path) -> Option<&'static str> {
     let modified = |f: &str| {
         std::fs::metadata(dir.join(f))
             .and_then(|m| m.modified())
             .ok()
     };
-    let checked = modified(crate::report::CHECK_FILE)?;
-    [SMOOTHED_FILE, COLLIDED_FILE, TRAJECTORIES_FILE]
-        .into_iter()
-        .find(|f| modified(f).is_some_and(|t| t > checked))
+    let checked = modified(crate::check::CHECK_FILE)?;
+    [
+        SMOOTHED_FILE,
+        COLLIDED_FILE,
+        TRAJECTORIES_FILE,
+        crowd_export::LIBRARY_FILE,
+        crowd_export::GLB_FILE,
+    ]
+    .into_iter()
+    .find(|f| modified(f).is_some_and(|t| t > checked))
 }
 
 /// A figure as a table cell: floats to four significant places, shares as percentages.

@@ -1,5 +1,6 @@
 //! A spatial grid of pieces, so that a whole world's pieces are compared only with those near
-//! them (near linear in their number instead of quadratic), and each near pair exactly once.
+//! them (near linear in their number instead of quadratic), and each near pair exactly once;
+//! and one of boxes (standers, obstacles), so that a piece is compared only with those near it.
 
 use crate::segment::Segment;
 use glam::DVec2;
@@ -65,6 +66,54 @@ impl PieceGrid {
     }
 }
 
+/// Boxes (standers as points, obstacles) by the 4 m cells they touch grown by their reach, so
+/// that a piece is compared only with those that can come within reach of it.
+#[derive(Debug, Clone)]
+pub struct BoxGrid {
+    cells: HashMap<(i64, i64), Vec<u32>>,
+}
+
+impl BoxGrid {
+    const CELL: f64 = 4.0;
+
+    fn key(p: DVec2) -> (i64, i64) {
+        (
+            (p.x / Self::CELL).floor() as i64,
+            (p.y / Self::CELL).floor() as i64,
+        )
+    }
+
+    pub fn new(boxes: impl Iterator<Item = (DVec2, DVec2)>, reach: f64) -> BoxGrid {
+        let mut cells: HashMap<(i64, i64), Vec<u32>> = HashMap::new();
+        for (i, (lo, hi)) in boxes.enumerate() {
+            let (a, b) = (Self::key(lo - reach), Self::key(hi + reach));
+            for x in a.0..=b.0 {
+                for y in a.1..=b.1 {
+                    cells.entry((x, y)).or_default().push(i as u32);
+                }
+            }
+        }
+        BoxGrid { cells }
+    }
+
+    /// The boxes whose grown box shares a cell with [lo, hi], ascending, each once.
+    pub fn near(&self, lo: DVec2, hi: DVec2) -> Vec<u32> {
+        if self.cells.is_empty() {
+            return Vec::new();
+        }
+        let (a, b) = (Self::key(lo), Self::key(hi));
+        let mut out: Vec<u32> = (a.0..=b.0)
+            .flat_map(|x| (a.1..=b.1).map(move |y| (x, y)))
+            .filter_map(|k| self.cells.get(&k))
+            .flatten()
+            .copied()
+            .collect();
+        out.sort_unstable();
+        out.dedup();
+        out
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -112,5 +161,18 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn a_piece_is_compared_with_the_boxes_within_reach_only() {
+        let grid = BoxGrid::new([(DVec2::ZERO, DVec2::ONE)].into_iter(), 1.0);
+        assert_eq!(
+            grid.near(DVec2::new(1.5, 1.5), DVec2::new(2.0, 2.0)),
+            vec![0]
+        );
+        assert!(
+            grid.near(DVec2::new(9.0, 9.0), DVec2::new(10.0, 10.0))
+                .is_empty()
+        );
     }
 }

@@ -24,7 +24,7 @@ pub mod trajectory;
 
 pub use approach::{approach, closest, to_rect};
 pub use encounter::{Encounter, Other, pair};
-pub use grid::PieceGrid;
+pub use grid::{BoxGrid, PieceGrid};
 pub use patch::{Patch, obstacles_near};
 pub use rows::{refresh, rows};
 pub use segment::{Segment, at_time, copies, pieces};

@@ -1,0 +1,255 @@
+//! `world.glb` read as an engine reads it, through the `gltf` crate: the default scene's
+//! nodes, the `crowd_loop` clip (or the only one) and its LINEAR translation and rotation
+//! samplers. Each animated node is a walker slot whose keyed path is played over the clip
+//! (held at its first and last keys outside them); a node with a mesh and no track is a
+//! stander. Then the figures of [`ProductFigures`]: collisions between every pair of nodes at
+//! every clip time (exact closest approach of their straight pieces, a spatial grid), speeds
+//! and key jumps, the fastest turn between rotation keys, and each node's handover at the
+//! clip's end to the node that starts where it ends (itself, for a one-lap slot).
+//!
+//! Nodes are read as roots of the scene, each with its own transform: `world.glb`'s are
+//! (children are not composed with their parents).
+
+use crate::products::{OPEN_GAP_M, ProductFigures, Seams, Tally, end_velocities};
+use crate::world::{Piece, Repeat, Scene};
+use crowd_geometry as geometry;
+use glam::{DQuat, DVec2};
+use gltf::animation::{Interpolation, Property, util::ReadOutputs};
+use std::collections::HashMap;
+
+/// Keys closer in time than this (an f32 step near 20 s) count as this far apart, seconds.
+const MIN_DT: f64 = 2e-6;
+
+/// Why `world.glb` cannot be checked.
+#[derive(Debug, Clone, PartialEq)]
+pub struct GlbError(pub String);
+
+impl std::fmt::Display for GlbError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for GlbError {}
+
+/// What the glTF check needs besides the file.
+#[derive(Debug, Clone)]
+pub struct Inputs<'a> {
+    pub radius_m: f64,
+    /// Obstacle boxes in world metres (the build's graph; the glTF holds none).
+    pub walls: &'a [crate::Wall],
+    /// `match.max_speed` x 1.05, m/s.
+    pub speed_limit_m_s: f64,
+}
+
+/// One animated node: its translation keys (world metres, clip seconds) and rotation keys.
+#[derive(Debug, Clone, Default)]
+pub struct Track {
+    pub path: Vec<(DVec2, f64)>,
+    pub turns: Vec<(DQuat, f64)>,
+}
+
+/// The nodes of a glTF world: animated ones in node order, standers, and the clip's length.
+#[derive(Debug, Clone)]
+pub struct Nodes {
+    pub tracks: Vec<Track>,
+    pub standers: Vec<DVec2>,
+    pub clip_s: f64,
+}
+
+/// World (x, y) of a glTF point: glTF is Y-up with world y along -Z (DESIGN.md).
+fn world(p: [f32; 3]) -> DVec2 {
+    DVec2::new(f64::from(p[0]), -f64::from(p[2]))
+}
+
+/// Reads the scene's nodes and their tracks.
+pub fn read(bytes: &[u8]) -> Result<Nodes, GlbError> {
+    let err = |e: String| GlbError(e);
+    let gltf = gltf::Gltf::from_slice(bytes).map_err(|e| err(format!("not a glTF: {e}")))?;
+    let blob = gltf.blob.as_deref();
+    let data = |b: gltf::Buffer| match b.source() {
+        gltf::buffer::Source::Bin => blob,
+        gltf::buffer::Source::Uri(_) => None,
+    };
+    let clip = gltf
+        .animations()
+        .find(|a| a.name() == Some("crowd_loop"))
+        .or_else(|| gltf.animations().next());
+    let mut tracks: HashMap<usize, Track> = HashMap::new();
+    let mut clip_s = 0.0f64;
+    for channel in clip.iter().flat_map(|a| a.channels()) {
+        let property = channel.target().property();
+        if !matches!(property, Property::Translation | Property::Rotation) {
+            continue;
+        }
+        if channel.sampler().interpolation() != Interpolation::Linear {
+            return Err(err(format!(
+                "animation sampler {}: expected LINEAR interpolation",
+                channel.sampler().index()
+            )));
+        }
+        let reader = channel.reader(data);
+        let missing = || err(format!("channel {}: keys missing", channel.index()));
+        let times: Vec<f64> = reader
+            .read_inputs()
+            .ok_or_else(missing)?
+            .map(f64::from)
+            .collect();
+        clip_s = clip_s.max(times.last().copied().unwrap_or(0.0));
+        let track = tracks.entry(channel.target().node().index()).or_default();
+        match reader.read_outputs().ok_or_else(missing)? {
+            ReadOutputs::Translations(p) => track.path = p.map(world).zip(times).collect(),
+            ReadOutputs::Rotations(q) => {
+                let q = q.into_f32().map(|q| DQuat::from_array(q.map(f64::from)));
+                track.turns = q.zip(times).collect();
+            }
+            _ => {}
+        }
+    }
+    let scene = gltf.default_scene().or_else(|| gltf.scenes().next());
+    let mut nodes = Nodes {
+        tracks: Vec::new(),
+        standers: Vec::new(),
+        clip_s,
+    };
+    for node in scene.iter().flat_map(|s| s.nodes()) {
+        match tracks.remove(&node.index()) {
+            Some(t) if !t.path.is_empty() => nodes.tracks.push(t),
+            _ if node.mesh().is_some() => {
+                nodes.standers.push(world(node.transform().decomposed().0));
+            }
+            _ => {}
+        }
+    }
+    for t in &mut nodes.tracks {
+        hold_ends(&mut t.path, clip_s);
+        hold_ends(&mut t.turns, clip_s);
+    }
+    Ok(nodes)
+}
+
+/// A track held at its first key before it and at its last after it, over [0, clip].
+fn hold_ends<T: Copy>(keys: &mut Vec<(T, f64)>, clip: f64) {
+    if let (Some(&first), Some(&last)) = (keys.first(), keys.last()) {
+        if first.1 > 0.0 {
+            keys.insert(0, (first.0, 0.0));
+        }
+        if last.1 < clip || keys.len() == 1 {
+            keys.push((last.0, clip));
+        }
+    }
+}
+
+/// The figures of the glTF world in `bytes`.
+pub fn figures(bytes: &[u8], inputs: &Inputs) -> Result<ProductFigures, GlbError> {
+    let nodes = read(bytes)?;
+    let clip = nodes.clip_s;
+    let paths: Vec<Vec<(DVec2, f64)>> = nodes.tracks.iter().map(|t| t.path.clone()).collect();
+    let tally = Tally::of(&paths, inputs.speed_limit_m_s, MIN_DT, clip);
+    let mut scene = Scene {
+        radius: inputs.radius_m,
+        repeat: Repeat::Clip(clip),
+        pieces: Vec::new(),
+        ends: Vec::new(),
+        standers: nodes.standers.clone(),
+        walls: inputs.walls.to_vec(),
+    };
+    for (i, path) in paths.iter().enumerate() {
+        for seg in geometry::pieces(path.iter().copied()) {
+            scene.pieces.push(Piece {
+                seg,
+                walker: i as u32,
+                patch: 0,
+            });
+        }
+    }
+    let clearance = scene.clearance();
+    let seams = handovers(&nodes.tracks);
+    Ok(ProductFigures {
+        file: "world.glb".into(),
+        walkers: nodes.tracks.len() as u64,
+        standers: nodes.standers.len() as u64,
+        pieces: scene.pieces.len() as u64,
+        collisions: clearance.collisions,
+        min_clearance_m: clearance.min_clearance_m,
+        worst_at: clearance.worst_at,
+        max_speed_m_s: tally.max_speed,
+        max_speed_at: tally.max_speed_at,
+        speed_limit_m_s: inputs.speed_limit_m_s,
+        share_above_limit: tally.share_above(),
+        max_key_velocity_jump: tally.max_jump,
+        max_border_velocity_jump: None,
+        max_border_gap_m: None,
+        max_seam_velocity_jump: seams.max_jump,
+        max_seam_heading_jump_rad: seams.max_heading,
+        max_seam_gap_m: seams.max_gap,
+        loops: nodes.tracks.len() as u64,
+        open_loops: seams.open,
+        max_turn_rate_rad_s: Some(max_turn_rate(&nodes.tracks)),
+        sampled: None,
+    })
+}
+
+/// The angle between two rotations, radians.
+fn angle(a: DQuat, b: DQuat) -> f64 {
+    2.0 * a.dot(b).abs().min(1.0).acos()
+}
+
+/// The fastest turn between consecutive rotation keys of any node, rad/s.
+fn max_turn_rate(tracks: &[Track]) -> f64 {
+    let mut fastest = 0.0f64;
+    for t in tracks {
+        for w in t.turns.windows(2).filter(|w| w[1].1 > w[0].1) {
+            fastest = fastest.max(angle(w[0].0, w[1].0) / (w[1].1 - w[0].1));
+        }
+    }
+    fastest
+}
+
+/// Each node's handover at the clip's end: to itself when its end is within 1 cm of its own
+/// start, else to the node whose start is nearest its end (within 1 cm; none: an open loop).
+fn handovers(tracks: &[Track]) -> Seams {
+    let cell = |p: DVec2| {
+        (
+            (p.x / OPEN_GAP_M).floor() as i64,
+            (p.y / OPEN_GAP_M).floor() as i64,
+        )
+    };
+    let mut starts: HashMap<(i64, i64), Vec<usize>> = HashMap::new();
+    for (i, t) in tracks.iter().enumerate() {
+        starts.entry(cell(t.path[0].0)).or_default().push(i);
+    }
+    let mut seams = Seams::default();
+    for (i, t) in tracks.iter().enumerate() {
+        let end = t.path[t.path.len() - 1].0;
+        let (cx, cy) = cell(end);
+        let nearest = (cx - 1..=cx + 1)
+            .flat_map(|x| (cy - 1..=cy + 1).map(move |y| (x, y)))
+            .flat_map(|k| starts.get(&k).into_iter().flatten().copied())
+            .map(|j| (tracks[j].path[0].0.distance(end), j))
+            .filter(|&(d, _)| d <= OPEN_GAP_M)
+            .min_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        let own = t.path[0].0.distance(end) <= OPEN_GAP_M;
+        let Some(next) = (if own {
+            Some(i)
+        } else {
+            nearest.map(|(_, j)| j)
+        }) else {
+            seams.open += 1;
+            continue;
+        };
+        let n = &tracks[next];
+        let v_in = end_velocities(&t.path, MIN_DT).1;
+        let v_out = end_velocities(&n.path, MIN_DT).0;
+        let heading = match (t.turns.last(), n.turns.first()) {
+            (Some(a), Some(b)) => angle(a.0, b.0),
+            _ => 0.0,
+        };
+        let gap = end.distance(n.path[0].0);
+        seams.note_with_heading(gap, (v_out - v_in).length(), heading);
+    }
+    seams
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,176 @@
+//! `library.crowd` read as an engine reads it, through `crowd-runtime`: every trajectory
+//! rebuilt as the engine plays it (its quantised points in world metres, its ticks from its
+//! start), then the figures of [`ProductFigures`]: collisions by the same exact closest
+//! approach as the stage files' check (every copy a period apart, across borders, against
+//! standers and the build's obstacles), speeds and key jumps, every trajectory's handover to
+//! its `next` (a border) and every loop's end to its start (the seam), and the runtime's own
+//! `Sampler` played frame after frame.
+
+use crate::products::{OPEN_GAP_M, ProductFigures, Sampled, Seams, Tally, end_velocities};
+use crate::world::{Clearance, Ends, Piece, Repeat, Scene};
+use crowd_geometry as geometry;
+use crowd_runtime::{Library, Sample, Sampler, TICK_S};
+use glam::DVec2;
+
+/// What the library check needs besides the library.
+#[derive(Debug, Clone)]
+pub struct Inputs<'a> {
+    /// Obstacle boxes in world metres (the build's graph; the library holds none).
+    pub walls: &'a [crate::Wall],
+    /// `match.max_speed` x 1.05 (`products::SPEED_MARGIN`), m/s.
+    pub speed_limit_m_s: f64,
+    /// Play the runtime's sampler every this many seconds over one period (None: do not).
+    pub sample_step_s: Option<f64>,
+}
+
+/// Each trajectory's points as the engine plays them: world metres, seconds from the
+/// period's start (the trajectory's `start` plus the point's ticks).
+pub fn paths(lib: &Library) -> Vec<Vec<(DVec2, f64)>> {
+    lib.trajectories
+        .iter()
+        .map(|t| {
+            let patch = &lib.patches[t.patch as usize];
+            lib.points_of(t)
+                .iter()
+                .map(|p| {
+                    let [x, y] = lib.world_position(patch, *p);
+                    let ticks = u64::from(t.start) + u64::from(p.t);
+                    (DVec2::new(x, y), ticks as f64 * TICK_S)
+                })
+                .collect()
+        })
+        .collect()
+}
+
+/// The figures of `lib`.
+pub fn figures(lib: &Library, inputs: &Inputs) -> ProductFigures {
+    let period = lib.period_s();
+    let paths = paths(lib);
+    let clearance = clearance(lib, &paths, inputs.walls);
+    let tally = Tally::of(&paths, inputs.speed_limit_m_s, TICK_S, period);
+    let (borders, seams) = handovers(lib, &paths);
+    let sampled = inputs
+        .sample_step_s
+        .map(|step| sample(lib, step, tally.max_speed));
+    ProductFigures {
+        file: "library.crowd".into(),
+        walkers: lib.walkers(),
+        standers: lib.standers.len() as u64,
+        pieces: paths.iter().map(|p| p.len() as u64 - 1).sum(),
+        collisions: clearance.collisions,
+        min_clearance_m: clearance.min_clearance_m,
+        worst_at: clearance.worst_at,
+        max_speed_m_s: tally.max_speed,
+        max_speed_at: tally.max_speed_at,
+        speed_limit_m_s: inputs.speed_limit_m_s,
+        share_above_limit: tally.share_above(),
+        max_key_velocity_jump: tally.max_jump,
+        max_border_velocity_jump: Some(borders.max_jump),
+        max_border_gap_m: Some(borders.max_gap),
+        max_seam_velocity_jump: seams.max_jump,
+        max_seam_heading_jump_rad: seams.max_heading,
+        max_seam_gap_m: seams.max_gap,
+        loops: lib.characters.len() as u64,
+        open_loops: seams.open,
+        max_turn_rate_rad_s: None,
+        sampled,
+    }
+}
+
+/// Collisions over the whole tiled world: each trajectory a walker with its copies a period
+/// apart, continued through its exit crossing by its `next` (the same character).
+fn clearance(lib: &Library, paths: &[Vec<(DVec2, f64)>], walls: &[crate::Wall]) -> Clearance {
+    let mut scene = Scene {
+        radius: f64::from(lib.world.radius_m),
+        repeat: Repeat::Periodic(lib.period_s()),
+        pieces: Vec::new(),
+        ends: Vec::new(),
+        standers: Vec::new(),
+        walls: walls.to_vec(),
+    };
+    for (i, (t, path)) in lib.trajectories.iter().zip(paths).enumerate() {
+        let (first, last) = (path[0].1, path[path.len() - 1].1);
+        for seg in geometry::pieces(path.iter().copied()) {
+            scene.pieces.push(Piece {
+                seg,
+                walker: i as u32,
+                patch: t.patch,
+            });
+        }
+        scene.ends.push(Ends {
+            entry: (t.entry, first),
+            exit: (t.exit, last),
+        });
+    }
+    for patch in &lib.patches {
+        let first = patch.first_stander as usize;
+        for s in &lib.standers[first..first + patch.standers as usize] {
+            let [x, y] = lib.world_position(patch, *s);
+            scene.standers.push(DVec2::new(x, y));
+        }
+    }
+    scene.clearance()
+}
+
+/// Every trajectory's handover to its `next`: at a border, or at its loop's seam (the last
+/// trajectory of a loop, walked from its `first_trajectory`, to the first).
+fn handovers(lib: &Library, paths: &[Vec<(DVec2, f64)>]) -> (Seams, Seams) {
+    let mut last_of_loop = vec![false; lib.trajectories.len()];
+    for c in &lib.characters {
+        let mut at = c.first_trajectory as usize;
+        for _ in 1..c.trajectories {
+            at = lib.trajectories[at].next as usize;
+        }
+        last_of_loop[at] = true;
+    }
+    let (mut borders, mut seams) = (Seams::default(), Seams::default());
+    for (i, t) in lib.trajectories.iter().enumerate() {
+        let (a, b) = (&paths[i], &paths[t.next as usize]);
+        let end = (a[a.len() - 1].0, end_velocities(a, TICK_S).1);
+        let start = (b[0].0, end_velocities(b, TICK_S).0);
+        if last_of_loop[i] {
+            seams.note(end, start);
+            seams.open += u64::from(end.0.distance(start.0) > OPEN_GAP_M);
+        } else {
+            borders.note(end, start);
+        }
+    }
+    (borders, seams)
+}
+
+/// Everywhere.
+const EVERYWHERE: [f32; 4] = [f32::MIN, f32::MIN, f32::MAX, f32::MAX];
+
+/// Plays `lib` through the runtime's sampler every `step` seconds over one period (every
+/// walker then walks each of its loop's periods once over all its laps): the longest step of
+/// any character between frames, and how many are longer than `fastest` allows.
+pub fn sample(lib: &Library, step: f64, fastest: f64) -> Sampled {
+    let frames = (lib.period_s() / step).round().max(1.0) as u64;
+    let mut sampler = Sampler::new(lib);
+    let (mut before, mut now): (Vec<Sample>, Vec<Sample>) = (Vec::new(), Vec::new());
+    sampler.sample(0.0, EVERYWHERE, &mut before);
+    let (mut max_speed, mut jumps) = (0.0f64, 0u64);
+    for f in 1..=frames {
+        sampler.sample(f as f64 * step, EVERYWHERE, &mut now);
+        for (a, b) in before.iter().zip(&now) {
+            let d = if a.id == b.id {
+                f64::from(b.x - a.x).hypot(f64::from(b.y - a.y))
+            } else {
+                f64::INFINITY // a character missing from a frame
+            };
+            max_speed = max_speed.max(d / step);
+            jumps += u64::from(d > fastest * step + 1e-3);
+        }
+        jumps += before.len().abs_diff(now.len()) as u64;
+        std::mem::swap(&mut before, &mut now);
+    }
+    Sampled {
+        step_s: step,
+        frames,
+        max_speed_m_s: max_speed,
+        jumps,
+    }
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,246 @@
+//! Tests of `library`: hand-made libraries, loaded back from their bytes as an engine
+//! loads them, each showing a figure catch its defect.
+
+use super::*;
+use crowd_runtime::{Character, Crossing, Patch, Point, Trajectory, World};
+
+/// One walk through a patch: the patch (column), crossings, the next walk, its start
+/// (seconds in the period) and points (patch-local metres, seconds from its start).
+struct Way {
+    patch: u32,
+    entry: u32,
+    exit: u32,
+    next: u32,
+    start: f64,
+    points: Vec<(f64, f64, f64)>,
+}
+
+/// A library of `cols` 8 m patches in a row, 20 s periods, 0.3 m radius, loaded back from
+/// its bytes as an engine loads it. `ways` go patch after patch.
+fn library(cols: u32, ways: &[Way], standers: &[(f64, f64)]) -> Library {
+    let q = |v: f64| (v / 8.0 * 65535.0).round() as u16;
+    let ticks = |s: f64| (s / TICK_S).round() as u32;
+    let mut lib = Library {
+        world: World {
+            patch_side_m: 8.0,
+            period_ticks: ticks(20.0),
+            radius_m: 0.3,
+            cols,
+            rows: 1,
+            seed: 1,
+            input_hash: [0; 8],
+        },
+        patches: Vec::new(),
+        standers: standers
+            .iter()
+            .map(|&(x, y)| Point {
+                x: q(x),
+                y: q(y),
+                t: 0,
+            })
+            .collect(),
+        crossings: Vec::new(),
+        trajectories: Vec::new(),
+        points: Vec::new(),
+        characters: Vec::new(),
+    };
+    for col in 0..cols {
+        let mine: Vec<usize> = (0..ways.len()).filter(|&i| ways[i].patch == col).collect();
+        lib.patches.push(Patch {
+            col,
+            row: 0,
+            first_trajectory: mine.first().map_or(0, |&i| i as u32),
+            trajectories: mine.len() as u32,
+            first_stander: 0,
+            standers: if col == 0 { standers.len() as u32 } else { 0 },
+        });
+    }
+    for w in ways {
+        lib.trajectories.push(Trajectory {
+            patch: w.patch,
+            entry: w.entry,
+            exit: w.exit,
+            next: w.next,
+            first_point: lib.points.len() as u32,
+            points: w.points.len() as u32,
+            start: ticks(w.start),
+        });
+        let pts = w.points.iter().map(|&(x, y, t)| Point {
+            x: q(x),
+            y: q(y),
+            t: ticks(t),
+        });
+        lib.points.extend(pts);
+    }
+    let crossings = ways
+        .iter()
+        .map(|w| w.entry.max(w.exit) + 1)
+        .max()
+        .unwrap_or(0);
+    lib.crossings = (0..crossings)
+        .map(|_| Crossing {
+            from_patch: 0,
+            to_patch: 0,
+            x: 0.0,
+            y: 0.0,
+            t: 0,
+            vx: 0.0,
+            vy: 0.0,
+        })
+        .collect();
+    let mut seen = vec![false; ways.len()];
+    for first in 0..ways.len() {
+        let (mut at, mut n, mut total) = (first, 0, 0u64);
+        while !seen[at] {
+            seen[at] = true;
+            total += u64::from(lib.duration_ticks(&lib.trajectories[at]));
+            n += 1;
+            at = ways[at].next as usize;
+        }
+        if n > 0 {
+            let laps = (total / u64::from(lib.world.period_ticks)) as u32;
+            let c = Character {
+                first_trajectory: first as u32,
+                trajectories: n,
+                laps,
+            };
+            lib.characters.push(c);
+        }
+    }
+    Library::from_bytes(&lib.to_bytes()).expect("a valid library")
+}
+
+/// A loop of one patch, entering and leaving by crossing `c` (its own next).
+fn round(i: u32, c: u32, points: Vec<(f64, f64, f64)>) -> Way {
+    Way {
+        patch: 0,
+        entry: c,
+        exit: c,
+        next: i,
+        start: 0.0,
+        points,
+    }
+}
+
+fn figures_of(lib: &Library) -> ProductFigures {
+    let inputs = Inputs {
+        walls: &[],
+        speed_limit_m_s: 1.89,
+        sample_step_s: Some(0.02),
+    };
+    figures(lib, &inputs)
+}
+
+/// A square walked at 1.2 m/s from the middle of a side, 24 m in 20 s.
+fn square(last: f64) -> Vec<(f64, f64, f64)> {
+    vec![
+        (4.0, 1.0, 0.0),
+        (7.0, 1.0, 2.5),
+        (7.0, 7.0, 7.5),
+        (1.0, 7.0, 12.5),
+        (1.0, 1.0, last),
+        (4.0, 1.0, 20.0),
+    ]
+}
+
+#[test]
+fn a_loop_walked_evenly_closes_without_a_jump_and_plays_so() {
+    let f = figures_of(&library(1, &[round(0, 0, square(17.5))], &[]));
+    assert_eq!(
+        (f.collisions, f.open_loops, f.loops, f.walkers),
+        (0, 0, 1, 1),
+        "{f:?}"
+    );
+    assert!((f.max_speed_m_s - 1.2).abs() < 1e-3, "{f:?}");
+    assert!(
+        f.max_seam_velocity_jump < 1e-3 && f.max_seam_gap_m < 1e-9,
+        "{f:?}"
+    );
+    assert!(
+        (f.max_key_velocity_jump - 1.2 * 2f64.sqrt()).abs() < 1e-3,
+        "{f:?}"
+    );
+    assert_eq!(f.share_above_limit, 0.0);
+    let s = f.sampled.unwrap();
+    assert_eq!((s.frames, s.jumps), (1000, 0));
+    assert!((s.max_speed_m_s - 1.2).abs() < 1e-2, "{s:?}");
+}
+
+#[test]
+fn a_loop_hurrying_to_its_seam_jumps_there_and_runs_too_fast() {
+    // The last 3 m in 1.5 s: 2 m/s against the first piece's 1.2 m/s.
+    let f = figures_of(&library(1, &[round(0, 0, square(18.5))], &[]));
+    assert!((f.max_seam_velocity_jump - 0.8).abs() < 1e-3, "{f:?}");
+    assert!((f.max_speed_m_s - 2.0).abs() < 1e-3, "{f:?}");
+    assert!((f.share_above_limit - 1.5 / 20.0).abs() < 1e-6, "{f:?}");
+    assert_eq!(f.sampled.unwrap().jumps, 0);
+}
+
+#[test]
+fn a_loop_ending_away_from_its_start_is_open() {
+    let mut points = square(17.5);
+    points[5].1 = 1.5;
+    let f = figures_of(&library(1, &[round(0, 0, points)], &[]));
+    assert_eq!(f.open_loops, 1, "{f:?}");
+    assert!((f.max_seam_gap_m - 0.5).abs() < 1e-3, "{f:?}");
+}
+
+#[test]
+fn a_turn_at_a_border_is_a_border_jump_and_the_loop_seam_is_told_apart() {
+    // A (patch 0) enters by crossing 0 at its east side and leaves by crossing 1; B
+    // (patch 1) enters by 1 and leaves by 0: the loop A -> B -> A, its seam B -> A.
+    let a = Way {
+        patch: 0,
+        entry: 0,
+        exit: 1,
+        next: 1,
+        start: 0.0,
+        points: vec![(8.0, 2.0, 0.0), (4.0, 3.0, 5.0), (8.0, 4.0, 9.0)],
+    };
+    let b = Way {
+        patch: 1,
+        entry: 1,
+        exit: 0,
+        next: 0,
+        start: 9.0,
+        points: vec![(0.0, 4.0, 0.0), (4.0, 3.0, 5.0), (0.0, 2.0, 11.0)],
+    };
+    let f = figures_of(&library(2, &[a, b], &[]));
+    let v = |dx: f64, dy: f64, dt: f64| DVec2::new(dx, dy) / dt;
+    let border = (v(4.0, -1.0, 5.0) - v(4.0, 1.0, 4.0)).length();
+    let seam = (v(-4.0, 1.0, 5.0) - v(-4.0, -1.0, 6.0)).length();
+    assert!(
+        (f.max_border_velocity_jump.unwrap() - border).abs() < 1e-3,
+        "{f:?}"
+    );
+    assert!((f.max_seam_velocity_jump - seam).abs() < 1e-3, "{f:?}");
+    assert!(
+        f.max_border_gap_m.unwrap() < 1e-9 && f.open_loops == 0,
+        "{f:?}"
+    );
+    assert_eq!(f.collisions, 0, "{f:?}");
+}
+
+#[test]
+fn walkers_crossing_at_once_collide_and_so_does_one_walking_into_a_stander() {
+    let east = round(
+        0,
+        0,
+        vec![(1.0, 4.0, 0.0), (7.0, 4.0, 10.0), (1.0, 4.0, 20.0)],
+    );
+    let north = round(
+        1,
+        1,
+        vec![(4.0, 1.0, 0.0), (4.0, 7.0, 10.0), (4.0, 1.0, 20.0)],
+    );
+    let f = figures_of(&library(1, &[east, north], &[]));
+    assert_eq!(f.collisions, 1, "{f:?}");
+    assert!((f.min_clearance_m + 0.6).abs() < 1e-3, "{f:?}");
+    let east = round(
+        0,
+        0,
+        vec![(1.0, 4.0, 0.0), (7.0, 4.0, 10.0), (1.0, 4.0, 20.0)],
+    );
+    let f = figures_of(&library(1, &[east], &[(6.0, 4.2)]));
+    assert_eq!((f.collisions, f.standers), (1, 1), "{f:?}");
+}

@@ -1,0 +1,374 @@
+//! The collision core of every check: walkers' pieces in world coordinates, standers and
+//! obstacle boxes, and the exact closest approach of every pair that comes near (a spatial
+//! grid of 4 m cells, `crowd_geometry::PieceGrid`), each pair counted once at its closest.
+//!
+//! Two ways walkers repeat in time: trajectories of a tiled world ([`Repeat::Periodic`]: every
+//! copy a whole number of periods apart, and a trajectory meets the one that continues it only
+//! at other shifts than the one where they are the same character), and the nodes of a looping
+//! clip ([`Repeat::Clip`]: every node plays over the same clip time, so pairs are compared at
+//! equal times only and a node never meets itself).
+
+use crowd_geometry::{self as geometry, BoxGrid, PieceGrid, Segment};
+use glam::DVec2;
+use rayon::prelude::*;
+use std::collections::HashMap;
+
+/// One straight piece of a walker's path, in world metres and seconds.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Piece {
+    pub seg: Segment,
+    pub walker: u32,
+    pub patch: u32,
+}
+
+/// The crossings a walker's trajectory enters and leaves by, and when (unwrapped).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Ends {
+    pub entry: (u32, f64),
+    pub exit: (u32, f64),
+}
+
+/// How the walkers of a scene repeat in time.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) enum Repeat {
+    /// Every walker forever, a period apart (the tiled world of the stage files and library).
+    Periodic(f64),
+    /// Every walker over one clip of this length, all at the same clip time (`world.glb`).
+    Clip(f64),
+}
+
+impl Repeat {
+    fn period(self) -> f64 {
+        match self {
+            Repeat::Periodic(p) | Repeat::Clip(p) => p,
+        }
+    }
+}
+
+/// Everything that takes up room in a world.
+pub(crate) struct Scene {
+    pub radius: f64,
+    pub repeat: Repeat,
+    pub pieces: Vec<Piece>,
+    /// Each walker's ends, by walker ([`Repeat::Periodic`] only).
+    pub ends: Vec<Ends>,
+    pub standers: Vec<DVec2>,
+    /// Obstacle boxes, world metres (min, max).
+    pub walls: Vec<crate::Wall>,
+}
+
+/// How close the characters of a scene come.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct Clearance {
+    pub collisions: u64,
+    pub across_borders: u64,
+    pub min_clearance_m: f64,
+    pub worst_at: Option<(f64, f64, f64)>,
+}
+
+/// The period shifts at which `b`'s trajectory continues `a`'s or `a`'s continues `b`'s (the
+/// same character going on through the crossing between them; both when it goes back and
+/// forth).
+fn continuations(a: &Ends, b: &Ends, period: f64) -> [Option<i64>; 2] {
+    let shift = |x: f64, y: f64| Some(((x - y) / period).round() as i64);
+    [
+        if a.exit.0 == b.entry.0 {
+            shift(a.exit.1, b.entry.1)
+        } else {
+            None
+        },
+        if b.exit.0 == a.entry.0 {
+            shift(a.entry.1, b.exit.1)
+        } else {
+            None
+        },
+    ]
+}
+
+/// A pair's closest approach: distance, time, place, and whether in different patches.
+type Near = (f64, f64, DVec2, bool);
+/// A walker's closest approach to something standing still: clearance margin, time, place.
+type Margin = (f64, f64, DVec2);
+
+impl Scene {
+    /// The closest approach of pieces `a` and `b` over the copies that can meet, if any.
+    fn pair(&self, a: &Piece, b: &Piece) -> Option<(f64, f64, DVec2)> {
+        let (ks, skip) = match self.repeat {
+            Repeat::Clip(_) if a.walker == b.walker => return None,
+            Repeat::Clip(_) => (0..=0, [None; 3]),
+            Repeat::Periodic(period) => {
+                // A walker meets only its own copies a period or more apart, and the
+                // trajectory that continues it across a border (itself, when it leaves by the
+                // crossing it entered by) only at other shifts than the one where it is the
+                // same character going on.
+                let ends = |p: &Piece| &self.ends[p.walker as usize];
+                let [x, y] = continuations(ends(a), ends(b), period);
+                let skip = [(a.walker == b.walker).then_some(0), x, y];
+                let ks = geometry::copies((a.seg.t0, a.seg.t1), (b.seg.t0, b.seg.t1), period);
+                (ks, skip)
+            }
+        };
+        let period = self.repeat.period();
+        ks.filter(|&k| !skip.contains(&Some(k)))
+            .filter_map(|k| {
+                let s = b.seg.shifted(k as f64 * period);
+                geometry::closest(&a.seg, &s).map(|(d, t)| (d, t, a.seg.at(t)))
+            })
+            .min_by(|x, y| x.0.total_cmp(&y.0))
+    }
+
+    /// The pairs of pieces `ids` (ascending) whose times overlap, modulo the period when
+    /// walkers repeat: `(lower, higher)` indices, each once, ascending. A piece's time span is
+    /// swept against the others' starts (sorted), so a cell's pieces are not all compared with
+    /// all: they are spread over the whole period. Spans are widened by a nanosecond so that
+    /// rounding in the modulo never drops a pair that [`Scene::pair`] would compare.
+    fn coexisting(&self, ids: &[u32]) -> Vec<(u32, u32)> {
+        const WIDEN: f64 = 1e-9;
+        let (period, periodic) = match self.repeat {
+            Repeat::Periodic(p) => (p, true),
+            Repeat::Clip(p) => (p, false),
+        };
+        let mut spans: Vec<(f64, f64, u32)> = ids
+            .iter()
+            .map(|&i| {
+                let s = &self.pieces[i as usize].seg;
+                let start = if periodic {
+                    s.t0.rem_euclid(period)
+                } else {
+                    s.t0
+                };
+                (start, start + (s.t1 - s.t0) + WIDEN, i)
+            })
+            .collect();
+        spans.sort_by(|x, y| x.0.total_cmp(&y.0).then(x.2.cmp(&y.2)));
+        let mut out = Vec::new();
+        for (x, &(start, end, i)) in spans.iter().enumerate() {
+            let pair = |j: u32| (i.min(j), i.max(j));
+            if periodic && end - start >= period {
+                out.extend(spans.iter().filter(|o| o.2 != i).map(|o| pair(o.2)));
+                continue;
+            }
+            // Those starting during this one: after it in order, and from the period's start
+            // again when it runs past the period's end.
+            let later = spans[x + 1..].iter().take_while(|o| o.0 <= end);
+            out.extend(later.map(|o| pair(o.2)));
+            if periodic && end > period {
+                let wrapped = spans[..x].iter().take_while(|o| o.0 <= end - period);
+                out.extend(wrapped.map(|o| pair(o.2)));
+            }
+        }
+        out.sort_unstable();
+        out.dedup();
+        out
+    }
+
+    /// Every walker pair within reach, at its closest, in pair order.
+    fn walker_pairs(&self) -> Vec<((u32, u32), Near)> {
+        let r = self.radius;
+        let grid = PieceGrid::new(self.pieces.iter().map(|p| &p.seg), 4.0, 2.0 * r);
+        let reach = 2.0 * r + 1.0;
+        // Found once each: in the cell holding the lower corner of their overlap.
+        let found: Vec<((u32, u32), Near)> = grid
+            .cells()
+            .par_iter()
+            .flat_map_iter(|(k, ids)| {
+                let mut out = Vec::new();
+                for (i, j) in self.coexisting(ids) {
+                    let (a, b) = (&self.pieces[i as usize], &self.pieces[j as usize]);
+                    // Paths farther apart along an axis than the reach are farther apart.
+                    let (la, ha) = (a.seg.p0.min(a.seg.p1), a.seg.p0.max(a.seg.p1));
+                    let (lb, hb) = (b.seg.p0.min(b.seg.p1), b.seg.p0.max(b.seg.p1));
+                    if (lb - ha).max(la - hb).max_element() >= reach
+                        || !grid.owns(*k, &a.seg, &b.seg)
+                    {
+                        continue;
+                    }
+                    if let Some((d, t, at)) = self.pair(a, b)
+                        && d < reach
+                    {
+                        let key = (a.walker.min(b.walker), a.walker.max(b.walker));
+                        out.push((key, (d, t, at, a.patch != b.patch)));
+                    }
+                }
+                out.into_iter()
+            })
+            .collect();
+        closest_per_key(found)
+    }
+
+    /// Every walker against every stander and obstacle within reach (they stand still: no
+    /// copies), each pair at its closest however many pieces of the walker come near:
+    /// clearance margin, time, place.
+    fn fixed_pairs(&self) -> Vec<((u32, Fixed), Margin)> {
+        let r = self.radius;
+        let standers = BoxGrid::new(self.standers.iter().map(|&q| (q, q)), 2.0 * r + 1.0);
+        let walls = BoxGrid::new(self.walls.iter().copied(), r + 1.0);
+        let found: Vec<((u32, Fixed), Margin)> = self
+            .pieces
+            .par_iter()
+            .flat_map_iter(|piece| {
+                let s = &piece.seg;
+                let (lo, hi) = (s.p0.min(s.p1), s.p0.max(s.p1));
+                let mut out = Vec::new();
+                for i in standers.near(lo, hi) {
+                    let q = self.standers[i as usize];
+                    if (q - hi).max(lo - q).max_element() >= 2.0 * r + 1.0 {
+                        continue;
+                    }
+                    if let Some((d, t)) = geometry::closest(s, &Segment::standing(q, s.t0, s.t1))
+                        && d < 2.0 * r + 1.0
+                    {
+                        let key = (piece.walker, Fixed::Stander(i));
+                        out.push((key, (d - 2.0 * r, t, s.at(t))));
+                    }
+                }
+                for i in walls.near(lo, hi) {
+                    let (min, max) = self.walls[i as usize];
+                    if (min - hi).max(lo - max).max_element() > r + 1.0 {
+                        continue; // farther apart along an axis than the reach
+                    }
+                    let (d, t, _) = geometry::to_rect(s, min, max);
+                    if d < r + 1.0 {
+                        out.push(((piece.walker, Fixed::Wall(i)), (d - r, t, s.at(t))));
+                    }
+                }
+                out.into_iter()
+            })
+            .collect();
+        closest_per_key(found)
+    }
+
+    /// Collisions and the smallest clearance over every pair, added up in pair order.
+    pub fn clearance(&self) -> Clearance {
+        let period = self.repeat.period();
+        let mut c = Clearance {
+            collisions: 0,
+            across_borders: 0,
+            min_clearance_m: f64::INFINITY,
+            worst_at: None,
+        };
+        let mut note = |margin: f64, at: DVec2, t: f64, across: bool| {
+            if margin < -1e-6 {
+                c.collisions += 1;
+                c.across_borders += across as u64;
+            }
+            if margin < c.min_clearance_m {
+                c.min_clearance_m = margin;
+                c.worst_at = Some((at.x, at.y, t.rem_euclid(period)));
+            }
+        };
+        for (_, (d, t, at, across)) in self.walker_pairs() {
+            note(d - 2.0 * self.radius, at, t, across);
+        }
+        for (_, (margin, t, at)) in self.fixed_pairs() {
+            note(margin, at, t, false);
+        }
+        c
+    }
+}
+
+/// The smallest-first entry of each key, sorted by key (so sums over them do not depend on
+/// how the parallel work was split).
+fn closest_per_key<K: Ord + std::hash::Hash + Copy, V: Copy + Closer>(
+    found: Vec<(K, V)>,
+) -> Vec<(K, V)> {
+    let mut closest: HashMap<K, V> = HashMap::new();
+    for (k, v) in found {
+        let e = closest.entry(k).or_insert(v);
+        if v.closer(e) {
+            *e = v;
+        }
+    }
+    let mut pairs: Vec<_> = closest.into_iter().collect();
+    pairs.sort_by_key(|(k, _)| *k);
+    pairs
+}
+
+/// Which of two approaches of one pair is kept: the smaller distance (or margin), then the
+/// earlier time and the lower place, so that the kept one does not depend on the order they
+/// were found in.
+trait Closer {
+    fn closer(&self, other: &Self) -> bool;
+}
+
+fn closer(a: (f64, f64, DVec2), b: (f64, f64, DVec2)) -> bool {
+    let order = a.0.total_cmp(&b.0).then(a.1.total_cmp(&b.1));
+    let order = order
+        .then(a.2.x.total_cmp(&b.2.x))
+        .then(a.2.y.total_cmp(&b.2.y));
+    order.is_lt()
+}
+
+impl Closer for Near {
+    fn closer(&self, o: &Self) -> bool {
+        closer((self.0, self.1, self.2), (o.0, o.1, o.2))
+    }
+}
+
+impl Closer for Margin {
+    fn closer(&self, o: &Self) -> bool {
+        closer(*self, *o)
+    }
+}
+
+/// What stands still in the world: a stander or an obstacle box, by index.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+enum Fixed {
+    Stander(u32),
+    Wall(u32),
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    fn scene(spans: &[(f64, f64)], repeat: Repeat) -> Scene {
+        let pieces = spans
+            .iter()
+            .enumerate()
+            .map(|(i, &(t0, dt))| Piece {
+                seg: Segment::standing(DVec2::ZERO, t0, t0 + dt),
+                walker: i as u32,
+                patch: 0,
+            })
+            .collect();
+        Scene {
+            radius: 0.3,
+            repeat,
+            pieces,
+            ends: vec![],
+            standers: vec![],
+            walls: vec![],
+        }
+    }
+
+    proptest! {
+        /// The time sweep keeps every pair of pieces that exist at a common time (modulo the
+        /// period, when walkers repeat): every pair `Scene::pair` would find a copy of.
+        #[test]
+        fn the_sweep_keeps_every_pair_that_coexists(
+            spans in proptest::collection::vec((0.0f64..60.0, 0.0f64..25.0), 2..30),
+            periodic in any::<bool>(),
+        ) {
+            let repeat = if periodic { Repeat::Periodic(20.0) } else { Repeat::Clip(20.0) };
+            let s = scene(&spans, repeat);
+            let ids: Vec<u32> = (0..spans.len() as u32).collect();
+            let kept = s.coexisting(&ids);
+            prop_assert!(kept.windows(2).all(|w| w[0] < w[1]));
+            for i in 0..spans.len() {
+                for j in i + 1..spans.len() {
+                    let (a, b) = (&s.pieces[i].seg, &s.pieces[j].seg);
+                    let meet = if periodic {
+                        !geometry::copies((a.t0, a.t1), (b.t0, b.t1), 20.0).is_empty()
+                    } else {
+                        a.t0.max(b.t0) <= a.t1.min(b.t1)
+                    };
+                    if meet {
+                        prop_assert!(kept.contains(&(i as u32, j as u32)), "{} {}", i, j);
+                    }
+                }
+            }
+        }
+    }
+}

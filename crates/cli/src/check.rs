@@ -1,0 +1,299 @@
+//! `crowd check DIR`, and the step `crowd build` runs after stage 8 (unless `--no-check`):
+//! the latest trajectories of a build folder (crowd-check on the stage file), then what ships,
+//! read as an engine reads it (`library.crowd` through crowd-runtime, `world.glb` through the
+//! gltf crate), all into `check.ron`. It is not a stage of the table: it writes no input of
+//! any stage, and its time goes into `timings.ron` as `check`.
+
+use crate::driver::{StageRun, TIMINGS_FILE, read_timings, timed};
+use crate::stage::Stage;
+use crate::stages::{self, GRAPH_FILE, PATTERNS_FILE};
+use crate::ui::Ui;
+use anyhow::{Context, Result, bail};
+use crowd_check::{CheckReport, ProductFigures};
+use crowd_core::config::PipelineFile;
+use crowd_core::files;
+use crowd_core::patterns::Patterns;
+use crowd_core::trajectories::TrajectoriesFile;
+use crowd_core::{Hash, Hasher, PatchGraph};
+use crowd_export::{GLB_FILE, LIBRARY_FILE};
+use std::path::Path;
+
+/// What `crowd check` writes.
+pub const CHECK_FILE: &str = "check.ron";
+/// The runtime's sampler plays the library every this many seconds over one period.
+pub const SAMPLE_STEP_S: f64 = 0.02;
+
+/// What a check is asked for.
+#[derive(Debug, Clone, Copy)]
+pub struct CheckOptions {
+    /// The stage whose trajectories to check (None: the latest in the folder).
+    pub stage: Option<&'static Stage>,
+    /// `match.max_speed` of the build's pipeline, m/s (the shipped speed limit is 5 % above).
+    pub max_speed: f64,
+}
+
+impl Default for CheckOptions {
+    fn default() -> Self {
+        CheckOptions {
+            stage: None,
+            max_speed: crowd_core::config::MatchSettings::default().max_speed,
+        }
+    }
+}
+
+/// Checks the build folder `dir`, writes `check.ron` and the check's time in `timings.ron`
+/// (returned too).
+pub fn check(dir: &Path, options: &CheckOptions) -> Result<(CheckReport, StageRun)> {
+    let (report, run) = timed(|| measure(dir, options))?;
+    files::write_atomic(&dir.join(CHECK_FILE), files::to_ron(&report).as_bytes())?;
+    let mut timings = read_timings(dir);
+    timings.insert("check".to_string(), run);
+    files::write_atomic(&dir.join(TIMINGS_FILE), files::to_ron(&timings).as_bytes())?;
+    Ok((report, run))
+}
+
+/// `crowd check DIR [--stage STAGE] [--pipeline FILE]`: checks, refreshes `report.md`, and
+/// returns the summary to print.
+pub fn command(
+    dir: &Path,
+    stage: Option<&'static Stage>,
+    pipeline: Option<&Path>,
+) -> Result<String> {
+    let mut options = CheckOptions {
+        stage,
+        ..Default::default()
+    };
+    if let Some(p) = pipeline {
+        options.max_speed = PipelineFile::load(p)?.pipeline.matching.max_speed;
+    }
+    let (report, _) = check(dir, &options)?;
+    crate::report_md::write(dir, Default::default())?;
+    Ok(check_summary(&report))
+}
+
+/// The check `crowd build` runs after stage 8: skipped when `check.ron` is up to date (unless
+/// `force`), else run, with its summary said.
+pub fn after_build(out: &Path, max_speed: f64, force: bool, ui: &Ui) -> Result<()> {
+    let options = CheckOptions {
+        stage: None,
+        max_speed,
+    };
+    let path = out.join(CHECK_FILE);
+    if !force && fresh(out, &options)? {
+        ui.say(format!(
+            "   check: up to date, skipped ({})",
+            path.display()
+        ));
+        return Ok(());
+    }
+    let (report, run) = check(out, &options)?;
+    let seconds = run.seconds;
+    ui.say(format!(
+        "   check: done in {seconds:.3} s -> {}",
+        path.display()
+    ));
+    ui.say(check_summary(&report).trim_end());
+    Ok(())
+}
+
+/// Whether `dir`'s `check.ron` was made from exactly the files and settings a check would read
+/// now.
+pub fn fresh(dir: &Path, options: &CheckOptions) -> Result<bool> {
+    let Ok(old) = files::read_ron::<CheckReport>(&dir.join(CHECK_FILE)) else {
+        return Ok(false);
+    };
+    let stage = chosen(dir, options.stage)?;
+    Ok(old.input_hash == Some(input_hash(dir, stage, options)?))
+}
+
+/// The trajectories a check reads: `stage`'s, or the latest in the folder.
+fn chosen(dir: &Path, stage: Option<&'static Stage>) -> Result<&'static Stage> {
+    let found = stages::TRAJECTORY_STAGES
+        .iter()
+        .copied()
+        .find(|c| stage.map_or(dir.join(c.output).exists(), |s| s == *c));
+    let Some(chosen) = found else {
+        bail!(
+            "{}: no trajectories to check; expected one of {}",
+            dir.display(),
+            stages::TRAJECTORY_STAGES.map(|s| s.output).join(", ")
+        );
+    };
+    Ok(chosen)
+}
+
+/// The hash of the files a check of `stage`'s trajectories reads (a stage file's RON text
+/// holds its side file's hash) and of its settings.
+fn input_hash(dir: &Path, stage: &Stage, options: &CheckOptions) -> Result<Hash> {
+    let mut h = Hasher::new("check", crowd_check::VERSION);
+    for file in [
+        GRAPH_FILE,
+        PATTERNS_FILE,
+        stage.output,
+        LIBRARY_FILE,
+        GLB_FILE,
+    ] {
+        let path = dir.join(file);
+        let bytes = match std::fs::read(&path) {
+            Ok(bytes) => Some(bytes),
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => None,
+            Err(e) => return Err(e).with_context(|| format!("{}", path.display())),
+        };
+        h.value(file, &bytes.map(|b| Hash::of(&b)));
+    }
+    h.value("match.max_speed", &options.max_speed);
+    h.value("sample_step_s", &SAMPLE_STEP_S);
+    Ok(h.finish())
+}
+
+fn measure(dir: &Path, options: &CheckOptions) -> Result<CheckReport> {
+    let graph = PatchGraph::load(&dir.join(GRAPH_FILE))?;
+    let chosen = chosen(dir, options.stage)?;
+    let (kind, version) = (chosen.kind, chosen.version);
+    let path = dir.join(chosen.output);
+    let (file, motion) = TrajectoriesFile::load_for(&path, kind, version, graph.patches.len())?;
+    let mut report = crowd_check::check(&graph, &motion, file.period_s);
+    report.stage = kind.to_string();
+    let patterns_path = dir.join(PATTERNS_FILE);
+    let (_, crossings) = Patterns::load_for(&patterns_path, &graph)?;
+    report.motion = Some(crowd_check::motion::figures(
+        &graph,
+        &crossings,
+        &motion,
+        file.period_s,
+    ));
+    drop(motion);
+    let walls = crowd_check::walls(&graph);
+    let limit = options.max_speed * crowd_check::products::SPEED_MARGIN;
+    report.library = library(dir, &walls, limit)?;
+    report.gltf = gltf(dir, &graph, &walls, limit)?;
+    report.input_hash = Some(input_hash(dir, chosen, options)?);
+    Ok(report)
+}
+
+/// The figures of `library.crowd`, when the folder holds one.
+fn library(dir: &Path, walls: &[crowd_check::Wall], limit: f64) -> Result<Option<ProductFigures>> {
+    let path = dir.join(LIBRARY_FILE);
+    if !path.exists() {
+        return Ok(None);
+    }
+    let bytes = std::fs::read(&path).with_context(|| format!("{}", path.display()))?;
+    let lib = crowd_runtime::Library::from_bytes(&bytes)
+        .with_context(|| format!("{}: the runtime refuses it", path.display()))?;
+    let inputs = crowd_check::library::Inputs {
+        walls,
+        speed_limit_m_s: limit,
+        sample_step_s: Some(SAMPLE_STEP_S),
+    };
+    Ok(Some(crowd_check::library::figures(&lib, &inputs)))
+}
+
+/// The figures of `world.glb`, when the folder holds one.
+fn gltf(
+    dir: &Path,
+    graph: &PatchGraph,
+    walls: &[crowd_check::Wall],
+    limit: f64,
+) -> Result<Option<ProductFigures>> {
+    let path = dir.join(GLB_FILE);
+    if !path.exists() {
+        return Ok(None);
+    }
+    let bytes = std::fs::read(&path).with_context(|| format!("{}", path.display()))?;
+    let inputs = crowd_check::glb::Inputs {
+        radius_m: graph.radius_m,
+        walls,
+        speed_limit_m_s: limit,
+    };
+    let figures = crowd_check::glb::figures(&bytes, &inputs)
+        .with_context(|| format!("{}: cannot be played", path.display()))?;
+    Ok(Some(figures))
+}
+
+/// What `crowd check` prints: collisions and clearance, the motion figures, then what ships.
+pub fn check_summary(report: &CheckReport) -> String {
+    let worst = report
+        .worst_at
+        .map(|(x, y, t)| format!(" at ({x:.2}, {y:.2}) m, t = {t:.2} s"))
+        .unwrap_or_default();
+    let mut s = format!(
+        "{} walkers, {} segments: {} collisions ({} across borders); smallest clearance \
+         {:+.3} m{worst}\n",
+        report.walkers,
+        report.segments,
+        report.collisions,
+        report.across_borders,
+        report.min_clearance_m,
+    );
+    if let Some(m) = &report.motion {
+        s += &format!(
+            "{}: walking speed in 0.5-1.8 m/s {:.1} % of the time; acceleration p95 {:.3} m/s2; \
+             turning rate p95 {:.3} rad/s\n",
+            report.stage,
+            100.0 * m.speed_in_band,
+            m.accel_p95,
+            m.turn_rate_p95
+        );
+        s += &format!(
+            "borders: largest velocity jump {:.3} m/s; ends off their crossings by at most \
+             {:.2e} m and {:.2e} s; {} crossings not entered and left once\n",
+            m.max_border_velocity_jump,
+            m.max_boundary_error_m,
+            m.max_boundary_time_error_s,
+            m.unmatched_crossings
+        );
+    }
+    for p in [&report.library, &report.gltf].into_iter().flatten() {
+        s += &product_summary(p);
+    }
+    s
+}
+
+/// A shipped file's figures in three lines.
+fn product_summary(p: &ProductFigures) -> String {
+    let at = |w: Option<(f64, f64, f64)>| {
+        w.map(|(x, y, t)| format!(" at ({x:.2}, {y:.2}) m, t = {t:.2} s"))
+            .unwrap_or_default()
+    };
+    let mut s = format!(
+        "{}: {} walkers, {} standers, {} pieces: {} collisions; smallest clearance {:+.3} m{}\n",
+        p.file,
+        p.walkers,
+        p.standers,
+        p.pieces,
+        p.collisions,
+        p.min_clearance_m,
+        at(p.worst_at)
+    );
+    s += &format!(
+        "  fastest {:.3} m/s{}; {:.2} % of walking time above {:.3} m/s; velocity jumps: at \
+         keys {:.3}",
+        p.max_speed_m_s,
+        at(p.max_speed_at),
+        100.0 * p.share_above_limit,
+        p.speed_limit_m_s,
+        p.max_key_velocity_jump,
+    );
+    if let (Some(jump), Some(gap)) = (p.max_border_velocity_jump, p.max_border_gap_m) {
+        s += &format!(", at borders {jump:.3} m/s (gap {gap:.2e} m)");
+    }
+    s += &format!(
+        ", at seams {:.3} m/s\n  seams: gap {:.2e} m, heading {:.3} rad; {} of {} loops open",
+        p.max_seam_velocity_jump,
+        p.max_seam_gap_m,
+        p.max_seam_heading_jump_rad,
+        p.open_loops,
+        p.loops
+    );
+    if let Some(turn) = p.max_turn_rate_rad_s {
+        s += &format!("; fastest turn {turn:.3} rad/s");
+    }
+    if let Some(sm) = &p.sampled {
+        s += &format!(
+            "\n  sampler, every {} s over a period: fastest step {:.3} m/s, {} jumps",
+            sm.step_s, sm.max_speed_m_s, sm.jumps
+        );
+    }
+    s.push('\n');
+    s
+}

@@ -1,0 +1,112 @@
+//! The check on what ships: `crowd build` checks `library.crowd` and `world.glb` after stage 8
+//! (as an engine reads them) into `check.ron` and `report.md`, skips a check whose inputs are
+//! unchanged, and `--no-check` leaves it out.
+
+use crate::util::*;
+use crowd_check::CheckReport;
+use std::path::Path;
+
+fn check_file(dir: &Path) -> CheckReport {
+    let text = std::fs::read_to_string(dir.join("check.ron")).unwrap();
+    ron::from_str(&text).unwrap()
+}
+
+/// The run's build of bands holds the figures of both shipped files: every walker and stander
+/// of `export.ron` read back, the library played by the runtime's sampler without a jump, and
+/// every figure in `crowd report --json` and `report.md`.
+#[test]
+fn a_build_checks_the_library_and_the_gltf_it_ships() {
+    let out = scene("bands");
+    let report = check_file(out);
+    let export: crowd_export::ExportFile =
+        ron::from_str(&std::fs::read_to_string(out.join("export.ron")).unwrap()).unwrap();
+    let library = report.library.as_ref().expect("library figures");
+    let gltf = report.gltf.as_ref().expect("glTF figures");
+    assert_eq!(
+        (library.walkers, library.loops),
+        (export.walkers, export.loops)
+    );
+    assert_eq!(library.standers, export.standers);
+    // bands ships the whole world in its glTF: a node per walker slot.
+    assert_eq!((gltf.walkers, gltf.loops), (export.walkers, export.walkers));
+    assert!((library.speed_limit_m_s - 1.8 * 1.05).abs() < 1e-12);
+    for p in [library, gltf] {
+        assert!(p.pieces > p.walkers && p.max_speed_m_s > 1.0, "{p:?}");
+        assert!(p.min_clearance_m.is_finite(), "{p:?}");
+    }
+    // Every loop of the library closes on itself; the sampler shows no step beyond the
+    // fastest piece.
+    assert_eq!(library.open_loops, 0, "{library:?}");
+    assert!(library.max_seam_gap_m < 1e-6 && library.max_border_gap_m.unwrap() < 1e-6);
+    let sampled = library.sampled.as_ref().expect("the sampler played");
+    assert_eq!((sampled.frames, sampled.jumps), (1000, 0), "{sampled:?}");
+
+    let json: serde_json::Value =
+        serde_json::from_slice(&crowd_ok(&["report", s(out), "--json"]).stdout).unwrap();
+    for prefix in ["library", "gltf"] {
+        for key in [
+            "collisions",
+            "min_clearance_m",
+            "max_speed",
+            "max_seam_velocity_jump",
+        ] {
+            let key = format!("{prefix}_{key}");
+            assert!(json[&key].is_number(), "{key} in {json}");
+        }
+    }
+    assert_eq!(json["library_sampler_jumps"], 0);
+    assert!(json["stage_seconds"]["check"].as_f64().unwrap() > 0.0);
+    let md = std::fs::read_to_string(out.join("report.md")).unwrap();
+    for row in [
+        "## What ships",
+        "| figure | `library.crowd` | `world.glb` |",
+        "| largest speed (m/s) |",
+        "| largest velocity jump at a seam (m/s) |",
+        "| open loops (end 1 cm or more from any start) | 0 |",
+        "| runtime's sampler: steps beyond the fastest piece | 0 | - |",
+        "| check |",
+    ] {
+        assert!(md.contains(row), "{row} in\n{md}");
+    }
+}
+
+/// `--no-check` leaves the check out (and `report.md` says so); a build without it checks; a
+/// build whose check inputs have not changed skips the check, and one whose `check.ron` came
+/// from other inputs checks again.
+#[test]
+fn no_check_skips_the_check_and_an_unchanged_build_keeps_it() {
+    let dir = copy_of("bands");
+    let out = dir.path();
+    std::fs::remove_file(out.join("check.ron")).unwrap();
+    let pipeline = scene_pipeline("bands");
+    let build = |extra: &[&str]| {
+        let mut args = vec!["build", "--pipeline", s(&pipeline), "--output", s(out)];
+        args.extend(extra);
+        String::from_utf8_lossy(&crowd_ok(&args).stderr).into_owned()
+    };
+    let said = build(&["--no-check"]);
+    assert!(
+        !said.contains("check:") && !out.join("check.ron").exists(),
+        "{said}"
+    );
+    let md = std::fs::read_to_string(out.join("report.md")).unwrap();
+    assert!(md.contains("Not checked yet"), "{md}");
+
+    let said = build(&[]);
+    assert!(said.contains("check: done in"), "{said}");
+    assert!(
+        said.contains("library.crowd:") && said.contains("world.glb:"),
+        "{said}"
+    );
+    assert_eq!(check_file(out), check_file(scene("bands")));
+    let said = build(&[]);
+    assert!(said.contains("check: up to date, skipped"), "{said}");
+
+    // A check.ron of other inputs (here: of none recorded) is checked again.
+    let mut old = check_file(out);
+    old.input_hash = None;
+    std::fs::write(out.join("check.ron"), ron::to_string(&old).unwrap()).unwrap();
+    let said = build(&[]);
+    assert!(said.contains("check: done in"), "{said}");
+    assert_eq!(check_file(out), check_file(scene("bands")));
+}
