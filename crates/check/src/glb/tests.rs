@@ -130,8 +130,9 @@ fn two_slots_of_a_two_lap_loop_hand_over_to_each_other() {
 }
 
 #[test]
-fn a_region_that_holds_one_slot_of_a_loop_keeps_the_whole_loop_closed() {
-    // At clip time 0 slot 0 is at (4, 1), slot 1 half-way round, at (4, 7): export keeps both.
+fn a_region_shows_every_slot_that_walks_into_it_and_its_loop_closes() {
+    // At clip time 0 slot 0 is at (4, 1), slot 1 half-way round, at (4, 7); slot 1 walks into
+    // the region during the clip, so export shows it there (hidden outside) and the loop closes.
     let f = figures_of(&[square(17.5, 2.0)], &[], Some((0.0, 0.0, 8.0, 4.0)));
     assert_eq!((f.walkers, f.open_loops), (2, 0), "{f:?}");
 }
