@@ -135,18 +135,7 @@ fn bench(cargo: &str, manifest: &std::path::Path, args: &[String]) -> ExitCode {
 
 /// Builds every scene pipeline with `--force` and prints the table of their figures.
 fn scenes(cargo: &str, root: &std::path::Path) -> ExitCode {
-    let status = Command::new(cargo)
-        .args([
-            "build",
-            "--release",
-            "--quiet",
-            "--bin",
-            "crowd",
-            "--manifest-path",
-        ])
-        .arg(root.join("Cargo.toml"))
-        .status();
-    if !status.is_ok_and(|s| s.success()) {
+    if !build_release_crowd(cargo, root) {
         eprintln!("cannot build crowd");
         return ExitCode::FAILURE;
     }
@@ -196,19 +185,7 @@ fn scenes(cargo: &str, root: &std::path::Path) -> ExitCode {
 /// `cargo xtask soak`: the release `crowd` over many random paintings (`crowd-paintings soak`).
 fn soak(cargo: &str, root: &std::path::Path, rest: &[String]) -> ExitCode {
     let manifest = root.join("Cargo.toml");
-    let built = Command::new(cargo)
-        .args([
-            "build",
-            "--release",
-            "--quiet",
-            "--bin",
-            "crowd",
-            "--manifest-path",
-        ])
-        .arg(&manifest)
-        .status()
-        .is_ok_and(|s| s.success());
-    if !built {
+    if !build_release_crowd(cargo, root) {
         eprintln!("cannot build crowd");
         return ExitCode::FAILURE;
     }
@@ -234,4 +211,20 @@ fn soak(cargo: &str, root: &std::path::Path, rest: &[String]) -> ExitCode {
     } else {
         ExitCode::FAILURE
     }
+}
+
+/// Builds the release `crowd` binary (`target/release/crowd`); whether it succeeded.
+fn build_release_crowd(cargo: &str, root: &std::path::Path) -> bool {
+    Command::new(cargo)
+        .args([
+            "build",
+            "--release",
+            "--quiet",
+            "--bin",
+            "crowd",
+            "--manifest-path",
+        ])
+        .arg(root.join("Cargo.toml"))
+        .status()
+        .is_ok_and(|s| s.success())
 }
