@@ -272,14 +272,17 @@ impl Painting {
     /// Writes the layers and `pipeline.ron` (building into `out`, beside them) into `dir`;
     /// returns the pipeline's path.
     pub fn write(&self, dir: &Path) -> anyhow::Result<PathBuf> {
-        std::fs::create_dir_all(dir)?;
+        use anyhow::Context;
+        std::fs::create_dir_all(dir)
+            .with_context(|| format!("{}: cannot create the folder", dir.display()))?;
         let mut specs = String::new();
         for layer in &self.layers {
             let file = format!("{}.png", layer.kind().to_lowercase());
             match layer {
-                Layer::Gray { image, .. } => image.save(dir.join(&file))?,
-                Layer::Rgba { image, .. } => image.save(dir.join(&file))?,
+                Layer::Gray { image, .. } => image.save(dir.join(&file)),
+                Layer::Rgba { image, .. } => image.save(dir.join(&file)),
             }
+            .with_context(|| format!("{}: cannot write", dir.join(&file).display()))?;
             specs += &format!("            (kind: {}, path: \"{file}\"),\n", layer.kind());
         }
         let text = format!(
@@ -298,7 +301,7 @@ impl Painting {
             radius = self.radius_m,
         );
         let path = dir.join("pipeline.ron");
-        std::fs::write(&path, text)?;
+        std::fs::write(&path, text).with_context(|| format!("{}: cannot write", path.display()))?;
         Ok(path)
     }
 }
