@@ -37,6 +37,11 @@ impl Anchor {
 /// 20 m/s).
 const PUSH_SPEED_MAX: f64 = 4.0;
 
+/// No bend is made closer than this (seconds) to a split point: export drops a keyframe that
+/// the walk passes within `export.simplify_mm` of, so a corner a moment from the period would
+/// be a corner at the loop seam.
+const SPLIT_GAP_S: f64 = 0.05;
+
 /// A control point between the anchors, free to move in space (its time stays).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Free {
@@ -75,7 +80,7 @@ impl Path {
         let entry_band = e.map_or_else(Vec::new, |e| fixed(1..e + 1));
         let exit_band = x.map_or_else(Vec::new, |x| fixed(x..n - 1));
         let inner = e.map_or(1, |e| e + 1)..x.unwrap_or(n - 1);
-        Path {
+        let mut path = Path {
             entry: anchor(&first),
             exit: anchor(&last),
             entry_band,
@@ -90,7 +95,9 @@ impl Path {
                 .collect(),
             entry_crossing: tr.entry,
             exit_crossing: tr.exit,
-        }
+        };
+        path.settle_splits();
+        path
     }
 
     pub fn to_trajectory(&self) -> Trajectory {
@@ -224,20 +231,41 @@ impl Path {
         true
     }
 
-    /// The points just before free point `i` and just after free point `j` (a band end or an
-    /// anchor where there is no free point).
+    /// The points just before free point `i` and just after free point `j` that shape the
+    /// walk (a band end or an anchor where there is no free point): split points lie on the
+    /// walk between them ([`Path::settle_splits`]).
     pub fn neighbours(&self, i: usize, j: usize) -> ((DVec2, f64), (DVec2, f64)) {
         let (start, end) = self.fixed_ends();
-        let prev = if i == 0 {
-            (start.pos, start.t)
-        } else {
-            (self.free[i - 1].pos, self.free[i - 1].t)
-        };
+        let shapes = |f: &&Free| f.kind != PointKind::Split;
+        let prev = self.free[..i]
+            .iter()
+            .rev()
+            .find(shapes)
+            .map_or((start.pos, start.t), |f| (f.pos, f.t));
         let next = self
             .free
-            .get(j + 1)
+            .get(j + 1..)
+            .and_then(|rest| rest.iter().find(shapes))
             .map_or((end.pos, end.t), |f| (f.pos, f.t));
         (prev, next)
+    }
+
+    /// Puts every free split point where the walk between the points around it passes at its
+    /// time. A split point marks the period; it is never pushed, so that the walk has no
+    /// corner at the loop seam, where a player hands a character from one node to the next.
+    pub fn settle_splits(&mut self) {
+        for i in 0..self.free.len() {
+            if self.free[i].kind != PointKind::Split {
+                continue;
+            }
+            let ((a, ta), (b, tb)) = self.neighbours(i, i);
+            let t = self.free[i].t;
+            self.free[i].pos = if a == b || tb <= ta {
+                a
+            } else {
+                a.lerp(b, ((t - ta) / (tb - ta)).clamp(0.0, 1.0))
+            };
+        }
     }
 
     /// Steps aside during the pause `(i, j)`: the part of the pause from time `t` on (or up to
@@ -338,6 +366,18 @@ impl Path {
         // Earliest and latest times that keep the order and the speed limit on both pieces.
         let lo = (prev.1 + prev.0.distance(pos) / max_speed).max(prev.1 + 0.05);
         let hi = (next.1 - next.0.distance(pos) / max_speed).min(next.1 - 0.05);
+        // Nor past, or within SPLIT_GAP_S of, a split point next to it, whose time stays.
+        let gap = |f: &Free| {
+            if f.kind == PointKind::Split {
+                SPLIT_GAP_S
+            } else {
+                0.0
+            }
+        };
+        let lo = i
+            .checked_sub(1)
+            .map_or(lo, |k| lo.max(self.free[k].t + gap(&self.free[k])));
+        let hi = self.free.get(i + 1).map_or(hi, |f| hi.min(f.t - gap(f)));
         if lo > hi {
             return false;
         }
@@ -394,10 +434,13 @@ impl Path {
             return;
         }
         let (start, end) = self.fixed_ends();
+        // The walk's shape, without its split points (marks on it, put back after).
+        let (splits, shape): (Vec<Free>, Vec<Free>) =
+            self.free.iter().partition(|f| f.kind == PointKind::Split);
         let mut points: Vec<(DVec2, f64, Option<PointKind>)> =
             Vec::with_capacity(self.free.len() + 2);
         points.push((start.pos, start.t, None));
-        points.extend(self.free.iter().map(|f| (f.pos, f.t, Some(f.kind))));
+        points.extend(shape.iter().map(|f| (f.pos, f.t, Some(f.kind))));
         points.push((end.pos, end.t, None));
         let mut free = Vec::with_capacity(self.free.len());
         for w in points.windows(2) {
@@ -426,7 +469,12 @@ impl Path {
                 });
             }
         }
+        for split in splits {
+            let at = free.partition_point(|f| f.t <= split.t);
+            free.insert(at, split);
+        }
         self.free = free;
+        self.settle_splits();
     }
 
     /// The index of the free point at time `t`: an existing one within `window` seconds, or a
@@ -447,11 +495,31 @@ impl Path {
         {
             return None;
         }
+        // Nor at the period: a bend within SPLIT_GAP_S of a split point is taken that far
+        // from it (on the same side), so that the walk has no corner at the loop seam.
+        let near_split = |t: f64| {
+            self.free
+                .iter()
+                .find(|f| f.kind == PointKind::Split && (f.t - t).abs() < SPLIT_GAP_S)
+                .map(|f| f.t)
+        };
+        let t = match near_split(t) {
+            Some(s) if t >= s => s + SPLIT_GAP_S,
+            Some(s) => s - SPLIT_GAP_S,
+            None => t,
+        };
+        if t < t0 + window || t > t1 - window || near_split(t).is_some() {
+            return None;
+        }
         if let Some(i) = self
             .free
             .iter()
             .enumerate()
-            .filter(|(_, f)| (f.t - t).abs() <= window && f.kind != PointKind::Pause)
+            .filter(|(_, f)| {
+                (f.t - t).abs() <= window
+                    && !matches!(f.kind, PointKind::Pause | PointKind::Split)
+                    && near_split(f.t).is_none()
+            })
             .min_by(|a, b| (a.1.t - t).abs().total_cmp(&(b.1.t - t).abs()))
             .map(|(i, _)| i)
         {

@@ -62,6 +62,7 @@ pub fn remove_collisions(
         for f in &mut path.free {
             f.pos = patch.keep_inside(f.pos);
         }
+        path.settle_splits();
     }
     let walls = patch.walls();
     let mut tracks = Tracks::new(paths.iter().map(Path::segments).collect());
@@ -91,6 +92,7 @@ pub fn remove_collisions(
         let touched = push_apart(paths, &tracks, patch, speeds, &w, rng);
         for &p in &touched {
             paths[p].reroute(&walls, patch.radius_m, patch.side_m);
+            paths[p].settle_splits();
         }
         for &p in &touched {
             tracks.set(p, paths[p].segments());

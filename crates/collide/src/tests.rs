@@ -461,7 +461,9 @@ proptest! {
 
     /// Ramirez's Figure 6 patches (16 m, period 10 s, 1 to 50 pairs at random under stage 3's
     /// spacing rule, matched by stage 4): every one converges within stage 5's default budget,
-    /// and then every pair keeps its clearance (by sampling).
+    /// and then every pair keeps its clearance (by sampling). No walk has a corner where it
+    /// passes the period (a player's loop seam): every split point lies on the straight walk
+    /// between the points either side, which keep their order in time.
     #[test]
     fn a_random_patch_always_converges(pairs in 1usize..=50, seed in any::<u64>()) {
         let shape = crowd_match::random::Shape { side_m: 16.0, period_s: 10.0, radius_m: 0.3 };
@@ -481,6 +483,15 @@ proptest! {
         prop_assert!(out.worst.is_none(), "{} pairs: {:?}", pairs, out);
         let d = smallest_sampled_distance(&paths, 10.0);
         prop_assert!(d >= 0.6 - 0.01, "{} pairs come {} apart", pairs, d);
+        for path in &paths {
+            let points = path.to_trajectory().points;
+            prop_assert!(points.windows(2).all(|w| w[1].t >= w[0].t));
+            for w in points.windows(3).filter(|w| w[1].kind == PointKind::Split) {
+                let (a, b, c) = (w[0], w[1], w[2]);
+                let on = if c.t > a.t { a.pos.lerp(c.pos, (b.t - a.t) / (c.t - a.t)) } else { a.pos };
+                prop_assert!(on.distance(b.pos) < 1e-9, "a corner at the period: {:?}", w);
+            }
+        }
     }
 }
 
