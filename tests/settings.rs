@@ -9,7 +9,7 @@ use std::path::{Path, PathBuf};
 /// A copy of the shipped pipeline `name` (`pipeline.ron`, or one of `assets/pipelines/`) in
 /// `dir`, its layer paths made absolute and its output `dir/out`, with `field` (`period_s`, or
 /// `section.key`) set to `value`. Returns the copy and the line the field is written on.
-fn broken(dir: &Path, name: &str, field: &str, value: &str) -> (PathBuf, usize) {
+pub(crate) fn broken(dir: &Path, name: &str, field: &str, value: &str) -> (PathBuf, usize) {
     let shipped = root().join(name);
     let folder = shipped.parent().unwrap();
     let text = std::fs::read_to_string(&shipped).unwrap();

@@ -14,3 +14,4 @@ mod paintings;
 mod patterns;
 mod scenes;
 mod settings;
+mod warnings;

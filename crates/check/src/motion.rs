@@ -42,6 +42,11 @@ pub struct MotionFigures {
     pub max_boundary_time_error_s: f64,
     /// Crossings not entered by exactly one trajectory and left by exactly one.
     pub unmatched_crossings: u64,
+    /// The fastest piece of any trajectory, m/s, and where: (patch, trajectory, time).
+    #[serde(default)]
+    pub max_speed_m_s: f64,
+    #[serde(default)]
+    pub max_speed_at: Option<(u32, u32, f64)>,
 }
 
 #[derive(Clone)]
@@ -50,6 +55,7 @@ struct Tally {
     in_band: f64,
     accel: Vec<f64>,
     turn: Vec<f64>,
+    fastest: (f64, Option<(u32, u32, f64)>),
 }
 
 impl Tally {
@@ -59,6 +65,7 @@ impl Tally {
             in_band: 0.0,
             accel: vec![0.0; BINS],
             turn: vec![0.0; BINS],
+            fastest: (0.0, None),
         }
     }
 
@@ -71,14 +78,22 @@ impl Tally {
         for (a, b) in self.turn.iter_mut().zip(&o.turn) {
             *a += b;
         }
+        // The first of equals, in patch order.
+        if o.fastest.0 > self.fastest.0 {
+            self.fastest = o.fastest;
+        }
         self
     }
 
-    fn trajectory(&mut self, tr: &Trajectory) {
+    /// Tallies trajectory `at.1` of patch `at.0`.
+    fn trajectory(&mut self, tr: &Trajectory, at: (u32, u32)) {
         let pts = &tr.points;
         for w in pts.windows(2).filter(|w| w[1].t > w[0].t) {
             let dt = w[1].t - w[0].t;
             let speed = w[1].pos.distance(w[0].pos) / dt;
+            if speed > self.fastest.0 {
+                self.fastest = (speed, Some((at.0, at.1, w[0].t)));
+            }
             if speed > STANDING {
                 self.walking += dt;
                 if (SPEED_BAND.0..=SPEED_BAND.1).contains(&speed) {
@@ -134,10 +149,14 @@ pub fn figures(
     // whatever the thread count (a parallel `reduce` pairs them by how the work was split).
     let tally = motion
         .par_chunks(CHUNK)
-        .map(|chunk| {
+        .enumerate()
+        .map(|(c, chunk)| {
             let mut t = Tally::new();
-            for tr in chunk.iter().flat_map(|m| &m.trajectories) {
-                t.trajectory(tr);
+            for (p, m) in chunk.iter().enumerate() {
+                let patch = (c * CHUNK + p) as u32;
+                for (i, tr) in m.trajectories.iter().enumerate() {
+                    t.trajectory(tr, (patch, i as u32));
+                }
             }
             t
         })
@@ -216,5 +235,7 @@ pub fn figures(
         max_boundary_error_m: pos_err,
         max_boundary_time_error_s: time_err,
         unmatched_crossings: unmatched,
+        max_speed_m_s: tally.fastest.0,
+        max_speed_at: tally.fastest.1,
     }
 }

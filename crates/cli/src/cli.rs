@@ -45,6 +45,10 @@ pub enum Command {
         /// `library.crowd` and `world.glb`, into `check.ron` and `report.md`).
         #[arg(long)]
         no_check: bool,
+        /// Fail (exit 1, after writing everything) when the build has warnings: parts of the
+        /// painting it could not meet, listed on stderr and in `report.md`.
+        #[arg(long)]
+        deny_warnings: bool,
     },
     /// The stages one at a time: `crowd merge`, `crowd graph`, ... (one subcommand per entry
     /// of the stage table).
@@ -246,6 +250,7 @@ pub fn run(cli: Cli) -> Result<()> {
             output,
             until,
             no_check,
+            deny_warnings,
         } => {
             let file = PipelineFile::load(&pipeline)?;
             let out = output.clone().unwrap_or_else(|| file.output_dir());
@@ -262,6 +267,17 @@ pub fn run(cli: Cli) -> Result<()> {
             let scope = crate::report::Scope { last: until };
             let report = crate::report_md::write(&out, scope)?;
             ui.say(format!("  report: {}", report.display()));
+            let warnings = crate::warnings::gather(&out)?;
+            for w in &warnings {
+                eprintln!("warning: {}", w.text);
+            }
+            if deny_warnings && !warnings.is_empty() {
+                anyhow::bail!(
+                    "{} warning(s), and --deny-warnings was given (see {})",
+                    warnings.len(),
+                    report.display()
+                );
+            }
         }
         Command::Stage(StageCommand {
             stage,

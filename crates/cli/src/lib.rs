@@ -11,3 +11,4 @@ pub mod report_md;
 pub mod stage;
 pub mod stages;
 pub mod ui;
+pub mod warnings;

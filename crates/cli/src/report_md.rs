@@ -20,9 +20,50 @@ pub const REPORT_FILE: &str = "report.md";
 pub fn write(dir: &Path, scope: Scope) -> Result<PathBuf> {
     let pictures = draw_pictures(dir, scope)?;
     let report = Report::gather_in(dir, scope)?;
+    let warnings = crate::warnings::gather(dir)?;
+    let marked = if warnings.iter().any(|w| !w.patches.is_empty()) {
+        Some(crate::warnings::draw(
+            dir,
+            &warnings,
+            &dir.join(WARNINGS_PICTURE),
+        )?)
+    } else {
+        // A picture of an earlier build's warnings build had would mislead.
+        let _ = std::fs::remove_file(dir.join(WARNINGS_PICTURE));
+        None
+    };
+    let mut text = markdown(dir, &report, &pictures);
+    // The warnings go first, under the title: they are what a person must read.
+    let at = text.find("\n## ").map_or(text.len(), |i| i + 1);
+    text.insert_str(at, &warnings_section(&warnings, marked));
     let path = dir.join(REPORT_FILE);
-    files::write_atomic(&path, markdown(dir, &report, &pictures).as_bytes())?;
+    files::write_atomic(&path, text.as_bytes())?;
     Ok(path)
+}
+
+/// The picture of where the warnings are, beside the report.
+pub const WARNINGS_PICTURE: &str = "report_warnings.png";
+
+/// `report.md`'s list of what the build could not meet, with its picture (`marked`: the
+/// picture's legend, when there is one).
+fn warnings_section(warnings: &[crate::warnings::Warning], marked: Option<&str>) -> String {
+    if warnings.is_empty() {
+        return "## Warnings\n\nNone: the build met every part of the painting it checks.\n\n"
+            .to_string();
+    }
+    let mut s = format!(
+        "## Warnings\n\n{} part(s) of the painting the build could not meet (`crowd build \
+         --deny-warnings` fails on them):\n\n",
+        warnings.len()
+    );
+    for w in warnings {
+        let _ = writeln!(s, "- {}", w.text);
+    }
+    if let Some(legend) = marked {
+        let _ = writeln!(s, "\n![where]({WARNINGS_PICTURE})\n\n{legend}");
+    }
+    s.push('\n');
+    s
 }
 
 /// A picture in the report: file name beside it, caption, legend.

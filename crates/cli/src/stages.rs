@@ -6,7 +6,7 @@
 use crate::artifacts::Artifacts;
 use crate::stage::{Ran, Stage};
 use crate::ui::Ui;
-use anyhow::{Result, anyhow};
+use anyhow::{Result, anyhow, bail};
 use crowd_core::files::{self, Header};
 use crowd_core::maps::MergeFile;
 use crowd_core::patterns::Patterns;
@@ -279,6 +279,21 @@ fn collide(a: &mut Artifacts, out: &Path, hash: Hash, ui: &Ui) -> Result<Ran> {
     let s = crowd_collide::inputs(a.pipeline);
     let (motion, reports) = crowd_collide::collide(&graph, &matched.1, &s, &bar);
     drop(matched);
+    if let Some(stall) = reports.iter().find_map(|r| r.stall) {
+        let stalled = reports.iter().filter(|r| r.stall.is_some()).count();
+        bail!(
+            "stage 5 could not keep {} clear ({stalled} patch(es) in all): walker {} and {:?} \
+             stay {:.3} m too close at t = {:.2} s, even with walkers let hurry, after \
+             collide.max_iterations = {} pushes; no file was written. Paint fewer walkers or \
+             crossing flows there, or raise collide.max_iterations",
+            crate::warnings::place(&graph, stall.patch),
+            stall.walker,
+            stall.with,
+            -stall.margin_m,
+            stall.t_s,
+            s.max_iterations
+        );
+    }
     let (file, writes) = crowd_collide::encode(out, &motion, &reports, &graph, &s, hash);
     a.made_motion(&COLLIDE, (file, motion));
     Ok(Ran::files(writes))

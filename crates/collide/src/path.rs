@@ -31,11 +31,9 @@ impl Anchor {
     }
 }
 
-/// The fastest a push may make a walker walk, m/s: above stage 4's limit, since a bend near a
-/// band end often needs a short hurried piece (3 m/s tripled the stalled patches of `ring`),
-/// but no more than a brief run (without a cap, a point pushed again and again ran off at
-/// 20 m/s).
-const PUSH_SPEED_MAX: f64 = 4.0;
+/// The shortest time a piece of a re-timed walk takes, s: points keep strictly increasing
+/// times.
+const MIN_PIECE_S: f64 = 1e-3;
 
 /// No bend is made closer than this (seconds) to a split point: export drops a keyframe that
 /// the walk passes within `export.simplify_mm` of, so a corner a moment from the period would
@@ -390,30 +388,28 @@ impl Path {
     }
 
     /// Moves the walker at time `t` by `force` (the free point at `t`, see
-    /// [`Path::free_point_at`]), if `allowed` accepts where it ends. Returns whether it moved.
+    /// [`Path::free_point_at`]), if `allowed` accepts where it ends and the walk still fits its
+    /// time at `max_speed`. Returns whether it moved.
     pub fn push_at(
         &mut self,
         t: f64,
         force: DVec2,
         window: f64,
+        max_speed: f64,
         keep_inside: impl Fn(DVec2) -> DVec2,
         allowed: impl Fn(DVec2) -> bool,
     ) -> bool {
         let Some(i) = self.free_point_at(t, window) else {
             return false;
         };
-        let (pos, t0) = (self.free[i].pos, self.free[i].t);
-        // Nor may it make the walker walk faster than [`PUSH_SPEED_MAX`] to or from the point
-        // (or faster than it already did): pushes on one point add up.
-        let (prev, next) = self.neighbours(i, i);
-        let speed = |a: (DVec2, f64), b: (DVec2, f64)| a.0.distance(b.0) / (b.1 - a.1).max(1e-9);
-        let limits = (
-            speed(prev, (pos, t0)).max(PUSH_SPEED_MAX),
-            speed((pos, t0), next).max(PUSH_SPEED_MAX),
-        );
-        let walkable = |p: DVec2| {
-            speed(prev, (p, t0)) <= limits.0 + 1e-9 && speed((p, t0), next) <= limits.1 + 1e-9
-        };
+        let pos = self.free[i].pos;
+        // Nor may it leave the walk too long for its time at `max_speed` (or longer than it
+        // already was): [`Path::limit_speed`] then spreads the walk's time so that no piece is
+        // faster. A bend needs no hurried piece where the walk has time to spare elsewhere.
+        let run = self.run_around(i);
+        let need = |p: DVec2| run.least_time(p, max_speed);
+        let budget = run.time().max(need(pos));
+        let walkable = |p: DVec2| need(p) <= budget + 1e-9;
         // A push towards the border slides along it instead; a push into an obstacle stops at
         // the nearest place clear of it.
         let target = keep_inside(pos + force);
@@ -424,6 +420,90 @@ impl Path {
             }
             None => false,
         }
+    }
+
+    /// The points that shape the walk from one fixed end to the other: (where, when, index in
+    /// `free` or `None` for an end, whether its time is fixed). Split points are marks on the
+    /// walk, not shape; pause points and the ends keep their times, the rest may be re-timed.
+    fn shape(&self) -> Vec<(DVec2, f64, Option<usize>, bool)> {
+        let (start, end) = self.fixed_ends();
+        let mut shape = Vec::with_capacity(self.free.len() + 2);
+        shape.push((start.pos, start.t, None, true));
+        for (i, f) in self.free.iter().enumerate() {
+            if f.kind != PointKind::Split {
+                shape.push((f.pos, f.t, Some(i), f.kind == PointKind::Pause));
+            }
+        }
+        shape.push((end.pos, end.t, None, true));
+        shape
+    }
+
+    /// The stretch of walk around free point `i` between the nearest points whose times are
+    /// fixed.
+    fn run_around(&self, i: usize) -> Run {
+        let shape = self.shape();
+        let k = shape
+            .iter()
+            .position(|s| s.2 == Some(i))
+            .expect("a shape point");
+        let a = (0..k)
+            .rev()
+            .find(|&j| shape[j].3)
+            .expect("the start is fixed");
+        let b = (k + 1..shape.len())
+            .find(|&j| shape[j].3)
+            .expect("the end is fixed");
+        Run {
+            points: shape[a..=b].iter().map(|s| s.0).collect(),
+            at: k - a,
+            t0: shape[a].1,
+            t1: shape[b].1,
+        }
+    }
+
+    /// Re-times the walk so that no piece is faster than `max_speed`: between two points whose
+    /// times are fixed (the band ends, a pause's ends), the pieces too fast for their length
+    /// get the time they need and the others give it up in proportion to their own, so that
+    /// the walker takes a bend or a detour at walking pace and makes up the time where it
+    /// has some to spare. Where a stretch is too long for its time at `max_speed`, the walker
+    /// walks it at one speed, the least there is. Returns whether every stretch fits.
+    pub fn limit_speed(&mut self, max_speed: f64) -> bool {
+        let mut shape = self.shape();
+        let mut fits = true;
+        let mut changed = false;
+        let mut a = 0;
+        while a + 1 < shape.len() {
+            let b = (a + 1..shape.len())
+                .find(|&j| shape[j].3)
+                .expect("the end is fixed");
+            let lengths: Vec<f64> = (a..b)
+                .map(|j| shape[j].0.distance(shape[j + 1].0))
+                .collect();
+            let times: Vec<f64> = (a..b).map(|j| shape[j + 1].1 - shape[j].1).collect();
+            let fast = |(l, d): (&f64, &f64)| *l > max_speed * d + 1e-9 || *d < 0.0;
+            if lengths.iter().zip(&times).any(fast) {
+                let (new, ok) = fit_times(&lengths, &times, shape[b].1 - shape[a].1, max_speed);
+                fits &= ok;
+                let mut t = shape[a].1;
+                for (j, d) in (a + 1..b).zip(new) {
+                    t += d;
+                    shape[j].1 = t;
+                }
+                changed = true;
+            }
+            a = b;
+        }
+        if changed {
+            for &(_, t, i, _) in &shape {
+                if let Some(i) = i {
+                    self.free[i].t = t;
+                }
+            }
+            // Split points keep their times: the re-timed points go round them.
+            self.free.sort_by(|x, y| x.t.total_cmp(&y.t));
+            self.settle_splits();
+        }
+        fits
     }
 
     /// Sends every piece of the path that cuts through a static obstacle round it (the
@@ -536,6 +616,84 @@ impl Path {
             },
         );
         Some(at)
+    }
+}
+
+/// A stretch of walk between two points whose times are fixed, with one point that may move.
+struct Run {
+    points: Vec<DVec2>,
+    at: usize,
+    t0: f64,
+    t1: f64,
+}
+
+impl Run {
+    fn time(&self) -> f64 {
+        self.t1 - self.t0
+    }
+
+    /// The least time the stretch takes at `max_speed` with its point moved to `p`.
+    fn least_time(&self, p: DVec2, max_speed: f64) -> f64 {
+        let at = |j: usize| if j == self.at { p } else { self.points[j] };
+        (1..self.points.len())
+            .map(|j| (at(j - 1).distance(at(j)) / max_speed).max(MIN_PIECE_S))
+            .sum()
+    }
+}
+
+/// New times for pieces of `lengths` that took `times` and must take `total` together: each at
+/// least its length at `max_speed` (and [`MIN_PIECE_S`]); the rest of the time shared in
+/// proportion to the times they took (water-filling: a piece that its share leaves too fast
+/// gets its least time, and the others share what is left). When the least times add up to
+/// more than `total`, every piece at one speed; the flag says whether the times fit.
+fn fit_times(lengths: &[f64], times: &[f64], total: f64, max_speed: f64) -> (Vec<f64>, bool) {
+    let least: Vec<f64> = lengths
+        .iter()
+        .map(|l| (l / max_speed).max(MIN_PIECE_S))
+        .collect();
+    if least.iter().sum::<f64>() > total {
+        let weight: Vec<f64> = lengths
+            .iter()
+            .map(|l| l + MIN_PIECE_S * max_speed)
+            .collect();
+        let sum: f64 = weight.iter().sum();
+        return (weight.iter().map(|w| total * w / sum).collect(), false);
+    }
+    let mut pinned = vec![false; lengths.len()];
+    loop {
+        let spare = total
+            - least
+                .iter()
+                .zip(&pinned)
+                .filter(|(_, p)| **p)
+                .map(|(l, _)| l)
+                .sum::<f64>();
+        let share: f64 = times
+            .iter()
+            .zip(&pinned)
+            .filter(|(_, p)| !**p)
+            .map(|(d, _)| d.max(0.0))
+            .sum();
+        let new: Vec<f64> = (0..lengths.len())
+            .map(|j| {
+                if pinned[j] {
+                    least[j]
+                } else if share > 0.0 {
+                    spare * times[j].max(0.0) / share
+                } else {
+                    0.0
+                }
+            })
+            .collect();
+        let short: Vec<usize> = (0..lengths.len())
+            .filter(|&j| !pinned[j] && new[j] < least[j])
+            .collect();
+        if short.is_empty() {
+            return (new, true);
+        }
+        for j in short {
+            pinned[j] = true;
+        }
     }
 }
 

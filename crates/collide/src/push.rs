@@ -78,7 +78,7 @@ pub(crate) fn push_apart(
             continue;
         }
         // Moved or not, a new free point may have been added: the row is recomputed.
-        paths[p].push_at(t, force, HELD_S, keep_inside, clear);
+        paths[p].push_at(t, force, HELD_S, speeds.bend_limit(), keep_inside, clear);
         touched.push(p);
     }
     touched.sort_unstable();

@@ -18,6 +18,10 @@ pub use crowd_geometry::{Encounter, Other, Patch, Tracks, refresh, rows};
 pub struct Speeds {
     pub comfort: f64,
     pub max: f64,
+    /// The fastest a bend or a planned way may make a walker walk ([`Speeds::bend_limit`]),
+    /// as a share of `max`.
+    #[serde(skip)]
+    pub bend_share: f64,
 }
 
 impl Speeds {
@@ -25,13 +29,35 @@ impl Speeds {
         Speeds {
             comfort: settings.comfort_speed,
             max: settings.max_speed,
+            bend_share: BEND_SHARE,
         }
     }
 
-    /// Whether these are the defaults (1.33 and 1.8 m/s), which stage 5 used before it read
-    /// the pipeline's.
-    pub fn is_default(&self) -> bool {
-        *self == Speeds::default()
+    /// The speeds of a second try at a patch the first leaves stalled: bends up to
+    /// [`SECOND_SHARE`] of `max` (still within what ships).
+    pub fn second(&self) -> Speeds {
+        Speeds {
+            bend_share: SECOND_SHARE,
+            ..*self
+        }
+    }
+
+    /// The speeds of a patch that cannot be cleared at [`Speeds::bend_limit`]: its bends may
+    /// hurry up to [`HURRY_M_S`]. Collision-free comes first; the build says which patches
+    /// hurried.
+    pub fn hurried(&self) -> Speeds {
+        Speeds {
+            bend_share: (HURRY_M_S / self.max).max(BEND_SHARE),
+            ..*self
+        }
+    }
+
+    /// The fastest a bend or a planned way may make a walker walk: `max` plus 3 % ([`BEND_SHARE`]). The shipped
+    /// files are held to `max` plus 5 %; stage 6's curves may take 1 % more, export's dropped
+    /// keyframes a little. Without the 3 %, a walker that must pass behind another at the
+    /// last moment found no way at exactly `max` on the rescue's grid (ring, patch 222).
+    pub fn bend_limit(&self) -> f64 {
+        self.max * self.bend_share
     }
 }
 
@@ -40,6 +66,15 @@ impl Default for Speeds {
         Speeds::of(&MatchSettings::default())
     }
 }
+
+/// See [`Speeds::bend_limit`].
+pub const BEND_SHARE: f64 = 1.03;
+/// See [`Speeds::second`]: stalls are chancy (ring's patches 222 and 226 each cleared at one
+/// of 1.03 and 1.045, not at the other).
+pub const SECOND_SHARE: f64 = 1.045;
+/// See [`Speeds::hurried`]: a brief run (before speeds were kept, every patch's pushes were
+/// capped so; without a cap, a point pushed again and again ran off at 20 m/s).
+pub const HURRY_M_S: f64 = 4.0;
 
 /// How the repair of a patch ended.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -63,6 +98,9 @@ pub fn remove_collisions(
             f.pos = patch.keep_inside(f.pos);
         }
         path.settle_splits();
+        // Stage 4's lines keep to the speed limit on average; between its band ends a walk
+        // may not (a slow band leaves the middle less time).
+        path.limit_speed(speeds.bend_limit());
     }
     let walls = patch.walls();
     let mut tracks = Tracks::new(paths.iter().map(Path::segments).collect());
@@ -92,6 +130,7 @@ pub fn remove_collisions(
         let touched = push_apart(paths, &tracks, patch, speeds, &w, rng);
         for &p in &touched {
             paths[p].reroute(&walls, patch.radius_m, patch.side_m);
+            paths[p].limit_speed(speeds.bend_limit());
             paths[p].settle_splits();
         }
         for &p in &touched {

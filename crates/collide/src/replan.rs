@@ -20,7 +20,8 @@ use crowd_geometry::{self as geometry, Segment};
 use glam::DVec2;
 use rand_chacha::ChaCha8Rng;
 
-/// Largest grid cell, m.
+/// Largest grid cell, m (smaller where a step of one cell per [`LAYER`] would be faster than
+/// `match.max_speed`).
 const CELL: f64 = 0.2;
 /// Largest time between layers, s.
 const LAYER: f64 = 0.1;
@@ -82,7 +83,7 @@ pub fn rescue(
         }
         let tries = walkers.iter().flat_map(|&p| [(p, STRICT), (p, LOOSE)]);
         for (p, grid) in tries {
-            if let Some(free) = plan(paths, p, patch, grid) {
+            if let Some(free) = plan(paths, p, patch, grid, speeds.bend_limit()) {
                 paths[p].free = free;
                 break;
             }
@@ -119,12 +120,15 @@ impl Grid {
         i(p.y) * self.n + i(p.x)
     }
 
-    /// The cell and its eight neighbours.
+    /// The cell and its four edge neighbours: a step of one cell between two layers is the
+    /// farthest a walker goes, so that no piece of a planned way (a straight line joins
+    /// steps, no longer than their sum) is faster than a cell per layer.
     fn around(&self, c: usize) -> impl Iterator<Item = usize> + '_ {
         let (x, y) = ((c % self.n) as i64, (c / self.n) as i64);
         let n = self.n as i64;
-        (-1..=1)
-            .flat_map(move |dy| (-1..=1).map(move |dx| (x + dx, y + dy)))
+        [(0, 0), (-1, 0), (1, 0), (0, -1), (0, 1)]
+            .into_iter()
+            .map(move |(dx, dy)| (x + dx, y + dy))
             .filter(move |&(x, y)| x >= 0 && y >= 0 && x < n && y < n)
             .map(move |(x, y)| (y * n + x) as usize)
     }
@@ -174,13 +178,21 @@ fn others(segs: &[Vec<Segment>], p: usize, span: (f64, f64), period: f64) -> Vec
 
 /// A new way for walker `p` between its band ends, clear of everyone on the grid and
 /// straightened where the exact check allows; `None` when the grid holds no way.
-pub fn plan(paths: &[Path], p: usize, patch: &Patch, how: GridRule) -> Option<Vec<Free>> {
+pub fn plan(
+    paths: &[Path],
+    p: usize,
+    patch: &Patch,
+    how: GridRule,
+    max_speed: f64,
+) -> Option<Vec<Free>> {
     let r = patch.radius_m;
     let (start, end) = paths[p].fixed_ends();
     let (ts, te) = (start.t(), end.t());
     let segs: Vec<Vec<Segment>> = paths.iter().map(Path::segments).collect();
     let others = others(&segs, p, (ts, te), patch.period_s);
-    let n = (patch.side_m / CELL).ceil() as usize;
+    // A step to a neighbouring cell between two layers keeps to `max_speed` ([`Grid::around`]).
+    let cell = CELL.min(max_speed * LAYER);
+    let n = (patch.side_m / cell).ceil() as usize;
     let grid = Grid {
         n,
         h: patch.side_m / n as f64,

@@ -318,7 +318,7 @@ fn crossroads() -> Vec<Path> {
 }
 
 #[test]
-fn planning_alone_clears_a_crossroads_where_everyone_meets_at_once() {
+fn the_repair_clears_a_crossroads_where_everyone_meets_at_once_at_walking_pace() {
     let mut paths = crossroads();
     let before: Vec<_> = paths.iter().map(|p| (p.entry(), p.exit())).collect();
     let mut rng = ChaCha8Rng::seed_from_u64(3);
@@ -328,9 +328,15 @@ fn planning_alone_clears_a_crossroads_where_everyone_meets_at_once() {
             .is_some(),
         "the straight lines collide"
     );
-    // No pushes between the plans: every walker of a worst pair is planned round the rest.
-    let out = crate::replan::rescue(&mut paths, &patch(), Speeds::default(), 40, 0, &mut rng);
+    let speeds = Speeds::default();
+    let out = crate::with_restarts(&mut paths, &patch(), speeds, 12_000, &mut rng);
     assert!(out.worst.is_none(), "{out:?}");
+    for p in &paths {
+        for s in p.segments() {
+            let v = s.velocity().length();
+            assert!(v <= speeds.bend_limit() + 1e-9, "{v} m/s");
+        }
+    }
     for (p, (entry, exit)) in paths.iter().zip(&before) {
         assert_eq!((p.entry(), p.exit()), (*entry, *exit));
         let t = p.to_trajectory();
@@ -367,7 +373,7 @@ fn a_planned_way_round_a_pausing_walker_keeps_its_split_point_at_the_period() {
             (DVec2::new(4.0, 8.0), 26.0, PointKind::Exit),
         ]),
     ];
-    let way = crate::replan::plan(&paths, 0, &patch(), crate::replan::STRICT).expect("a way");
+    let way = crate::replan::plan(&paths, 0, &patch(), crate::replan::STRICT, 1.8).expect("a way");
     paths[0].free = way;
     assert!(sampled_distance(&paths[0], &paths[1], 20.0) >= 0.6);
     let t = paths[0].to_trajectory();
@@ -413,7 +419,7 @@ proptest! {
             let p = w % paths.len();
             let (t0, t1) = paths[p].span();
             let t = t0 + (t1 - t0) * when;
-            paths[p].push_at(t, DVec2::new(dx, dy), 0.25, out_of_bands, |_| true);
+            paths[p].push_at(t, DVec2::new(dx, dy), 0.25, 1.8, out_of_bands, |_| true);
             tracks.set(p, paths[p].segments());
             repair::refresh(&mut rows, &mut tracks, &[p], &patch);
             let fresh = repair::rows(&tracks, &patch);
@@ -559,46 +565,75 @@ fn a_time_move_may_walk_as_fast_as_the_pipelines_max_speed_and_no_faster() {
 }
 
 #[test]
-fn stage_5_reads_its_speeds_from_the_pipeline_and_hashes_them_unless_they_are_the_defaults() {
+fn stage_5_reads_its_speeds_and_margin_from_the_pipeline_and_hashes_them() {
     let default = crate::inputs(&pipeline(""));
-    assert_eq!(
-        default.speeds,
-        repair::Speeds {
-            comfort: 1.33,
-            max: 1.8
-        }
-    );
+    assert_eq!((default.speeds.comfort, default.speeds.max), (1.33, 1.8));
+    assert!((default.speeds.bend_limit() - 1.8 * 1.03).abs() < 1e-12);
     let faster = crate::inputs(&pipeline("match: (comfort_speed: 1.4, max_speed: 2.0)"));
-    assert_eq!(
-        faster.speeds,
-        repair::Speeds {
-            comfort: 1.4,
-            max: 2.0
-        }
+    assert_eq!((faster.speeds.comfort, faster.speeds.max), (1.4, 2.0));
+    // Export's error is kept beyond every radius: 0.75 mm dropped keyframes, 0.06 mm rounding
+    // of an 8 m patch, 0.25 mm of time rounding at 5 m/s.
+    assert!(
+        (default.margin_m - 0.00106).abs() < 1e-5,
+        "{}",
+        default.margin_m
     );
-    // At the defaults the hash is the one stage 5 wrote before it read the speeds (so built
-    // scenes stay up to date); other speeds change it.
-    #[derive(serde::Serialize)]
-    struct Before {
-        period_s: f64,
-        seed: u64,
-        max_iterations: u32,
-    }
-    let before = Before {
-        period_s: default.period_s,
-        seed: default.seed,
-        max_iterations: default.max_iterations,
-    };
-    let old = crowd_core::Hasher::new(STAGE, VERSION)
-        .file("graph file", b"g")
-        .file("trajectories file", b"t")
-        .value("inputs", &before)
-        .finish();
-    assert_eq!(input_hash(b"g", b"t", &default), old);
-    assert_ne!(input_hash(b"g", b"t", &faster), old);
+    let coarser = crate::inputs(&pipeline("export: (simplify_mm: 2.0)"));
+    assert!(coarser.margin_m > default.margin_m + 1e-3);
+    let hash = |i: &crate::Inputs| input_hash(b"g", b"t", i);
     let only_max = crate::inputs(&pipeline("match: (max_speed: 2.0)"));
-    assert_ne!(
-        input_hash(b"g", b"t", &only_max),
-        input_hash(b"g", b"t", &faster)
+    let all = [&default, &faster, &only_max, &coarser].map(hash);
+    for (i, a) in all.iter().enumerate() {
+        for b in &all[i + 1..] {
+            assert_ne!(a, b);
+        }
+    }
+}
+
+#[test]
+fn a_bend_too_fast_for_its_time_takes_time_from_the_rest_of_the_walk() {
+    // Straight east at 1 m/s, then pushed 1.5 m north at t = 2: the pieces to and from the
+    // bend would be walked at 1.8 m/s each. The walk has time to spare (9.6 m in 8 s).
+    let mut path = path_through(&[
+        (DVec2::new(0.0, 4.0), 0.0, PointKind::Entry),
+        (DVec2::new(1.0, 5.5), 1.0, PointKind::Bend),
+        (DVec2::new(2.0, 4.0), 2.0, PointKind::Bend),
+        (DVec2::new(3.0, 4.0), 3.0, PointKind::Split),
+        (DVec2::new(8.0, 4.0), 8.0, PointKind::Exit),
+    ]);
+    assert!(path.limit_speed(1.3));
+    let t = path.to_trajectory();
+    let (first, last) = (t.points[0], t.points[t.points.len() - 1]);
+    assert_eq!((first.t, last.t), (0.0, 8.0), "the ends keep their times");
+    for w in t.points.windows(2) {
+        let v = w[0].pos.distance(w[1].pos) / (w[1].t - w[0].t);
+        assert!(v <= 1.3 + 1e-9, "{v} m/s in {w:?}");
+    }
+    let split = t
+        .points
+        .iter()
+        .find(|p| p.kind == PointKind::Split)
+        .unwrap();
+    assert_eq!(split.t, 3.0, "the period stays where it was");
+    assert!(
+        (split.pos - path.position(3.0)).length() < 1e-9,
+        "on the walk"
+    );
+    // Too long for its time: one speed, the least there is.
+    let mut rush = path_through(&[
+        (DVec2::new(0.0, 4.0), 0.0, PointKind::Entry),
+        (DVec2::new(4.0, 7.0), 1.0, PointKind::Bend),
+        (DVec2::new(8.0, 4.0), 4.0, PointKind::Exit),
+    ]);
+    assert!(!rush.limit_speed(1.2));
+    let t = rush.to_trajectory();
+    let v: Vec<f64> = t
+        .points
+        .windows(2)
+        .map(|w| w[0].pos.distance(w[1].pos) / (w[1].t - w[0].t))
+        .collect();
+    assert!(
+        (v[0] - v[1]).abs() < 1e-3 && (v[0] - 10.0 / 4.0).abs() < 0.01,
+        "{v:?}"
     );
 }

@@ -375,6 +375,20 @@ pub struct CollisionSummary {
     pub min_margin_m: f64,
     /// Patches that hit the iteration cap, with their worst pair.
     pub unconverged: Vec<Stall>,
+    /// Patches cleared only by letting some walker walk faster than `match.max_speed` allows
+    /// (a warning: the painting asks for more than walking pace gives there).
+    #[serde(default)]
+    pub hurried: Vec<Hurry>,
+}
+
+/// A patch whose walkers stage 5 could keep apart only by letting one hurry.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Hurry {
+    pub patch: u32,
+    /// The fastest walker (its trajectory's index in the patch), its speed and when.
+    pub walker: u32,
+    pub speed_m_s: f64,
+    pub t_s: f64,
 }
 
 /// A patch that stage 5 could not clear, and its worst pair there.
@@ -413,7 +427,7 @@ pub struct SmoothingSummary {
 
 impl TrajectoriesFile {
     pub const STAGE: &'static str = "match";
-    pub const VERSION: u32 = 2;
+    pub const VERSION: u32 = 3;
 
     pub fn load(path: &Path) -> Result<(TrajectoriesFile, Vec<PatchMotion>)> {
         Self::load_stage(path, Self::STAGE, Self::VERSION)

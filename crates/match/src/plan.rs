@@ -5,21 +5,45 @@ use crate::{Endpoint, PatchContext};
 use crowd_core::trajectories::{ControlPoint, PointKind, Trajectory};
 use glam::DVec2;
 
-/// Whole periods a walker must add so that it never walks faster than `max_speed`.
-fn extra_periods(length: f64, dt: f64, ctx: &PatchContext) -> u32 {
-    let needed = length / ctx.settings.max_speed;
-    if needed <= dt {
+/// Whole periods a walker must add so that it never walks faster than `max_speed`: it needs
+/// `least` seconds, and the pair gives it `dt`.
+fn extra_periods(least: f64, dt: f64, period: f64) -> u32 {
+    if least <= dt {
         0
     } else {
-        ((needed - dt) / ctx.period_s).ceil() as u32
+        ((least - dt) / period).ceil() as u32
     }
+}
+
+/// The least time the walker of this pair needs: its band pieces at their crossings'
+/// velocities, and the way between the band ends at `max_speed`. (The whole way at
+/// `max_speed` is not enough: a band that walks slowly into the patch, or across the way,
+/// leaves the middle less time, and corner-cutting walkers then had to run at 1.9 m/s.)
+pub fn least_time(entry: &Endpoint, exit: &Endpoint, ctx: &PatchContext) -> f64 {
+    let max = ctx.settings.max_speed;
+    let whole = path_length(entry, exit, ctx) / max;
+    let depth = ctx.radius_m;
+    let (te, tx) = (
+        band_time(entry.side, entry.velocity, depth),
+        band_time(exit.side, exit.velocity, depth),
+    );
+    let (start, end) = (
+        entry.pos + entry.velocity * te,
+        exit.pos - exit.velocity * tx,
+    );
+    // The way's corners between its ends (the turn, the detours), from band end to band end.
+    let way = waypoints(entry, exit, ctx);
+    let mut corners: Vec<DVec2> = vec![start];
+    corners.extend(way[1..way.len() - 1].iter().map(|w| w.0));
+    corners.push(end);
+    let middle: f64 = corners.windows(2).map(|w| w[0].distance(w[1])).sum();
+    whole.max(te + tx + middle / max)
 }
 
 /// Time the walker of this pair spends inside the patch.
 pub fn duration(entry: &Endpoint, exit: &Endpoint, ctx: &PatchContext) -> f64 {
-    let length = path_length(entry, exit, ctx);
     let dt = wrapped_dt(entry.t, exit.t, ctx.period_s);
-    dt + extra_periods(length, dt, ctx) as f64 * ctx.period_s
+    dt + extra_periods(least_time(entry, exit, ctx), dt, ctx.period_s) as f64 * ctx.period_s
 }
 
 /// The straight-line trajectory of a matched pair: constant speed along the path; a pause in
@@ -226,6 +250,32 @@ mod tests {
                 v <= s.max_speed + 1e-9 && (v == 0.0 || v >= s.min_speed - 1e-9),
                 "{v}"
             );
+        }
+    }
+
+    #[test]
+    fn a_corner_cutting_pair_whose_bands_leave_the_middle_too_little_time_stays_a_period() {
+        let s = MatchSettings::default();
+        // Entry on the south border, exit on the west, 3.2 m apart in 1.87 s (1.7 m/s). The
+        // band pieces cross each border slanted at 1.33 m/s and take 0.27 s and 0.23 s of
+        // it, leaving the middle more than 1.8 m/s to walk.
+        let entry = Endpoint {
+            velocity: DVec2::new(-0.6, 1.0).normalize() * 1.33,
+            ..point(2.09, 0.0, 6.96, Side::South)
+        };
+        let exit = Endpoint {
+            velocity: DVec2::new(-1.0, 0.2).normalize() * 1.33,
+            ..exit_point(0.0, 2.43, 8.83, Side::West)
+        };
+        let c = ctx(&s);
+        let whole = entry.pos.distance(exit.pos) / s.max_speed;
+        assert!(whole < 1.87, "the whole way fits: {whole}");
+        assert!(least_time(&entry, &exit, &c) > 1.87);
+        let tr = plan(&entry, &exit, &c);
+        assert!((tr.duration() - 21.87).abs() < 1e-9, "{}", tr.duration());
+        for w in tr.points.windows(2) {
+            let v = w[0].pos.distance(w[1].pos) / (w[1].t - w[0].t);
+            assert!(v <= s.max_speed + 1e-9, "{v}");
         }
     }
 

@@ -6,8 +6,9 @@
 //! known, so each crossing can lean towards the mean direction of the two lines that meet at
 //! it (the one that leaves through it and the one that enters), by at most 0.6 as before, and
 //! the turn after the band shrinks; smoothing then has less to round. A crossing keeps its
-//! old velocity where the new one would break the spacing of its border. The matching does not
-//! depend on velocities, so densities, directions and E are unchanged.
+//! old velocity where the new one would break the spacing of its border. Who is matched to whom
+//! does not depend on velocities, but a pair's least time does (its band pieces), so the
+//! optimiser measures the patches again afterwards.
 
 use crate::state::{State, unkey};
 use crowd_core::patterns::Crossing;

@@ -213,6 +213,10 @@ pub fn optimize(
         },
     );
     align::align(&mut state);
+    // A pair's least time depends on its band pieces (stage 4 adds a period where they leave
+    // the way too little time at max_speed), so the turned velocities are measured again.
+    state.remeasure_all();
+    enforce_rho_max(&mut state, rho_max);
 
     let error = scene_error(graph, &state.requested, &state.measured, rho_max);
     let worst = worst_patches(graph, &state.requested, &state.measured, rho_max, 10);

@@ -110,17 +110,24 @@ fn parity_holds(state: &State) -> bool {
     parity(state.graph, &all).iter().all(|&b| b == 0)
 }
 
-/// Turning crossing velocities towards their lines changes neither the matching nor what it
-/// measures (densities, directions), and never the spacing of a border.
+/// Turning crossing velocities towards their lines keeps who crosses where and when, and the
+/// spacing of every border. (What a patch measures may change: a pair's least time depends on
+/// its band pieces, so the optimiser measures again after.)
 #[test]
-fn aligning_velocities_keeps_spacing_and_measurements() {
+fn aligning_velocities_keeps_the_crossings_and_spacing() {
     let graph = scene(300);
     let matching = MatchSettings::default();
     let mut state = started(&graph, &matching, 5);
-    let before = state.measured.clone();
+    let key = |s: &State| -> Vec<(u32, u64, u64)> {
+        s.crossings
+            .iter()
+            .flatten()
+            .map(|c| (c.border, c.s.to_bits(), c.t.to_bits()))
+            .collect()
+    };
+    let before = key(&state);
     let turned = align::align(&mut state);
     assert!(turned > 0);
-    state.remeasure_all();
-    assert_eq!(before, state.measured);
+    assert_eq!(before, key(&state));
     assert!(spacing::all_spaced(&state.spacing, &state.crossings, 20.0));
 }

@@ -113,8 +113,7 @@ pub fn render_maps(maps: &MergedMaps) -> RgbImage {
 /// The patch graph: requested density, direction, obstacles, closed borders and components.
 pub fn render_graph(graph: &PatchGraph) -> RgbImage {
     let w = &graph.world;
-    let px = (1400 / w.cols.max(w.rows)).clamp(4, 48);
-    let margin = 12;
+    let (px, margin) = graph_layout(w);
     let bar = 14;
     let (width, height) = (w.cols * px + 2 * margin, w.rows * px + 3 * margin + bar);
     let mut canvas = Canvas::new(width, height, BACKGROUND);
@@ -256,6 +255,37 @@ pub fn render_graph(graph: &PatchGraph) -> RgbImage {
 }
 
 /// Encodes a picture as PNG and writes it atomically.
+/// Pixels per patch and the margin of [`render_graph`]'s picture.
+fn graph_layout(w: &crowd_core::patch_graph::World) -> (u32, u32) {
+    ((1400 / w.cols.max(w.rows)).clamp(4, 48), 12)
+}
+
+/// [`render_graph`] with the patches `marked` filled red: where a build's warnings are.
+pub fn render_marked(graph: &PatchGraph, marked: &[u32]) -> RgbImage {
+    let mut image = render_graph(graph);
+    let w = &graph.world;
+    let (px, margin) = graph_layout(w);
+    for &p in marked {
+        let Some(patch) = graph.patches.get(p as usize) else {
+            continue;
+        };
+        let (x0, y0) = (
+            margin + patch.cell.col * px,
+            margin + (w.rows - 1 - patch.cell.row) * px,
+        );
+        for y in y0..y0 + px {
+            for x in x0..x0 + px {
+                image.put_pixel(x, y, image::Rgb([230, 20, 20]));
+            }
+        }
+    }
+    image
+}
+
+/// What [`render_marked`] shows.
+pub const MARKED_LEGEND: &str = "the patch graph as in the stage 2 picture, with every patch a \
+warning names filled red";
+
 pub fn save_png(image: &RgbImage, path: &std::path::Path) -> crowd_core::Result<()> {
     let mut bytes = Vec::new();
     image

@@ -22,14 +22,24 @@ use std::collections::HashMap;
 
 /// The stage name in `smoothed.ron`'s header.
 pub const STAGE: &str = "smooth";
-pub const VERSION: u32 = 5;
+pub const VERSION: u32 = 6;
 
 /// What stage 6 reads of a pipeline besides its input files.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct Inputs {
     pub period_s: f64,
     pub settings: SmoothSettings,
+    /// The fastest a curve may walk, m/s: `match.max_speed` plus 4 % ([`SPEED_ALLOWANCE`]; the
+    /// shipped files are held to 5 %, and export's dropped keyframes take a little), or its polyline's fastest piece where that is
+    /// faster already.
+    pub max_speed: f64,
+    /// Kept beyond every radius, m ([`crowd_core::config::Pipeline::shipping_error_m`]).
+    pub margin_m: f64,
 }
+
+/// How much faster than `match.max_speed` a curve may walk: stage 5 keeps every polyline to
+/// `max_speed`, and a spline through its tacks runs a little ahead or behind on a bend.
+pub const SPEED_ALLOWANCE: f64 = 1.04;
 
 /// What stage 6 reads of a pipeline.
 pub fn inputs(pipeline: &crowd_core::config::PipelineFile) -> Inputs {
@@ -37,6 +47,8 @@ pub fn inputs(pipeline: &crowd_core::config::PipelineFile) -> Inputs {
     Inputs {
         period_s: p.period_s,
         settings: p.smooth.clone(),
+        max_speed: p.matching.max_speed * SPEED_ALLOWANCE,
+        margin_m: p.shipping_error_m(),
     }
 }
 
@@ -78,11 +90,17 @@ pub fn smooth(
             let patch = Patch {
                 side_m: limits.side_m,
                 period_s: limits.period_s,
-                radius_m: graph.radius_m,
+                radius_m: graph.radius_m + inputs.margin_m,
                 obstacles: &obstacles,
                 standers: &m.standers,
             };
-            let out = smooth_patch(&m.trajectories, &velocities, &limits, &patch);
+            let out = smooth_patch(
+                &m.trajectories,
+                &velocities,
+                &limits,
+                inputs.max_speed,
+                &patch,
+            );
             progress.advance(1);
             out
         })
@@ -142,16 +160,26 @@ fn smooth_patch(
     trajectories: &[Trajectory],
     velocities: &[DVec2],
     limits: &curve::Limits,
+    max_speed: f64,
     patch: &Patch,
 ) -> (PatchMotion, [u64; 3]) {
     let mut dropped = 0;
+    // The curve at `level` halvings of its departure from the polyline, or at the first level
+    // after it that walks no faster than `max_speed` (or than the polyline did); the polyline
+    // if none does.
     let curve_at = |tr: &Trajectory, level: u32| {
         let v = |c: u32| velocities[c as usize];
-        let limits = curve::Limits {
-            blend: 1.0 / f64::from(1u32 << level),
-            ..*limits
-        };
-        curve::smooth(tr, v(tr.entry), v(tr.exit), &limits)
+        let allowed = max_speed.max(fastest(tr)) + 1e-9;
+        (level..=LEVELS)
+            .map(|level| {
+                let limits = curve::Limits {
+                    blend: 1.0 / f64::from(1u32 << level),
+                    ..*limits
+                };
+                curve::smooth(tr, v(tr.entry), v(tr.exit), &limits)
+            })
+            .find(|(c, _)| fastest(c) <= allowed)
+            .unwrap_or_else(|| (tr.clone(), 0))
     };
     let smoothed: Vec<Trajectory> = trajectories
         .iter()
@@ -183,7 +211,15 @@ fn smooth_patch(
     )
 }
 
-/// The straight pieces of a trajectory.
+/// The speed of a trajectory's fastest piece, m/s.
+fn fastest(tr: &Trajectory) -> f64 {
+    tr.points
+        .windows(2)
+        .filter(|w| w[1].t > w[0].t)
+        .map(|w| w[0].pos.distance(w[1].pos) / (w[1].t - w[0].t))
+        .fold(0.0, f64::max)
+}
+
 /// Who an encounter is between, whatever the period shift.
 fn key(e: &Encounter) -> (usize, u8, usize) {
     match e.other {

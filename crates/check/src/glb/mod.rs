@@ -47,6 +47,17 @@ pub struct Inputs<'a> {
 pub struct Track {
     pub path: Vec<(DVec2, f64)>,
     pub turns: Vec<(DQuat, f64)>,
+    /// Scale keys (x), STEP: a node scaled to 0 is hidden (export hides a slot outside
+    /// `export.gltf_region`). None: always shown.
+    pub scale: Vec<(f64, f64)>,
+}
+
+impl Track {
+    /// Whether the node is shown at clip time `t` (at a key, the key's own value).
+    pub fn shown_at(&self, t: f64) -> bool {
+        let k = self.scale.partition_point(|k| k.1 <= t);
+        k == 0 || self.scale[k - 1].0 > 0.0
+    }
 }
 
 /// The nodes of a glTF world: animated ones in node order, standers, and the clip's length.
@@ -79,6 +90,20 @@ pub fn read(bytes: &[u8]) -> Result<Nodes, GlbError> {
     let mut clip_s = 0.0f64;
     for channel in clip.iter().flat_map(|a| a.channels()) {
         let property = channel.target().property();
+        if property == Property::Scale {
+            let reader = channel.reader(data);
+            let (Some(times), Some(ReadOutputs::Scales(scales))) =
+                (reader.read_inputs(), reader.read_outputs())
+            else {
+                return Err(err(format!("channel {}: keys missing", channel.index())));
+            };
+            let track = tracks.entry(channel.target().node().index()).or_default();
+            track.scale = scales
+                .map(|s| f64::from(s[0]))
+                .zip(times.map(f64::from))
+                .collect();
+            continue;
+        }
         if !matches!(property, Property::Translation | Property::Rotation) {
             continue;
         }
@@ -164,7 +189,7 @@ pub fn figures(bytes: &[u8], inputs: &Inputs) -> Result<ProductFigures, GlbError
         }
     }
     let clearance = scene.clearance();
-    let seams = handovers(&nodes.tracks);
+    let seams = handovers(&nodes.tracks, clip);
     Ok(ProductFigures {
         file: "world.glb".into(),
         walkers: nodes.tracks.len() as u64,
@@ -206,9 +231,10 @@ fn max_turn_rate(tracks: &[Track]) -> f64 {
     fastest
 }
 
-/// Each node's handover at the clip's end: to itself when its end is within 1 cm of its own
-/// start, else to the node whose start is nearest its end (within 1 cm; none: an open loop).
-fn handovers(tracks: &[Track]) -> Seams {
+/// Each shown node's handover at the clip's end: to itself when its end is within 1 cm of its
+/// own start, else to the node shown at the clip's start whose start is nearest its end (within
+/// 1 cm; none: an open loop). A node hidden at the clip's end hands over to no one.
+fn handovers(tracks: &[Track], clip: f64) -> Seams {
     let cell = |p: DVec2| {
         (
             (p.x / OPEN_GAP_M).floor() as i64,
@@ -216,11 +242,14 @@ fn handovers(tracks: &[Track]) -> Seams {
         )
     };
     let mut starts: HashMap<(i64, i64), Vec<usize>> = HashMap::new();
-    for (i, t) in tracks.iter().enumerate() {
+    for (i, t) in tracks.iter().enumerate().filter(|(_, t)| t.shown_at(0.0)) {
         starts.entry(cell(t.path[0].0)).or_default().push(i);
     }
     let mut seams = Seams::default();
     for (i, t) in tracks.iter().enumerate() {
+        if !t.shown_at(clip) {
+            continue;
+        }
         let end = t.path[t.path.len() - 1].0;
         let (cx, cy) = cell(end);
         let nearest = (cx - 1..=cx + 1)
@@ -229,7 +258,7 @@ fn handovers(tracks: &[Track]) -> Seams {
             .map(|j| (tracks[j].path[0].0.distance(end), j))
             .filter(|&(d, _)| d <= OPEN_GAP_M)
             .min_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-        let own = t.path[0].0.distance(end) <= OPEN_GAP_M;
+        let own = t.path[0].0.distance(end) <= OPEN_GAP_M && t.shown_at(0.0);
         let Some(next) = (if own {
             Some(i)
         } else {

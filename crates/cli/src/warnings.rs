@@ -1,0 +1,154 @@
+//! What a build could not give its painting, said plainly: on stderr after `crowd build`, in
+//! `report.md` with a picture of where, and as a failure under `--deny-warnings` (for build
+//! systems that must not ship a crowd that differs from what was painted).
+//!
+//! The build still writes a collision-free result; a warning names the patches and says why.
+//! A defect the pipeline cannot clear (a patch stage 5 leaves colliding) is an error of the
+//! stage instead, never a warning.
+
+use crate::check::CHECK_FILE;
+use crate::stages::{COLLIDED_FILE, GRAPH_FILE};
+use anyhow::Result;
+use crowd_core::PatchGraph;
+use crowd_core::trajectories::CollisionSummary;
+use std::path::Path;
+
+/// One thing the build could not meet.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Warning {
+    /// The patches it is about (none: the whole build).
+    pub patches: Vec<u32>,
+    pub text: String,
+}
+
+/// The warnings of the build in `dir`, from its stage files and `check.ron` (those it has).
+pub fn gather(dir: &Path) -> Result<Vec<Warning>> {
+    let graph_path = dir.join(GRAPH_FILE);
+    let Ok(graph) = PatchGraph::load(&graph_path) else {
+        return Ok(Vec::new());
+    };
+    let mut out = pockets(&graph);
+    let collided = dir.join(COLLIDED_FILE);
+    if collided.exists() {
+        let file: crowd_core::trajectories::TrajectoriesFile =
+            crowd_core::files::read_ron(&collided)?;
+        if let Some(summary) = &file.collisions {
+            out.extend(hurried(&graph, summary));
+        }
+    }
+    let check = dir.join(CHECK_FILE);
+    if check.exists() {
+        let figures: crowd_check::CheckReport = crowd_core::files::read_ron(&check)?;
+        out.extend(shipped(&figures));
+    }
+    Ok(out)
+}
+
+/// Where patch `p` lies, for a person: its world rectangle in metres.
+pub(crate) fn place(graph: &PatchGraph, p: u32) -> String {
+    let side = graph.world.patch_side_m;
+    let cell = graph.patches[p as usize].cell;
+    let (x, y) = (f64::from(cell.col) * side, f64::from(cell.row) * side);
+    format!(
+        "patch {p} (x {x:.0}-{:.0} m, y {y:.0}-{:.0} m)",
+        x + side,
+        y + side
+    )
+}
+
+/// Painted walkers in a walled-in pocket: no open border, so no one can walk in or out.
+fn pockets(graph: &PatchGraph) -> Vec<Warning> {
+    let mut open = vec![false; graph.components.len()];
+    for b in graph.borders.iter().filter(|b| !b.open.is_empty()) {
+        for p in [b.a, b.b] {
+            open[graph.patches[p.0 as usize].component as usize] = true;
+        }
+    }
+    graph
+        .components
+        .iter()
+        .filter(|c| !open[c.id as usize] && c.walkers >= 0.5)
+        .map(|c| {
+            let patches: Vec<u32> = graph
+                .patches
+                .iter()
+                .filter(|p| p.component == c.id)
+                .map(|p| p.id.0)
+                .collect();
+            Warning {
+                text: format!(
+                    "{} is walled in: painted for {:.1} walkers, but no border of it is open, so \
+                     no one can walk in or out; it has no walkers (open a gap of at least a \
+                     walker's width in its walls, or paint it as standing)",
+                    place(graph, patches[0]),
+                    c.walkers
+                ),
+                patches,
+            }
+        })
+        .collect()
+}
+
+/// Patches that stage 5 cleared only by letting a walker hurry past `match.max_speed`.
+fn hurried(graph: &PatchGraph, summary: &CollisionSummary) -> Vec<Warning> {
+    summary
+        .hurried
+        .iter()
+        .map(|h| Warning {
+            patches: vec![h.patch],
+            text: format!(
+                "{}: walker {} runs at {:.2} m/s at t = {:.2} s, faster than match.max_speed \
+                 allows: at walking pace stage 5 found no way to keep it clear of the others \
+                 there; the painting asks for more walkers, or more crossing flows, than the \
+                 patch has room and time for",
+                place(graph, h.patch),
+                h.walker,
+                h.speed_m_s,
+                h.t_s
+            ),
+        })
+        .collect()
+}
+
+/// Guarantees `crowd check` found broken in what ships.
+fn shipped(figures: &crowd_check::CheckReport) -> Vec<Warning> {
+    let mut out = Vec::new();
+    for p in [&figures.library, &figures.gltf].into_iter().flatten() {
+        let mut say = |text: String| {
+            out.push(Warning {
+                patches: Vec::new(),
+                text: format!("{}: {text}", p.file),
+            })
+        };
+        if p.collisions > 0 {
+            say(format!(
+                "{} pairs come closer than two radii (smallest clearance {:.4} m)",
+                p.collisions, p.min_clearance_m
+            ));
+        }
+        if p.share_above_limit > 0.0 {
+            say(format!(
+                "walkers are faster than {:.2} m/s for {:.4} % of walking time (fastest {:.2} \
+                 m/s)",
+                p.speed_limit_m_s,
+                100.0 * p.share_above_limit,
+                p.max_speed_m_s
+            ));
+        }
+        if p.open_loops > 0 {
+            say(format!(
+                "{} of {} loops do not close (a character jumps at the loop seam)",
+                p.open_loops, p.loops
+            ));
+        }
+    }
+    out
+}
+
+/// Draws the world's patch graph with the patches `warnings` name in red, into a PNG at `out`.
+pub fn draw(dir: &Path, warnings: &[Warning], out: &Path) -> Result<&'static str> {
+    let graph = PatchGraph::load(&dir.join(GRAPH_FILE))?;
+    let marked: Vec<u32> = warnings.iter().flat_map(|w| w.patches.clone()).collect();
+    crowd_render::save_png(&crowd_render::render_marked(&graph, &marked), out)?;
+    Ok(crowd_render::MARKED_LEGEND)
+}

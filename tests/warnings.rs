@@ -1,0 +1,110 @@
+//! What a build cannot give a painting: warnings on stderr and in `report.md` with a picture,
+//! `--deny-warnings` for build systems, and an error naming the patch for a defect the pipeline
+//! cannot clear. Each caused by a real painting.
+
+use crate::util::{copy_of, crowd, crowd_err, root, s, write_pipeline};
+use image::{GrayImage, Luma};
+
+/// A 32 x 32 m painting (4 x 4 patches of 8 m) with walkers everywhere and the patch at
+/// x 8-16 m, y 8-16 m walled in on every side.
+fn walled_in_pocket(dir: &std::path::Path) -> std::path::PathBuf {
+    let density = GrayImage::from_pixel(32, 32, Luma([120]));
+    let mut walls = GrayImage::new(32, 32);
+    // Image rows count from the north: y 8-16 m is rows 16-23.
+    for i in 8..16 {
+        for (x, y) in [(i, 16), (i, 23), (8, 16 + i - 8), (15, 16 + i - 8)] {
+            walls.put_pixel(x, y, Luma([255]));
+        }
+    }
+    let (d, w) = (dir.join("density.png"), dir.join("walls.png"));
+    density.save(&d).unwrap();
+    walls.save(&w).unwrap();
+    write_pipeline(dir, &[("Density", &d), ("Obstacles", &w)], "")
+        .to_str()
+        .map(|p| {
+            let text = std::fs::read_to_string(p).unwrap();
+            std::fs::write(p, text.replace("walkers: 1000", "walkers: 60")).unwrap();
+            std::path::PathBuf::from(p)
+        })
+        .unwrap()
+}
+
+#[test]
+fn a_walled_in_pocket_is_a_warning_on_stderr_and_in_the_report_with_a_picture() {
+    let dir = tempfile::tempdir().unwrap();
+    let pipeline = walled_in_pocket(dir.path());
+    let build = crowd(&["build", "-q", "--pipeline", s(&pipeline)]);
+    let stderr = String::from_utf8_lossy(&build.stderr);
+    assert!(build.status.success(), "{stderr}");
+    let warning = stderr
+        .lines()
+        .find(|l| l.starts_with("warning: "))
+        .unwrap_or_else(|| panic!("a warning on stderr:\n{stderr}"));
+    assert!(
+        warning.contains("x 8-16 m, y 8-16 m") && warning.contains("walled in"),
+        "{warning}"
+    );
+    let out = dir.path().join("out");
+    let md = std::fs::read_to_string(out.join("report.md")).unwrap();
+    let section = &md[md.find("## Warnings").expect("a warnings section")..];
+    assert!(section.contains("walled in"), "{md}");
+    assert!(section.contains("](report_warnings.png)"), "{md}");
+    let picture = image::open(out.join("report_warnings.png"))
+        .unwrap()
+        .to_rgb8();
+    assert!(
+        picture.pixels().any(|p| p.0 == [230, 20, 20]),
+        "the pocket is drawn red"
+    );
+
+    // Built again with --deny-warnings: the same files, and a failure a build system sees.
+    let stderr = crowd_err(&["build", "-q", "--deny-warnings", "--pipeline", s(&pipeline)]);
+    assert!(stderr.contains("--deny-warnings"), "{stderr}");
+    assert!(stderr.contains("walled in"), "{stderr}");
+}
+
+#[test]
+fn a_build_without_warnings_says_so_and_passes_deny_warnings() {
+    let dir = copy_of("bands");
+    let pipeline = root().join("assets/pipelines/bands.ron");
+    let out = dir.path();
+    let build = crowd(&[
+        "build",
+        "-q",
+        "--deny-warnings",
+        "--pipeline",
+        s(&pipeline),
+        "--output",
+        s(out),
+    ]);
+    let stderr = String::from_utf8_lossy(&build.stderr);
+    assert!(build.status.success(), "{stderr}");
+    assert!(!stderr.contains("warning"), "{stderr}");
+    let md = std::fs::read_to_string(out.join("report.md")).unwrap();
+    assert!(md.contains("## Warnings\n\nNone"), "{md}");
+    assert!(!out.join("report_warnings.png").exists());
+}
+
+/// Random painting 1 (`crowd-paintings write --seed 1 --max-patches 8`) asks patch 27 for more
+/// than walking pace allows: its walkers are kept apart only by letting one hurry, and the
+/// build says where.
+#[test]
+fn a_patch_whose_walkers_must_hurry_is_a_warning_that_names_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let painting = crowd_paintings::random(1, crowd_paintings::Limits { max_patches: 8 });
+    let pipeline = painting.write(dir.path()).unwrap();
+    let build = crowd(&["build", "-q", "--pipeline", s(&pipeline)]);
+    let stderr = String::from_utf8_lossy(&build.stderr);
+    assert!(build.status.success(), "{stderr}");
+    let hurry = stderr
+        .lines()
+        .find(|l| l.starts_with("warning: patch ") && l.contains(" runs at "))
+        .unwrap_or_else(|| panic!("a warning naming the patch:\n{stderr}"));
+    assert!(
+        hurry.contains("faster than match.max_speed allows"),
+        "{hurry}"
+    );
+    let md = std::fs::read_to_string(dir.path().join("out/report.md")).unwrap();
+    assert!(md.contains(" runs at "), "{md}");
+    assert!(dir.path().join("out/report_warnings.png").exists());
+}
