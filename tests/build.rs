@@ -247,10 +247,10 @@ fn a_build_writes_a_report_with_every_stage_its_cost_its_outputs_and_pictures() 
         "| collisions | 0 |",
         "| smallest clearance (m) |",
         "| acceleration p95 (m/s2) |",
-        "| walkers | 1109 |",
+        "| walkers | 1105 |",
         "| worst position error (m) |",
         "| **all stages** |",
-        "| `library.crowd` | 873.7 kB |",
+        "| `library.crowd` | 870.0 kB |",
         "| `world.glb` |",
     ] {
         assert!(md.contains(figure), "{figure} in\n{md}");

@@ -24,7 +24,7 @@ use rayon::prelude::*;
 pub use crowd_geometry::obstacles_near;
 
 /// How one patch came out.
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct PatchReport {
     pub patch: u32,
     pub iterations: u32,
@@ -35,6 +35,8 @@ pub struct PatchReport {
     pub stall: Option<crowd_core::trajectories::Stall>,
     /// The fastest walker, when the patch was cleared only by letting it hurry.
     pub hurry: Option<crowd_core::trajectories::Hurry>,
+    /// The walkers given one more period ([`path::Path::add_period`]).
+    pub waited: Vec<u32>,
 }
 
 /// Restarts a stalled repair from the straight lines with fresh random pushes, [`RESTARTS`]
@@ -89,46 +91,101 @@ pub fn with_restarts(
     }
 }
 
+/// What [`clear_patch`] had to do beyond pushing.
+#[derive(Debug, Clone, Default)]
+struct Cleared {
+    /// Walkers given one more period.
+    waited: Vec<u32>,
+    /// Bends let hurry past the speed limit.
+    hurried: bool,
+}
+
+/// Walkers of a stalled patch given one more period, at most, one after another.
+const WAITERS: usize = 3;
+
 /// Clears one patch: at walking pace ([`repair::Speeds::bend_limit`]) if it can, else a little
-/// faster ([`repair::Speeds::second`]), else with bends that may hurry
-/// ([`repair::Speeds::hurried`]), each from the same straight lines. Returns
-/// the paths, how the repair ended and whether the walkers hurried.
+/// faster ([`repair::Speeds::second`]), else by giving a walker of the worst pair one more
+/// period in the patch (up to [`WAITERS`] walkers; a walker that must pass behind another at
+/// the last moment then has the time: painting's patch 3825, where the other leaves by the
+/// border the first walks along), else with bends that may hurry ([`repair::Speeds::hurried`]).
+/// Each try starts from the straight lines. Returns the paths, how the repair ended and what
+/// it took.
 fn clear_patch(
     start: Vec<Path>,
     patch: &repair::Patch,
     speeds: repair::Speeds,
-    max_iterations: u32,
+    (period_s, max_iterations): (f64, u32),
     rng: &mut ChaCha8Rng,
-) -> (Vec<Path>, repair::Outcome, bool) {
+) -> (Vec<Path>, repair::Outcome, Cleared) {
     let margin = |o: &repair::Outcome| o.worst.map_or(f64::INFINITY, |w| w.margin);
-    let mut best: Option<(Vec<Path>, repair::Outcome, bool)> = None;
+    let mut best: Option<(Vec<Path>, repair::Outcome, Cleared)> = None;
     let mut iterations = 0;
-    for (speeds, hurried) in [
-        (speeds, false),
-        (speeds.second(), false),
-        (speeds.hurried(), true),
-    ] {
-        let mut paths = start.clone();
+    let mut run = |paths: Vec<Path>, speeds, how: Cleared, best: &mut Option<_>| {
+        let mut paths = paths;
         let outcome = with_restarts(&mut paths, patch, speeds, max_iterations, rng);
         iterations += outcome.iterations;
         if best
             .as_ref()
-            .is_none_or(|b| margin(&outcome) > margin(&b.1))
+            .is_none_or(|b: &(Vec<Path>, repair::Outcome, Cleared)| margin(&outcome) > margin(&b.1))
         {
-            best = Some((paths, outcome, hurried));
+            *best = Some((paths, outcome, how));
         }
-        if outcome.worst.is_none() {
+        outcome
+    };
+    let done = |o: &repair::Outcome| o.worst.is_none();
+    let mut outcome = run(start.clone(), speeds, Cleared::default(), &mut best);
+    if !done(&outcome) {
+        outcome = run(
+            start.clone(),
+            speeds.second(),
+            Cleared::default(),
+            &mut best,
+        );
+    }
+    let mut waiting = start.clone();
+    let mut waited: Vec<u32> = Vec::new();
+    while !done(&outcome) && waited.len() < WAITERS {
+        let w = outcome.worst.expect("a stall");
+        let other = match w.other {
+            repair::Other::Walker { b, .. } => Some(b),
+            _ => None,
+        };
+        let Some(i) = [Some(w.a), other]
+            .into_iter()
+            .flatten()
+            .find(|&i| !waited.contains(&(i as u32)))
+        else {
+            break;
+        };
+        if !waiting[i].add_period(period_s) {
             break;
         }
+        waited.push(i as u32);
+        let how = Cleared {
+            waited: waited.clone(),
+            hurried: false,
+        };
+        outcome = run(waiting.clone(), speeds, how, &mut best);
     }
-    let (paths, outcome, hurried) = best.expect("one try at least");
+    // Last, hurrying: from the straight lines, then with the waits (stalls are chancy).
+    for (paths, waited) in [(start, Vec::new()), (waiting, waited)] {
+        if done(&outcome) {
+            break;
+        }
+        let how = Cleared {
+            waited,
+            hurried: true,
+        };
+        outcome = run(paths, speeds.hurried(), how, &mut best);
+    }
+    let (paths, outcome, how) = best.expect("one try at least");
     (
         paths,
         repair::Outcome {
             iterations,
             ..outcome
         },
-        hurried,
+        how,
     )
 }
 
@@ -225,8 +282,8 @@ pub fn collide(
             let mut rng = ChaCha8Rng::seed_from_u64(
                 seed ^ (p as u64 + 1).wrapping_mul(0xD1B5_4A32_D192_ED03),
             );
-            let (paths, outcome, hurried) =
-                clear_patch(paths, &patch, speeds, max_iterations, &mut rng);
+            let (paths, outcome, how) =
+                clear_patch(paths, &patch, speeds, (period_s, max_iterations), &mut rng);
             progress.advance(1);
             let report = PatchReport {
                 patch: p as u32,
@@ -234,7 +291,8 @@ pub fn collide(
                 converged: outcome.worst.is_none(),
                 worst_margin_m: outcome.worst.map_or(0.0, |w| w.margin),
                 stall: outcome.worst.map(|w| stall(p, &w)),
-                hurry: hurried.then(|| hurry(p, &paths)),
+                hurry: how.hurried.then(|| hurry(p, &paths)),
+                waited: how.waited,
             };
             let motion = PatchMotion {
                 standers: m.standers.clone(),
@@ -247,7 +305,7 @@ pub fn collide(
 
 /// The stage name in `collided.ron`'s header.
 pub const STAGE: &str = "collide";
-pub const VERSION: u32 = 5;
+pub const VERSION: u32 = 6;
 
 /// What stage 5 reads of a pipeline besides its input files.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
@@ -305,6 +363,10 @@ pub fn encode(
         min_margin_m: reports.iter().map(|r| r.worst_margin_m).fold(0.0, f64::min),
         unconverged: reports.iter().filter_map(|r| r.stall).collect(),
         hurried: reports.iter().filter_map(|r| r.hurry).collect(),
+        waited: reports
+            .iter()
+            .flat_map(|r| r.waited.iter().map(|&w| (r.patch, w)))
+            .collect(),
     });
     crowd_core::trajectories::encode_file(
         out,

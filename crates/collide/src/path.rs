@@ -422,6 +422,35 @@ impl Path {
         }
     }
 
+    /// Gives the walker one more period in the patch: its exit band and exit a period later
+    /// (the same place, the same time modulo the period, so the tiling holds), the split
+    /// points laid again. The walker then has time to let others pass first; the repair
+    /// decides where it spends it. Returns whether it could (a path without room between its
+    /// band ends cannot).
+    pub fn add_period(&mut self, period: f64) -> bool {
+        let tr = self.to_trajectory();
+        let Some(x) = crowd_core::trajectories::band_ends(&tr.points).1 else {
+            return false;
+        };
+        let exit_band_t = tr.points[x].t;
+        let points: Vec<ControlPoint> = tr
+            .points
+            .iter()
+            .filter(|p| p.kind != PointKind::Split)
+            .map(|p| ControlPoint {
+                t: if p.t >= exit_band_t {
+                    p.t + period
+                } else {
+                    p.t
+                },
+                ..*p
+            })
+            .collect();
+        let points = crowd_core::trajectories::split_at_periods(points, period);
+        *self = Path::from_trajectory(&Trajectory { points, ..tr });
+        true
+    }
+
     /// The points that shape the walk from one fixed end to the other: (where, when, index in
     /// `free` or `None` for an end, whether its time is fixed). Split points are marks on the
     /// walk, not shape; pause points and the ends keep their times, the rest may be re-timed.

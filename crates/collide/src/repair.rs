@@ -93,15 +93,21 @@ pub fn remove_collisions(
     max_iterations: u32,
     rng: &mut ChaCha8Rng,
 ) -> Outcome {
-    for path in paths.iter_mut() {
-        for f in &mut path.free {
-            f.pos = patch.keep_inside(f.pos);
-        }
-        path.settle_splits();
-        // Stage 4's lines keep to the speed limit on average; between its band ends a walk
-        // may not (a slow band leaves the middle less time).
-        path.limit_speed(speeds.bend_limit());
-    }
+    let limit = speeds.bend_limit();
+    // Whether each walk fits its time at the limit: a move that would make one that fits too
+    // long for its time (a pause moved behind a wall, a detour) is taken back.
+    let mut fits: Vec<bool> = paths
+        .iter_mut()
+        .map(|path| {
+            for f in &mut path.free {
+                f.pos = patch.keep_inside(f.pos);
+            }
+            path.settle_splits();
+            // Stage 4's lines keep to the speed limit on average; between its band ends a
+            // walk may not (a slow band leaves the middle less time).
+            path.limit_speed(limit)
+        })
+        .collect();
     let walls = patch.walls();
     let mut tracks = Tracks::new(paths.iter().map(Path::segments).collect());
     let mut rows = rows(&tracks, patch);
@@ -127,11 +133,25 @@ pub fn remove_collisions(
             };
         }
         iterations += 1;
+        let mut pair = vec![w.a];
+        if let Other::Walker { b, .. } = w.other
+            && b != w.a
+        {
+            pair.push(b);
+        }
+        let saved: Vec<(usize, Path)> = pair.iter().map(|&p| (p, paths[p].clone())).collect();
         let touched = push_apart(paths, &tracks, patch, speeds, &w, rng);
         for &p in &touched {
             paths[p].reroute(&walls, patch.radius_m, patch.side_m);
-            paths[p].limit_speed(speeds.bend_limit());
+            let now = paths[p].limit_speed(limit);
             paths[p].settle_splits();
+            if !now && fits[p] {
+                if let Some((_, old)) = saved.iter().find(|(q, _)| *q == p) {
+                    paths[p] = old.clone();
+                }
+            } else {
+                fits[p] = now;
+            }
         }
         for &p in &touched {
             tracks.set(p, paths[p].segments());

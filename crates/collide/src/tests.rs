@@ -637,3 +637,31 @@ fn a_bend_too_fast_for_its_time_takes_time_from_the_rest_of_the_walk() {
         "{v:?}"
     );
 }
+
+#[test]
+fn a_walker_given_one_more_period_keeps_its_ends_modulo_the_period() {
+    let mut path = banded(0, 3.0, 18.0, 1, 5.0, 23.0);
+    let before = path.to_trajectory();
+    assert!(path.add_period(20.0));
+    let after = path.to_trajectory();
+    let (b0, b1) = (before.points[0], before.points[before.points.len() - 1]);
+    let (a0, a1) = (after.points[0], after.points[after.points.len() - 1]);
+    assert_eq!((a0.pos, a0.t), (b0.pos, b0.t), "the entry stays");
+    assert_eq!(
+        (a1.pos, a1.t),
+        (b1.pos, b1.t + 20.0),
+        "the exit a period later"
+    );
+    let splits: Vec<f64> = after
+        .points
+        .iter()
+        .filter(|p| p.kind == PointKind::Split)
+        .map(|p| p.t)
+        .collect();
+    assert_eq!(splits, [20.0, 40.0], "a split at every multiple passed");
+    assert!(after.points.windows(2).all(|w| w[1].t >= w[0].t));
+    // The band pieces are the same walks, the exit's a period later.
+    let n = after.points.len();
+    let m = before.points.len();
+    assert_eq!(after.points[n - 2].pos, before.points[m - 2].pos);
+}

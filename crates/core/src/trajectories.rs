@@ -379,6 +379,10 @@ pub struct CollisionSummary {
     /// (a warning: the painting asks for more than walking pace gives there).
     #[serde(default)]
     pub hurried: Vec<Hurry>,
+    /// Walkers given one more period in their patch so that others could pass first: (patch,
+    /// walker). Each adds a walker to its patch for a period.
+    #[serde(default)]
+    pub waited: Vec<(u32, u32)>,
 }
 
 /// A patch whose walkers stage 5 could keep apart only by letting one hurry.

@@ -201,6 +201,12 @@ pub fn optimize(
     state.crossings = best.1;
     state.remeasure_all();
     enforce_rho_max(&mut state, rho_max);
+    // Velocities are turned towards the lines before the polish, and the crossings it adds
+    // after: a pair's least time depends on its band pieces (stage 4 adds a period where they
+    // leave the way too little time at max_speed), so what the polish measures is what ships.
+    align::align(&mut state);
+    state.remeasure_all();
+    enforce_rho_max(&mut state, rho_max);
     polish::polish(
         &mut state,
         rho_max,
@@ -212,11 +218,10 @@ pub fn optimize(
             log.push(figures(state, iterations));
         },
     );
-    align::align(&mut state);
-    // A pair's least time depends on its band pieces (stage 4 adds a period where they leave
-    // the way too little time at max_speed), so the turned velocities are measured again.
-    state.remeasure_all();
-    enforce_rho_max(&mut state, rho_max);
+    if align::align(&mut state) > 0 {
+        state.remeasure_all();
+        enforce_rho_max(&mut state, rho_max);
+    }
 
     let error = scene_error(graph, &state.requested, &state.measured, rho_max);
     let worst = worst_patches(graph, &state.requested, &state.measured, rho_max, 10);
