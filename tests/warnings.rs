@@ -86,20 +86,27 @@ fn a_build_without_warnings_says_so_and_passes_deny_warnings() {
 }
 
 /// Random painting 1 (`crowd-paintings write --seed 1 --max-patches 8`) paints 72 walkers into
-/// patch 27 (1.1 per m2, in crossing flows): no try of stage 5 clears it, not at walking pace,
-/// not with walkers given a period more, not with walkers let hurry. The build stops with an
-/// error that names the patch and the pair, and writes nothing.
+/// patch 27 (1.1 per m2, in crossing flows): at walking pace, and with walkers given a period
+/// more, stage 5 keeps them apart only by letting one hurry, and the build says where. (Which
+/// try clears so dense a patch is chancy: with other settings of stage 5 it was left colliding,
+/// an error naming the patch.)
 #[test]
-fn a_patch_stage_5_cannot_clear_is_an_error_that_names_it_and_writes_nothing() {
+fn a_patch_whose_walkers_must_hurry_is_a_warning_that_names_it() {
     let dir = tempfile::tempdir().unwrap();
     let painting = crowd_paintings::random(1, crowd_paintings::Limits { max_patches: 8 });
     let pipeline = painting.write(dir.path()).unwrap();
-    let stderr = crowd_err(&["build", "-q", "--pipeline", s(&pipeline)]);
+    let build = crowd(&["build", "-q", "--pipeline", s(&pipeline)]);
+    let stderr = String::from_utf8_lossy(&build.stderr);
+    assert!(build.status.success(), "{stderr}");
+    let hurry = stderr
+        .lines()
+        .find(|l| l.starts_with("warning: patch 27 ") && l.contains(" runs at "))
+        .unwrap_or_else(|| panic!("a warning naming the patch:\n{stderr}"));
     assert!(
-        stderr.contains("stage 5 could not keep patch 27 (x 0-8 m, y 56-64 m) clear"),
-        "{stderr}"
+        hurry.contains("faster than match.max_speed allows"),
+        "{hurry}"
     );
-    assert!(stderr.contains("collide.max_iterations"), "{stderr}");
-    assert!(!dir.path().join("out").join("collided.ron").exists());
-    assert!(!dir.path().join("out").join("library.crowd").exists());
+    let md = std::fs::read_to_string(dir.path().join("out/report.md")).unwrap();
+    assert!(md.contains(" runs at "), "{md}");
+    assert!(dir.path().join("out/report_warnings.png").exists());
 }
