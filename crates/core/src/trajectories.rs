@@ -431,7 +431,7 @@ pub struct SmoothingSummary {
 
 impl TrajectoriesFile {
     pub const STAGE: &'static str = "match";
-    pub const VERSION: u32 = 3;
+    pub const VERSION: u32 = 4;
 
     pub fn load(path: &Path) -> Result<(TrajectoriesFile, Vec<PatchMotion>)> {
         Self::load_stage(path, Self::STAGE, Self::VERSION)
