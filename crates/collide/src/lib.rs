@@ -93,11 +93,11 @@ pub fn with_restarts(
 
 /// What [`clear_patch`] had to do beyond pushing.
 #[derive(Debug, Clone, Default)]
-struct Cleared {
+pub(crate) struct Cleared {
     /// Walkers given one more period.
-    waited: Vec<u32>,
+    pub(crate) waited: Vec<u32>,
     /// Bends let hurry past the speed limit.
-    hurried: bool,
+    pub(crate) hurried: bool,
 }
 
 /// Walkers of a stalled patch given one more period, at most, one after another.
@@ -110,7 +110,7 @@ const WAITERS: usize = 3;
 /// border the first walks along), else with bends that may hurry ([`repair::Speeds::hurried`]).
 /// Each try starts from the straight lines. Returns the paths, how the repair ended and what
 /// it took.
-fn clear_patch(
+pub(crate) fn clear_patch(
     start: Vec<Path>,
     patch: &repair::Patch,
     speeds: repair::Speeds,
