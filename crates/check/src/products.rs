@@ -14,6 +14,44 @@ pub const SPEED_MARGIN: f64 = 1.05;
 /// A handover farther apart than this is a loop that does not close, metres.
 pub const OPEN_GAP_M: f64 = 0.01;
 
+impl ProductFigures {
+    /// The figures both readers measure the same way: collisions (`clearance`), speeds and key
+    /// jumps (`tally`, held to `limit`), handovers (`seams`). The fields only one file has
+    /// (borders, turning, the sampler) are left empty for the reader to fill.
+    pub(crate) fn measured(
+        file: &str,
+        (walkers, standers, pieces, loops): (u64, u64, u64, u64),
+        clearance: &crate::world::Clearance,
+        tally: &Tally,
+        seams: &Seams,
+        limit: f64,
+    ) -> ProductFigures {
+        ProductFigures {
+            file: file.into(),
+            walkers,
+            standers,
+            pieces,
+            collisions: clearance.collisions,
+            min_clearance_m: clearance.min_clearance_m,
+            worst_at: clearance.worst_at,
+            max_speed_m_s: tally.max_speed,
+            max_speed_at: tally.max_speed_at,
+            speed_limit_m_s: limit,
+            share_above_limit: tally.share_above(),
+            max_key_velocity_jump: tally.max_jump,
+            max_border_velocity_jump: None,
+            max_border_gap_m: None,
+            max_seam_velocity_jump: seams.max_jump,
+            max_seam_heading_jump_rad: seams.max_heading,
+            max_seam_gap_m: seams.max_gap,
+            loops,
+            open_loops: seams.open,
+            max_turn_rate_rad_s: None,
+            sampled: None,
+        }
+    }
+}
+
 /// DESIGN.md's guarantees on one shipped file.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct ProductFigures {

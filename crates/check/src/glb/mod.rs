@@ -190,28 +190,22 @@ pub fn figures(bytes: &[u8], inputs: &Inputs) -> Result<ProductFigures, GlbError
     }
     let clearance = scene.clearance();
     let seams = handovers(&nodes.tracks, clip);
+    let counts = (
+        nodes.tracks.len() as u64,
+        nodes.standers.len() as u64,
+        scene.pieces.len() as u64,
+        nodes.tracks.len() as u64,
+    );
     Ok(ProductFigures {
-        file: "world.glb".into(),
-        walkers: nodes.tracks.len() as u64,
-        standers: nodes.standers.len() as u64,
-        pieces: scene.pieces.len() as u64,
-        collisions: clearance.collisions,
-        min_clearance_m: clearance.min_clearance_m,
-        worst_at: clearance.worst_at,
-        max_speed_m_s: tally.max_speed,
-        max_speed_at: tally.max_speed_at,
-        speed_limit_m_s: inputs.speed_limit_m_s,
-        share_above_limit: tally.share_above(),
-        max_key_velocity_jump: tally.max_jump,
-        max_border_velocity_jump: None,
-        max_border_gap_m: None,
-        max_seam_velocity_jump: seams.max_jump,
-        max_seam_heading_jump_rad: seams.max_heading,
-        max_seam_gap_m: seams.max_gap,
-        loops: nodes.tracks.len() as u64,
-        open_loops: seams.open,
         max_turn_rate_rad_s: Some(max_turn_rate(&nodes.tracks)),
-        sampled: None,
+        ..ProductFigures::measured(
+            "world.glb",
+            counts,
+            &clearance,
+            &tally,
+            &seams,
+            inputs.speed_limit_m_s,
+        )
     })
 }
 

@@ -52,28 +52,24 @@ pub fn figures(lib: &Library, inputs: &Inputs) -> ProductFigures {
     let sampled = inputs
         .sample_step_s
         .map(|step| sample(lib, step, tally.max_speed));
+    let counts = (
+        lib.walkers(),
+        lib.standers.len() as u64,
+        paths.iter().map(|p| p.len() as u64 - 1).sum(),
+        lib.characters.len() as u64,
+    );
     ProductFigures {
-        file: "library.crowd".into(),
-        walkers: lib.walkers(),
-        standers: lib.standers.len() as u64,
-        pieces: paths.iter().map(|p| p.len() as u64 - 1).sum(),
-        collisions: clearance.collisions,
-        min_clearance_m: clearance.min_clearance_m,
-        worst_at: clearance.worst_at,
-        max_speed_m_s: tally.max_speed,
-        max_speed_at: tally.max_speed_at,
-        speed_limit_m_s: inputs.speed_limit_m_s,
-        share_above_limit: tally.share_above(),
-        max_key_velocity_jump: tally.max_jump,
         max_border_velocity_jump: Some(borders.max_jump),
         max_border_gap_m: Some(borders.max_gap),
-        max_seam_velocity_jump: seams.max_jump,
-        max_seam_heading_jump_rad: seams.max_heading,
-        max_seam_gap_m: seams.max_gap,
-        loops: lib.characters.len() as u64,
-        open_loops: seams.open,
-        max_turn_rate_rad_s: None,
         sampled,
+        ..ProductFigures::measured(
+            "library.crowd",
+            counts,
+            &clearance,
+            &tally,
+            &seams,
+            inputs.speed_limit_m_s,
+        )
     }
 }
 
