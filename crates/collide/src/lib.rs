@@ -53,13 +53,25 @@ pub fn with_restarts(
     max_iterations: u32,
     rng: &mut ChaCha8Rng,
 ) -> repair::Outcome {
+    with_attempts(paths, patch, speeds, max_iterations, 0..RESTARTS, rng)
+}
+
+/// [`with_restarts`]' attempts `attempts` only (their budgets as in the whole run).
+fn with_attempts(
+    paths: &mut Vec<Path>,
+    patch: &repair::Patch,
+    speeds: repair::Speeds,
+    max_iterations: u32,
+    attempts: std::ops::Range<u32>,
+    rng: &mut ChaCha8Rng,
+) -> repair::Outcome {
     let start = paths.clone();
     // Budgets double from try to try: most stalls clear on a cheap second draw, the rest get
     // room. They add up to `max_iterations`.
     let unit = (max_iterations / ((1 << RESTARTS) - 1)).max(1);
     let mut best: Option<(Vec<Path>, repair::Outcome)> = None;
     let mut used = 0;
-    for k in 0..RESTARTS {
+    for k in attempts {
         let per_try = unit << k;
         let mut attempt = start.clone();
         let outcome = repair::remove_collisions(&mut attempt, patch, speeds, per_try, rng);
@@ -102,14 +114,20 @@ pub(crate) struct Cleared {
 
 /// Walkers of a stalled patch given one more period, at most, one after another.
 const WAITERS: usize = 3;
+/// The attempts of [`with_restarts`] in the first, cheap pass of [`clear_patch`]: a quarter of
+/// the budget, one rescue.
+const CHEAP: u32 = RESCUE_AFTER;
 
 /// Clears one patch: at walking pace ([`repair::Speeds::bend_limit`]) if it can, else a little
 /// faster ([`repair::Speeds::second`]), else by giving a walker of the worst pair one more
 /// period in the patch (up to [`WAITERS`] walkers; a walker that must pass behind another at
 /// the last moment then has the time: painting's patch 3825, where the other leaves by the
 /// border the first walks along), else with bends that may hurry ([`repair::Speeds::hurried`]).
-/// Each try starts from the straight lines. Returns the paths, how the repair ended and what
-/// it took.
+/// Each try starts from the straight lines. The tries run twice: first with the cheap attempts
+/// of [`with_restarts`] ([`CHEAP`]), then with the costly ones, and hurrying only then; a stall
+/// that a little more speed or a wait clears no longer costs the whole budget at walking pace
+/// first (ring's patch 334 took 5 s so). Returns the paths, how the repair ended and what it
+/// took.
 pub(crate) fn clear_patch(
     start: Vec<Path>,
     patch: &repair::Patch,
@@ -120,9 +138,9 @@ pub(crate) fn clear_patch(
     let margin = |o: &repair::Outcome| o.worst.map_or(f64::INFINITY, |w| w.margin);
     let mut best: Option<(Vec<Path>, repair::Outcome, Cleared)> = None;
     let mut iterations = 0;
-    let mut run = |paths: Vec<Path>, speeds, how: Cleared, best: &mut Option<_>| {
+    let mut run = |paths: Vec<Path>, speeds, attempts, how: Cleared, best: &mut Option<_>| {
         let mut paths = paths;
-        let outcome = with_restarts(&mut paths, patch, speeds, max_iterations, rng);
+        let outcome = with_attempts(&mut paths, patch, speeds, max_iterations, attempts, rng);
         iterations += outcome.iterations;
         if best
             .as_ref()
@@ -133,50 +151,61 @@ pub(crate) fn clear_patch(
         outcome
     };
     let done = |o: &repair::Outcome| o.worst.is_none();
-    let mut outcome = run(start.clone(), speeds, Cleared::default(), &mut best);
-    if !done(&outcome) {
-        outcome = run(
-            start.clone(),
-            speeds.second(),
-            Cleared::default(),
-            &mut best,
-        );
-    }
     let mut waiting = start.clone();
     let mut waited: Vec<u32> = Vec::new();
-    while !done(&outcome) && waited.len() < WAITERS {
-        let w = outcome.worst.expect("a stall");
-        let other = match w.other {
-            repair::Other::Walker { b, .. } => Some(b),
-            _ => None,
+    let mut outcome: Option<repair::Outcome> = None;
+    for attempts in [0..CHEAP, CHEAP..RESTARTS] {
+        let plain = |hurried| Cleared {
+            waited: Vec::new(),
+            hurried,
         };
-        let Some(i) = [Some(w.a), other]
-            .into_iter()
-            .flatten()
-            .find(|&i| !waited.contains(&(i as u32)))
-        else {
-            break;
-        };
-        if !waiting[i].add_period(period_s) {
-            break;
+        for s in [speeds, speeds.second()] {
+            if outcome.is_none_or(|o| !done(&o)) {
+                outcome = Some(run(start.clone(), s, attempts.clone(), plain(false), &mut best));
+            }
         }
-        waited.push(i as u32);
-        let how = Cleared {
-            waited: waited.clone(),
-            hurried: false,
-        };
-        outcome = run(waiting.clone(), speeds, how, &mut best);
+        // The walkers waited so far, then one more at a time.
+        if !waited.is_empty() && outcome.is_some_and(|o| !done(&o)) {
+            let how = Cleared {
+                waited: waited.clone(),
+                hurried: false,
+            };
+            outcome = Some(run(waiting.clone(), speeds, attempts.clone(), how, &mut best));
+        }
+        while let Some(o) = outcome.filter(|o| !done(o) && waited.len() < WAITERS) {
+            let w = o.worst.expect("a stall");
+            let other = match w.other {
+                repair::Other::Walker { b, .. } => Some(b),
+                _ => None,
+            };
+            let Some(i) = [Some(w.a), other]
+                .into_iter()
+                .flatten()
+                .find(|&i| !waited.contains(&(i as u32)))
+            else {
+                break;
+            };
+            if !waiting[i].add_period(period_s) {
+                break;
+            }
+            waited.push(i as u32);
+            let how = Cleared {
+                waited: waited.clone(),
+                hurried: false,
+            };
+            outcome = Some(run(waiting.clone(), speeds, attempts.clone(), how, &mut best));
+        }
     }
     // Last, hurrying: from the straight lines, then with the waits (stalls are chancy).
     for (paths, waited) in [(start, Vec::new()), (waiting, waited)] {
-        if done(&outcome) {
+        if outcome.is_some_and(|o| done(&o)) {
             break;
         }
         let how = Cleared {
             waited,
             hurried: true,
         };
-        outcome = run(paths, speeds.hurried(), how, &mut best);
+        outcome = Some(run(paths, speeds.hurried(), 0..RESTARTS, how, &mut best));
     }
     let (paths, outcome, how) = best.expect("one try at least");
     (
@@ -305,7 +334,7 @@ pub fn collide(
 
 /// The stage name in `collided.ron`'s header.
 pub const STAGE: &str = "collide";
-pub const VERSION: u32 = 7;
+pub const VERSION: u32 = 8;
 
 /// What stage 5 reads of a pipeline besides its input files.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]

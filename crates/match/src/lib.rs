@@ -140,6 +140,130 @@ pub fn match_points(entries: &[Endpoint], exits: &[Endpoint], ctx: &PatchContext
     stable::gale_shapley(n, &scores)
 }
 
+/// What a pair's score and duration depend on at one end: where, when, on which side and how
+/// fast (the patch's context being fixed).
+type PointKey = ([u64; 5], Side);
+
+fn point_key(e: &Endpoint) -> PointKey {
+    let bits = [e.pos.x, e.pos.y, e.t, e.velocity.x, e.velocity.y].map(f64::to_bits);
+    (bits, e.side)
+}
+
+/// A patch's pair scores and matched pairs from its last measurement. Stage 3 measures a patch
+/// again after adding, removing or turning a crossing or two, so most pairs are the same: they
+/// are looked up and only the new ones scored (the n^2 scores, `atan` in each, were four fifths
+/// of stage 3), and a pair matched last time keeps its duration. The figures are exactly those
+/// [`measure_patch`] computes.
+#[derive(Debug, Clone, Default)]
+pub struct ScoreCache {
+    entries: Vec<PointKey>,
+    exits: Vec<PointKey>,
+    scores: Vec<f64>,
+    /// Per entry of the last measurement, its exit and the pair's duration.
+    matched: Vec<(usize, f64)>,
+}
+
+/// Where each of `new` was in `old`, if it was. The lists come from the same borders in the
+/// same order, so a key is first looked for where the last one was found; a hash map is built
+/// only when that fails.
+fn old_places(old: &[PointKey], new: &[PointKey]) -> Vec<Option<usize>> {
+    let mut index: Option<foldhash::HashMap<&PointKey, usize>> = None;
+    let mut shift = 0isize;
+    new.iter()
+        .enumerate()
+        .map(|(i, key)| {
+            let guess = i as isize + shift;
+            let near = [guess, guess + 1, guess - 1]
+                .into_iter()
+                .filter_map(|g| usize::try_from(g).ok())
+                .find(|&g| old.get(g) == Some(key));
+            let found = near.or_else(|| {
+                index
+                    .get_or_insert_with(|| old.iter().enumerate().map(|(i, k)| (k, i)).collect())
+                    .get(key)
+                    .copied()
+            });
+            if let Some(g) = found {
+                shift = g as isize - i as isize;
+            }
+            found
+        })
+        .collect()
+}
+
+impl ScoreCache {
+    /// Takes in this measurement's endpoints: scores their pairs (row-major) reusing the last
+    /// measurement's, and returns where each entry was last time (for [`Self::matched`]).
+    fn update(
+        &mut self,
+        entries: &[Endpoint],
+        exits: &[Endpoint],
+        ctx: &PatchContext,
+    ) -> (Vec<Option<usize>>, Vec<Option<usize>>) {
+        let entry_keys: Vec<PointKey> = entries.iter().map(point_key).collect();
+        let exit_keys: Vec<PointKey> = exits.iter().map(point_key).collect();
+        if entry_keys == self.entries && exit_keys == self.exits {
+            let same = |n: usize| (0..n).map(Some).collect();
+            return (same(entries.len()), same(exits.len()));
+        }
+        let old_entry = old_places(&self.entries, &entry_keys);
+        let old_exit = old_places(&self.exits, &exit_keys);
+        let old_width = self.exits.len();
+        let mut scores = Vec::with_capacity(entries.len() * exits.len());
+        for (e, old_e) in entries.iter().zip(&old_entry) {
+            for (x, old_x) in exits.iter().zip(&old_exit) {
+                scores.push(match (old_e, old_x) {
+                    (Some(i), Some(o)) => self.scores[i * old_width + o],
+                    _ => score::score(e, x, ctx),
+                });
+            }
+        }
+        self.entries = entry_keys;
+        self.exits = exit_keys;
+        self.scores = scores;
+        (old_entry, old_exit)
+    }
+}
+
+/// [`measure_patch`] with the patch's scores kept in `cache` between calls: the same figures,
+/// with only the pairs that changed since the last call scored.
+pub fn measure_patch_cached(
+    entries: &[Endpoint],
+    exits: &[Endpoint],
+    standers: u32,
+    ctx: &PatchContext,
+    cache: &mut ScoreCache,
+) -> Measured {
+    assert_eq!(
+        entries.len(),
+        exits.len(),
+        "parity: as many entries as exits"
+    );
+    let (old_entry, old_exit) = cache.update(entries, exits, ctx);
+    let pairs = stable::gale_shapley(entries.len(), &cache.scores);
+    let area = ctx.side_m * ctx.side_m;
+    let mut time = 0.0;
+    let mut direction = DVec2::ZERO;
+    let mut matched = Vec::with_capacity(pairs.len());
+    for ((e, &o), old_e) in entries.iter().zip(&pairs).zip(&old_entry) {
+        let x = &exits[o];
+        let last = old_e.and_then(|a| cache.matched.get(a).copied());
+        let duration = match (last, old_exit[o]) {
+            (Some((b, d)), Some(b2)) if b == b2 => d,
+            _ => plan::duration(e, x, ctx),
+        };
+        matched.push((o, duration));
+        time += duration;
+        direction += duration * (x.pos - e.pos).normalize_or_zero();
+    }
+    cache.matched = matched;
+    Measured {
+        density: standers as f64 / area + time / (area * ctx.period_s),
+        direction: direction.try_normalize(),
+        standers,
+    }
+}
+
 /// Trajectories of a patch from its endpoints.
 pub fn trajectories(
     entries: &[Endpoint],
@@ -161,21 +285,7 @@ pub fn measure_patch(
     standers: u32,
     ctx: &PatchContext,
 ) -> Measured {
-    let pairs = match_points(entries, exits, ctx);
-    let area = ctx.side_m * ctx.side_m;
-    let mut time = 0.0;
-    let mut direction = DVec2::ZERO;
-    for (e, &o) in entries.iter().zip(&pairs) {
-        let x = &exits[o];
-        let duration = plan::duration(e, x, ctx);
-        time += duration;
-        direction += duration * (x.pos - e.pos).normalize_or_zero();
-    }
-    Measured {
-        density: standers as f64 / area + time / (area * ctx.period_s),
-        direction: direction.try_normalize(),
-        standers,
-    }
+    measure_patch_cached(entries, exits, standers, ctx, &mut ScoreCache::default())
 }
 
 /// Stage 4 over a whole scene: the graph, its patterns and the settings.

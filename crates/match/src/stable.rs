@@ -1,57 +1,54 @@
-//! Gale-Shapley stable matching (Ramirez et al. Algorithm 1, after Gusfield and Irving).
+//! Stable matching of entries and exits (Ramirez et al. Algorithm 1, after Gusfield and Irving).
+//!
+//! Both sides rank each other by one pair score (lower is better; an entry breaks ties by the
+//! exit's index, an exit by the entry's). Both rankings are then restrictions of one total
+//! order on pairs, (score, entry, exit), and such preferences have exactly one stable matching:
+//! the least pair of the order is in every stable matching (otherwise it blocks), and so on
+//! with its row and column struck out. [`gale_shapley`] builds it greedily in that order, which
+//! is what Gale-Shapley's proposals arrive at (the test below runs the textbook algorithm and
+//! compares), in about 2 n^2 comparisons instead of proposals that sort refused entries' lists.
 
-/// Matches `n` entries with `n` exits given `score[i * n + o]` (lower is better for both
-/// sides: entries and exits rank each other by the same pair score, ties broken by index).
-/// Entries propose. Returns the exit of every entry.
+/// Matches `n` entries with `n` exits given `score[i * n + o]` (never negative). Returns the
+/// exit of every entry: the unique stable matching (see the module comment).
 pub fn gale_shapley(n: usize, score: &[f64]) -> Vec<usize> {
     debug_assert_eq!(score.len(), n * n);
-    // Scores are never negative, so their bits order like the numbers: a pair's place in a
-    // proposal list is a plain integer, the exit's index breaking ties.
-    debug_assert!(score.iter().all(|&s| s >= 0.0));
-    let key = |i: usize, o: usize| ((score[i * n + o].to_bits() as u128) << 32) | o as u128;
-    // Most entries propose once or twice: those proposals scan the row for the next key, and
-    // only an entry refused more often sorts its whole list.
-    const SCANNED: usize = 3;
-    let mut last = vec![0u128; n];
-    let mut made = vec![0usize; n];
-    let mut sorted: Vec<Vec<u128>> = vec![Vec::new(); n];
-    let mut partner_of_exit: Vec<Option<usize>> = vec![None; n];
-    let mut free: std::collections::VecDeque<usize> = (0..n).collect();
-    let prefers = |o: usize, i: usize, j: usize| {
-        // Does exit `o` prefer entry `i` to entry `j`?
-        let (si, sj) = (score[i * n + o], score[j * n + o]);
-        si < sj || (si == sj && i < j)
-    };
-    while let Some(i) = free.pop_front() {
-        let k = made[i];
-        let next = if k < SCANNED {
-            (0..n)
-                .map(|o| key(i, o))
-                .filter(|&x| k == 0 || x > last[i])
-                .min()
-        } else {
-            if sorted[i].is_empty() {
-                sorted[i] = (0..n).map(|o| key(i, o)).collect();
-                sorted[i].sort_unstable();
+    debug_assert!(score.iter().all(|s| s.is_finite() && *s >= 0.0));
+    // Free entries and exits, each in increasing order, so that a strict `<` while scanning
+    // keeps the lower index on a tie.
+    let mut rows: Vec<usize> = (0..n).collect();
+    let mut cols: Vec<usize> = (0..n).collect();
+    let row_best = |i: usize, cols: &[usize]| -> usize {
+        let row = &score[i * n..(i + 1) * n];
+        let mut best = cols[0];
+        for &o in &cols[1..] {
+            if row[o] < row[best] {
+                best = o;
             }
-            sorted[i].get(k).copied()
-        };
-        let next = next.expect("an entry is free only while some exit has not refused it");
-        last[i] = next;
-        made[i] += 1;
-        let o = (next & 0xffff_ffff) as usize;
-        match partner_of_exit[o] {
-            None => partner_of_exit[o] = Some(i),
-            Some(j) if prefers(o, i, j) => {
-                partner_of_exit[o] = Some(i);
-                free.push_back(j);
-            }
-            Some(_) => free.push_back(i),
         }
-    }
-    let mut exit_of = vec![0usize; n];
-    for (o, i) in partner_of_exit.iter().enumerate() {
-        exit_of[i.expect("every exit is taken when lists are complete")] = o;
+        best
+    };
+    // Each free entry's best free exit. (Keeping a few best per row, to rescan less, was
+    // slower: rows of real patches fall towards their best exit, so most exits insert.)
+    let mut best: Vec<usize> = (0..n).map(|i| row_best(i, &cols)).collect();
+    let mut exit_of = vec![usize::MAX; n];
+    while !rows.is_empty() {
+        // The least free pair of the order (score, entry, exit): the least of the rows' bests.
+        let mut at = 0;
+        for (k, &i) in rows.iter().enumerate().skip(1) {
+            let j = rows[at];
+            if score[i * n + best[i]] < score[j * n + best[j]] {
+                at = k;
+            }
+        }
+        let i = rows.remove(at);
+        let o = best[i];
+        exit_of[i] = o;
+        cols.retain(|&c| c != o);
+        for &j in &rows {
+            if best[j] == o {
+                best[j] = row_best(j, &cols);
+            }
+        }
     }
     exit_of
 }
@@ -75,19 +72,58 @@ mod tests {
     use super::*;
     use proptest::prelude::*;
 
+    /// Textbook Gale-Shapley, entries proposing down their sorted lists.
+    fn proposals(n: usize, score: &[f64]) -> Vec<usize> {
+        let lists: Vec<Vec<usize>> = (0..n)
+            .map(|i| {
+                let mut l: Vec<usize> = (0..n).collect();
+                l.sort_by(|&a, &b| score[i * n + a].total_cmp(&score[i * n + b]).then(a.cmp(&b)));
+                l
+            })
+            .collect();
+        let prefers = |o: usize, i: usize, j: usize| {
+            let (si, sj) = (score[i * n + o], score[j * n + o]);
+            si < sj || (si == sj && i < j)
+        };
+        let mut next = vec![0usize; n];
+        let mut partner: Vec<Option<usize>> = vec![None; n];
+        let mut free: Vec<usize> = (0..n).rev().collect();
+        while let Some(i) = free.pop() {
+            let o = lists[i][next[i]];
+            next[i] += 1;
+            match partner[o] {
+                None => partner[o] = Some(i),
+                Some(j) if prefers(o, i, j) => {
+                    partner[o] = Some(i);
+                    free.push(j);
+                }
+                Some(_) => free.push(i),
+            }
+        }
+        let mut exit_of = vec![0; n];
+        for (o, i) in partner.iter().enumerate() {
+            exit_of[i.unwrap()] = o;
+        }
+        exit_of
+    }
+
+    fn scores(n: usize, seed: u64, levels: u64) -> Vec<f64> {
+        let mut x = seed | 1;
+        (0..n * n)
+            .map(|_| {
+                x ^= x << 13;
+                x ^= x >> 7;
+                x ^= x << 17;
+                (x % levels) as f64 / 100.0
+            })
+            .collect()
+    }
+
     proptest! {
         /// Every entry and exit is matched exactly once, and no blocking pair remains.
         #[test]
         fn matching_is_perfect_and_stable(n in 1usize..40, seed in any::<u64>()) {
-            let mut x = seed | 1;
-            let score: Vec<f64> = (0..n * n)
-                .map(|_| {
-                    x ^= x << 13;
-                    x ^= x >> 7;
-                    x ^= x << 17;
-                    (x % 1000) as f64 / 100.0
-                })
-                .collect();
+            let score = scores(n, seed, 1000);
             let exit_of = gale_shapley(n, &score);
             let mut seen = vec![false; n];
             for &o in &exit_of {
@@ -95,6 +131,14 @@ mod tests {
                 seen[o] = true;
             }
             prop_assert_eq!(blocking_pair(n, &score, &exit_of), None);
+        }
+
+        /// The greedy order gives what Gale-Shapley's proposals give, ties included (few score
+        /// levels make many).
+        #[test]
+        fn the_same_matching_as_proposals(n in 1usize..50, seed in any::<u64>(), levels in 2u64..1000) {
+            let score = scores(n, seed, levels);
+            prop_assert_eq!(gale_shapley(n, &score), proposals(n, &score));
         }
     }
 

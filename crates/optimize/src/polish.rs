@@ -15,7 +15,8 @@
 //! matching and gives the exact new E (the error totals are kept per patch, so a try costs
 //! its few measurements, not a scene); the best try per patch is kept if it lowers E with no
 //! patch above rho_max. E therefore never rises here, and the polish ends at a round that
-//! keeps nothing, or after `max_rounds`. Sequential and seeded, so deterministic.
+//! keeps nothing, or after `max_rounds`. Patches are taken in order and every try is seeded
+//! by its place, so the result is the same for any thread count.
 
 use crate::mutate::{self, Step};
 use crate::state::State;
@@ -112,6 +113,10 @@ struct Best {
 
 /// Runs rounds of the local search until one keeps nothing or `max_rounds` have run; after
 /// every round, `after_round` sees the state (for the per-step log).
+///
+/// A patch's tries are independent (each starts from the same state, with its own seeded
+/// random numbers), so they run in parallel, one copy of the state per thread; the best is
+/// the least E, the first try on a tie, whatever the thread count.
 pub fn polish(
     state: &mut State,
     rho_max: f64,
@@ -122,50 +127,56 @@ pub fn polish(
 ) -> Polished {
     let mut done = Polished::default();
     let mut totals = Totals::new(state);
+    let mut forks: Vec<State> = (1..rayon::current_num_threads())
+        .map(|_| state.fork())
+        .collect();
     for round in 0..max_rounds {
         done.rounds += 1;
         let start = totals.e(rho_max);
         let mut kept = 0;
         for p in worst(state, rho_max) {
-            let mut rng = ChaCha8Rng::seed_from_u64(
-                seed ^ 0x9e37_79b9_7f4a_7c15 ^ ((round as u64) << 40) ^ p as u64,
-            );
-            let e = totals.e(rho_max);
-            let mut best: Option<Best> = None;
-            let directed = |q: usize| state.graph.patches[q].direction.is_some();
-            let short = state.measured[p].density < state.requested[p];
-            for cycle in cycles_through(state, p) {
-                let turns = cycle.len() > 2 && cycle.iter().any(|s| directed(s.to));
-                for change in [Change::Add, Change::Remove, Change::Turn] {
-                    // Only what can help: a patch that asks for no direction gains nothing
-                    // from walkers it has too many of, and a turn helps only directions (a
-                    // back-and-forth turned is the same back-and-forth).
-                    let useful = match change {
-                        Change::Add => short || directed(p),
-                        Change::Remove => !short || directed(p),
-                        Change::Turn => turns,
-                    };
-                    if !useful {
-                        continue;
-                    }
-                    done.tried += 1;
-                    let bar = best.as_ref().map_or(e - 1e-9, |b| b.e);
-                    if let Some(found) =
-                        try_change(state, &cycle, change, totals, rho_max, bar, &mut rng)
-                    {
-                        best = Some(found);
-                    }
-                }
-            }
+            let tries = tries_for(state, p);
+            done.tried += tries.len() as u32;
+            let bar = totals.e(rho_max) - 1e-9;
+            let salt = seed ^ 0x9e37_79b9_7f4a_7c15 ^ ((round as u64) << 40) ^ ((p as u64) << 20);
+            let best = {
+                let mut copies: Vec<&mut State> =
+                    std::iter::once(&mut *state).chain(forks.iter_mut()).collect();
+                let size = tries.len().div_ceil(copies.len()).max(1);
+                let found: Vec<Vec<Option<Best>>> = copies
+                    .par_iter_mut()
+                    .zip(tries.par_chunks(size))
+                    .enumerate()
+                    .map(|(chunk, (copy, tries))| {
+                        tries
+                            .iter()
+                            .enumerate()
+                            .map(|(j, (cycle, change))| {
+                                let k = (chunk * size + j) as u64;
+                                let mut rng = ChaCha8Rng::seed_from_u64(salt ^ k);
+                                try_change(copy, cycle, *change, totals, rho_max, bar, &mut rng)
+                            })
+                            .collect()
+                    })
+                    .collect();
+                // `min_by` keeps the first of equal minima: the earliest try.
+                found
+                    .into_iter()
+                    .flatten()
+                    .flatten()
+                    .min_by(|a, b| a.e.total_cmp(&b.e))
+            };
             if let Some(b) = best {
                 for (p, m) in &b.measured {
                     totals = totals.swap(state, *p, &state.measured[*p], m);
                 }
-                for (border, list) in b.borders {
-                    state.crossings[border] = list;
-                }
-                for (p, m) in b.measured {
-                    state.measured[p] = m;
+                for copy in std::iter::once(&mut *state).chain(forks.iter_mut()) {
+                    for (border, list) in &b.borders {
+                        copy.crossings[*border].clone_from(list);
+                    }
+                    for (p, m) in &b.measured {
+                        copy.measured[*p] = *m;
+                    }
                 }
                 kept += 1;
             }
@@ -178,6 +189,30 @@ pub fn polish(
         }
     }
     done
+}
+
+/// The changes worth trying through patch `p`: every cycle through it with each of the three
+/// changes that can help (a patch that asks for no direction gains nothing from walkers it has
+/// too many of, and a turn helps only directions: a back-and-forth turned is the same
+/// back-and-forth).
+fn tries_for(state: &State, p: usize) -> Vec<(Vec<Step>, Change)> {
+    let directed = |q: usize| state.graph.patches[q].direction.is_some();
+    let short = state.measured[p].density < state.requested[p];
+    let mut tries = Vec::new();
+    for cycle in cycles_through(state, p) {
+        let turns = cycle.len() > 2 && cycle.iter().any(|s| directed(s.to));
+        for change in [Change::Add, Change::Remove, Change::Turn] {
+            let useful = match change {
+                Change::Add => short || directed(p),
+                Change::Remove => !short || directed(p),
+                Change::Turn => turns,
+            };
+            if useful {
+                tries.push((cycle.clone(), change));
+            }
+        }
+    }
+    tries
 }
 
 /// The patches whose own error is above [`GOOD_ENOUGH`], worst first, at most
@@ -269,7 +304,7 @@ fn try_change(
     let mut touched: Vec<usize> = cycle.iter().map(|s| s.to).collect();
     touched.sort_unstable();
     let mut after = totals;
-    let fresh: Vec<Measured> = touched.par_iter().map(|&p| state.measure(p)).collect();
+    let fresh: Vec<Measured> = touched.iter().map(|&p| state.measure(p)).collect();
     let mut measured = Vec::with_capacity(touched.len());
     let mut full = false;
     for (&p, m) in touched.iter().zip(fresh) {

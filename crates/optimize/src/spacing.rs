@@ -7,6 +7,7 @@
 use crowd_core::patterns::{Crossing, Way};
 use crowd_core::{Interval, PatchGraph};
 
+#[derive(Clone)]
 pub struct Spacing {
     /// Per border, the stretches where a crossing may be (open intervals shrunk by a radius
     /// and a margin, and kept clear of the corners).

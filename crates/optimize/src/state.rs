@@ -43,6 +43,9 @@ pub struct State<'a> {
     pub measured: Vec<Measured>,
     /// Requested total density per patch (walkers + standers), characters per m2.
     pub requested: Vec<f64>,
+    /// Per patch, the pair scores of its last measurement (a lock each, so that patches are
+    /// measured in parallel; no two threads measure one patch at once).
+    scores: Vec<std::sync::Mutex<crowd_match::ScoreCache>>,
 }
 
 impl<'a> State<'a> {
@@ -94,9 +97,27 @@ impl<'a> State<'a> {
             ],
             standers,
             requested,
+            scores: (0..n).map(|_| Default::default()).collect(),
         };
         state.remeasure_all();
         state
+    }
+
+    /// A copy for trying changes on another thread: the same crossings and figures, its own
+    /// (empty) score caches.
+    pub fn fork(&self) -> State<'a> {
+        State {
+            graph: self.graph,
+            settings: self.settings,
+            period_s: self.period_s,
+            spacing: self.spacing.clone(),
+            links: self.links.clone(),
+            crossings: self.crossings.clone(),
+            standers: self.standers.clone(),
+            measured: self.measured.clone(),
+            requested: self.requested.clone(),
+            scores: (0..self.scores.len()).map(|_| Default::default()).collect(),
+        }
     }
 
     pub fn context(&self, patch: usize) -> PatchContext<'a> {
@@ -131,7 +152,16 @@ impl<'a> State<'a> {
 
     pub fn measure(&self, patch: usize) -> Measured {
         let (entries, exits) = self.endpoints(patch);
-        crowd_match::measure_patch(&entries, &exits, self.standers[patch], &self.context(patch))
+        let mut cache = self.scores[patch]
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner);
+        crowd_match::measure_patch_cached(
+            &entries,
+            &exits,
+            self.standers[patch],
+            &self.context(patch),
+            &mut cache,
+        )
     }
 
     pub fn remeasure(&mut self, patches: &[usize]) {
