@@ -161,7 +161,13 @@ pub(crate) fn clear_patch(
         };
         for s in [speeds, speeds.second()] {
             if outcome.is_none_or(|o| !done(&o)) {
-                outcome = Some(run(start.clone(), s, attempts.clone(), plain(false), &mut best));
+                outcome = Some(run(
+                    start.clone(),
+                    s,
+                    attempts.clone(),
+                    plain(false),
+                    &mut best,
+                ));
             }
         }
         // The walkers waited so far, then one more at a time.
@@ -170,7 +176,13 @@ pub(crate) fn clear_patch(
                 waited: waited.clone(),
                 hurried: false,
             };
-            outcome = Some(run(waiting.clone(), speeds, attempts.clone(), how, &mut best));
+            outcome = Some(run(
+                waiting.clone(),
+                speeds,
+                attempts.clone(),
+                how,
+                &mut best,
+            ));
         }
         while let Some(o) = outcome.filter(|o| !done(o) && waited.len() < WAITERS) {
             let w = o.worst.expect("a stall");
@@ -193,7 +205,13 @@ pub(crate) fn clear_patch(
                 waited: waited.clone(),
                 hurried: false,
             };
-            outcome = Some(run(waiting.clone(), speeds, attempts.clone(), how, &mut best));
+            outcome = Some(run(
+                waiting.clone(),
+                speeds,
+                attempts.clone(),
+                how,
+                &mut best,
+            ));
         }
     }
     // Last, hurrying: from the straight lines, then with the waits (stalls are chancy).

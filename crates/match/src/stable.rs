@@ -77,7 +77,11 @@ mod tests {
         let lists: Vec<Vec<usize>> = (0..n)
             .map(|i| {
                 let mut l: Vec<usize> = (0..n).collect();
-                l.sort_by(|&a, &b| score[i * n + a].total_cmp(&score[i * n + b]).then(a.cmp(&b)));
+                l.sort_by(|&a, &b| {
+                    score[i * n + a]
+                        .total_cmp(&score[i * n + b])
+                        .then(a.cmp(&b))
+                });
                 l
             })
             .collect();

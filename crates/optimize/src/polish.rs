@@ -140,8 +140,9 @@ pub fn polish(
             let bar = totals.e(rho_max) - 1e-9;
             let salt = seed ^ 0x9e37_79b9_7f4a_7c15 ^ ((round as u64) << 40) ^ ((p as u64) << 20);
             let best = {
-                let mut copies: Vec<&mut State> =
-                    std::iter::once(&mut *state).chain(forks.iter_mut()).collect();
+                let mut copies: Vec<&mut State> = std::iter::once(&mut *state)
+                    .chain(forks.iter_mut())
+                    .collect();
                 let size = tries.len().div_ceil(copies.len()).max(1);
                 let found: Vec<Vec<Option<Best>>> = copies
                     .par_iter_mut()
