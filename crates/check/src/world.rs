@@ -162,17 +162,20 @@ impl Scene {
         out
     }
 
-    /// Every walker pair within reach, at its closest, in pair order.
-    fn walker_pairs(&self) -> Vec<((u32, u32), Near)> {
+    /// Every walker pair closer than the clearance, at its closest, in pair order; and the
+    /// closest approach of any pair (`None` when no two come within reach). Only those are
+    /// kept: a painting's pairs within reach ran to gigabytes.
+    fn walker_pairs(&self) -> (Vec<((u32, u32), Near)>, Option<Near>) {
         let r = self.radius;
         let grid = PieceGrid::new(self.pieces.iter().map(|p| &p.seg), 4.0, 2.0 * r);
         let reach = 2.0 * r + 1.0;
         // Found once each: in the cell holding the lower corner of their overlap.
-        let found: Vec<((u32, u32), Near)> = grid
+        let (found, nearest) = grid
             .cells()
             .par_iter()
-            .flat_map_iter(|(k, ids)| {
+            .map(|(k, ids)| {
                 let mut out = Vec::new();
+                let mut nearest: Option<Near> = None;
                 for (i, j) in self.coexisting(ids) {
                     let (a, b) = (&self.pieces[i as usize], &self.pieces[j as usize]);
                     // Paths farther apart along an axis than the reach are farther apart.
@@ -186,27 +189,37 @@ impl Scene {
                     if let Some((d, t, at)) = self.pair(a, b)
                         && d < reach
                     {
-                        let key = (a.walker.min(b.walker), a.walker.max(b.walker));
-                        out.push((key, (d, t, at, a.patch != b.patch)));
+                        let near = (d, t, at, a.patch != b.patch);
+                        nearest = nearer(nearest, Some(near));
+                        if d - 2.0 * r < -COLLISION_M {
+                            let key = (a.walker.min(b.walker), a.walker.max(b.walker));
+                            out.push((key, near));
+                        }
                     }
                 }
-                out.into_iter()
+                (out, nearest)
             })
-            .collect();
-        closest_per_key(found)
+            .reduce(
+                || (Vec::new(), None),
+                |(mut a, x), (b, y)| {
+                    a.extend(b);
+                    (a, nearer(x, y))
+                },
+            );
+        (closest_per_key(found), nearest)
     }
 
-    /// Every walker against every stander and obstacle within reach (they stand still: no
-    /// copies), each pair at its closest however many pieces of the walker come near:
-    /// clearance margin, time, place.
-    fn fixed_pairs(&self) -> Vec<((u32, Fixed), Margin)> {
+    /// Every walker against every stander and obstacle it comes closer to than it may (they
+    /// stand still: no copies), each pair at its closest however many pieces of the walker come
+    /// near: clearance margin, time, place; and the smallest margin of any within reach.
+    fn fixed_pairs(&self) -> (Vec<((u32, Fixed), Margin)>, Option<Margin>) {
         let r = self.radius;
         let standers = BoxGrid::new(self.standers.iter().map(|&q| (q, q)), 2.0 * r + 1.0);
         let walls = BoxGrid::new(self.walls.iter().copied(), r + 1.0);
-        let found: Vec<((u32, Fixed), Margin)> = self
+        let (found, nearest) = self
             .pieces
             .par_iter()
-            .flat_map_iter(|piece| {
+            .map(|piece| {
                 let s = &piece.seg;
                 let (lo, hi) = (s.p0.min(s.p1), s.p0.max(s.p1));
                 let mut out = Vec::new();
@@ -218,8 +231,7 @@ impl Scene {
                     if let Some((d, t)) = geometry::closest(s, &Segment::standing(q, s.t0, s.t1))
                         && d < 2.0 * r + 1.0
                     {
-                        let key = (piece.walker, Fixed::Stander(i));
-                        out.push((key, (d - 2.0 * r, t, s.at(t))));
+                        out.push(((piece.walker, Fixed::Stander(i)), (d - 2.0 * r, t, s.at(t))));
                     }
                 }
                 for i in walls.near(lo, hi) {
@@ -232,10 +244,18 @@ impl Scene {
                         out.push(((piece.walker, Fixed::Wall(i)), (d - r, t, s.at(t))));
                     }
                 }
-                out.into_iter()
+                let nearest = out.iter().map(|e| Some(e.1)).fold(None, nearer);
+                out.retain(|e| e.1.0 < -COLLISION_M);
+                (out, nearest)
             })
-            .collect();
-        closest_per_key(found)
+            .reduce(
+                || (Vec::new(), None),
+                |(mut a, x), (b, y)| {
+                    a.extend(b);
+                    (a, nearer(x, y))
+                },
+            );
+        (closest_per_key(found), nearest)
     }
 
     /// Collisions and the smallest clearance over every pair, added up in pair order.
@@ -247,23 +267,36 @@ impl Scene {
             min_clearance_m: f64::INFINITY,
             worst_at: None,
         };
-        let mut note = |margin: f64, at: DVec2, t: f64, across: bool| {
-            if margin < -1e-6 {
-                c.collisions += 1;
-                c.across_borders += across as u64;
-            }
+        let mut note = |margin: f64, at: DVec2, t: f64| {
             if margin < c.min_clearance_m {
                 c.min_clearance_m = margin;
                 c.worst_at = Some((at.x, at.y, t.rem_euclid(period)));
             }
         };
-        for (_, (d, t, at, across)) in self.walker_pairs() {
-            note(d - 2.0 * self.radius, at, t, across);
+        let (walkers, nearest_walkers) = self.walker_pairs();
+        let (fixed, nearest_fixed) = self.fixed_pairs();
+        c.collisions = (walkers.len() + fixed.len()) as u64;
+        c.across_borders = walkers.iter().filter(|(_, near)| near.3).count() as u64;
+        if let Some((d, t, at, _)) = nearest_walkers {
+            note(d - 2.0 * self.radius, at, t);
         }
-        for (_, (margin, t, at)) in self.fixed_pairs() {
-            note(margin, at, t, false);
+        if let Some((margin, t, at)) = nearest_fixed {
+            note(margin, at, t);
         }
         c
+    }
+}
+
+/// How far inside the clearance a pair must come to count as a collision, m (rounding).
+const COLLISION_M: f64 = 1e-6;
+
+/// The nearer of two approaches, by [`Closer`] (so the result does not depend on the order the
+/// parallel work met them in).
+fn nearer<V: Copy + Closer>(a: Option<V>, b: Option<V>) -> Option<V> {
+    match (a, b) {
+        (Some(x), Some(y)) => Some(if y.closer(&x) { y } else { x }),
+        (x, None) => x,
+        (None, y) => y,
     }
 }
 

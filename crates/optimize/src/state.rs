@@ -165,7 +165,13 @@ impl<'a> State<'a> {
     }
 
     pub fn remeasure(&mut self, patches: &[usize]) {
-        let fresh: Vec<Measured> = patches.par_iter().map(|&p| self.measure(p)).collect();
+        // A cycle's few patches are measured here, in turn: waking the pool costs more.
+        const PARALLEL_FROM: usize = 16;
+        let fresh: Vec<Measured> = if patches.len() < PARALLEL_FROM {
+            patches.iter().map(|&p| self.measure(p)).collect()
+        } else {
+            patches.par_iter().map(|&p| self.measure(p)).collect()
+        };
         for (&p, m) in patches.iter().zip(fresh) {
             self.measured[p] = m;
         }

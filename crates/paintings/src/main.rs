@@ -88,6 +88,14 @@ fn soak(crowd: &Path, seeds: std::ops::Range<u64>, limits: Limits, out: &Path) -
     )?);
     let (started, mut failed, mut refused, mut largest) = (Instant::now(), Vec::new(), 0, 0);
     let mut warned = 0;
+    // A hidden bar drops its `println`s: without a terminal, lines go to stderr as they are.
+    let say = |line: String| {
+        if bar.is_hidden() {
+            eprintln!("{line}");
+        } else {
+            bar.println(line);
+        }
+    };
     for seed in seeds.clone() {
         let painting = random(seed, limits);
         let dir = out.join(format!("seed-{seed}"));
@@ -109,15 +117,15 @@ fn soak(crowd: &Path, seeds: std::ops::Range<u64>, limits: Limits, out: &Path) -
             }
             Outcome::Refused(why) => {
                 refused += 1;
-                bar.println(format!("{line}: refused: {why}"));
+                say(format!("{line}: refused: {why}"));
             }
             Outcome::Warned(what) => {
                 warned += 1;
                 largest = largest.max(patches);
-                bar.println(format!("{line}: warned\n  {}", what.join("\n  ")));
+                say(format!("{line}: warned\n  {}", what.join("\n  ")));
             }
             Outcome::Broke(what) => {
-                bar.println(format!("{line}: FAILED\n  {}", what.join("\n  ")));
+                say(format!("{line}: FAILED\n  {}", what.join("\n  ")));
                 failed.push(seed);
             }
         }
