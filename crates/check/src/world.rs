@@ -89,6 +89,8 @@ fn continuations(a: &Ends, b: &Ends, period: f64) -> [Option<i64>; 2] {
 type Near = (f64, f64, DVec2, bool);
 /// A walker's closest approach to something standing still: clearance margin, time, place.
 type Margin = (f64, f64, DVec2);
+/// Pairs that collide, each at its closest, and the nearest approach of any pair.
+type Found<K, V> = (Vec<(K, V)>, Option<V>);
 
 impl Scene {
     /// The closest approach of pieces `a` and `b` over the copies that can meet, if any.
@@ -165,7 +167,7 @@ impl Scene {
     /// Every walker pair closer than the clearance, at its closest, in pair order; and the
     /// closest approach of any pair (`None` when no two come within reach). Only those are
     /// kept: a painting's pairs within reach ran to gigabytes.
-    fn walker_pairs(&self) -> (Vec<((u32, u32), Near)>, Option<Near>) {
+    fn walker_pairs(&self) -> Found<(u32, u32), Near> {
         let r = self.radius;
         let grid = PieceGrid::new(self.pieces.iter().map(|p| &p.seg), 4.0, 2.0 * r);
         let reach = 2.0 * r + 1.0;
@@ -212,7 +214,7 @@ impl Scene {
     /// Every walker against every stander and obstacle it comes closer to than it may (they
     /// stand still: no copies), each pair at its closest however many pieces of the walker come
     /// near: clearance margin, time, place; and the smallest margin of any within reach.
-    fn fixed_pairs(&self) -> (Vec<((u32, Fixed), Margin)>, Option<Margin>) {
+    fn fixed_pairs(&self) -> Found<(u32, Fixed), Margin> {
         let r = self.radius;
         let standers = BoxGrid::new(self.standers.iter().map(|&q| (q, q)), 2.0 * r + 1.0);
         let walls = BoxGrid::new(self.walls.iter().copied(), r + 1.0);
