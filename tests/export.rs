@@ -72,7 +72,10 @@ fn sampling_at_the_keyframes_gives_stage_6_positions_within_the_stated_error() {
 
     let kept = crowd_export::simplify::motion(&motion, 0.75e-3);
     let quantisation = graph.world.patch_side_m * crowd_export::library::POSITION_ERROR_SHARE;
-    let (checked, worst) = worst_at_keyframes(&graph, &lib, &kept, quantisation + F32_ALLOWANCE_M);
+    // A kept keyframe is off by quantisation, and by a tick's walk where export eased its time.
+    let eased = stated - 0.75e-3 - quantisation;
+    let (checked, worst) =
+        worst_at_keyframes(&graph, &lib, &kept, quantisation + eased + F32_ALLOWANCE_M);
     assert!(checked > 500, "{checked}");
     eprintln!("{checked} kept keyframes, worst {worst:.2e} m (quantisation {quantisation:.2e} m)");
 }

@@ -352,7 +352,7 @@ pub fn collide(
 
 /// The stage name in `collided.ron`'s header.
 pub const STAGE: &str = "collide";
-pub const VERSION: u32 = 8;
+pub const VERSION: u32 = 9;
 
 /// What stage 5 reads of a pipeline besides its input files.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]

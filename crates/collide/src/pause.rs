@@ -4,7 +4,7 @@
 
 use crate::path::Path;
 use crate::repair::{Patch, Speeds, Tracks};
-use crowd_geometry::{Segment, at_time, copies, to_rect};
+use crowd_geometry::{Segment, at_time, copies, distance_to_rect};
 use glam::DVec2;
 
 /// Moves the pause `(i, j)` of walker `p` to the spot of the patch that stays farthest from
@@ -51,7 +51,7 @@ pub(crate) fn relocate_pause(
         patch
             .obstacles
             .iter()
-            .all(|o| to_rect(&walk, o.min, o.max).0 >= r)
+            .all(|o| distance_to_rect(&walk, o.min, o.max) >= r)
     };
     let reachable =
         |q: DVec2| times(q).is_some() && clear_walk(before.0, q) && clear_walk(q, after.0);

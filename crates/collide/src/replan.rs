@@ -314,7 +314,7 @@ fn clear(
     let walls = patch
         .obstacles
         .iter()
-        .all(|o| geometry::to_rect(&walk, o.min, o.max).0 >= r + STRAIGHT_MARGIN);
+        .all(|o| geometry::distance_to_rect(&walk, o.min, o.max) >= r + STRAIGHT_MARGIN);
     let standers = patch.standers.iter().all(|&s| {
         geometry::closest(&walk, &Segment::standing(s, a.1, b.1)).is_none_or(|(d, _)| d >= need)
     });

@@ -17,7 +17,7 @@ use crowd_core::{Hash, Hasher};
 
 /// The stage name in `export.ron`'s header.
 pub const STAGE: &str = "export";
-pub const VERSION: u32 = 3;
+pub const VERSION: u32 = 4;
 
 /// What stage 8 reads of a pipeline besides its input files.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
@@ -105,7 +105,7 @@ pub fn export(
     let links = characters::link(motion, crossings.len()).map_err(library::LibraryError::Links)?;
     let mut short = [0u8; 8];
     short.copy_from_slice(&hash.as_bytes()[..8]);
-    let lib = library::build(
+    let (lib, eased_m) = library::build(
         graph,
         crossings,
         motion,
@@ -137,8 +137,11 @@ pub fn export(
         standers: lib.standers.len() as u64,
         loops: lib.characters.len() as u64,
         points: lib.points.len() as u64,
-        position_error_m: tolerance_m + graph.world.patch_side_m * library::POSITION_ERROR_SHARE,
-        time_error_s: 0.5 * crowd_runtime::TICK_S,
+        position_error_m: tolerance_m
+            + graph.world.patch_side_m * library::POSITION_ERROR_SHARE
+            + eased_m,
+        // Rounding, and a tick more where a point was eased (`library::ease_ticks`).
+        time_error_s: if eased_m > 0.0 { 1.5 } else { 0.5 } * crowd_runtime::TICK_S,
     };
     Ok(Export {
         file,

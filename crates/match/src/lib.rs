@@ -161,6 +161,8 @@ pub struct ScoreCache {
     scores: Vec<f64>,
     /// Per entry of the last measurement, its exit and the pair's duration.
     matched: Vec<(usize, f64)>,
+    /// The score matrix before the last, its room reused.
+    spare: Vec<f64>,
 }
 
 /// Where each of `new` was in `old`, if it was. The lists come from the same borders in the
@@ -209,7 +211,9 @@ impl ScoreCache {
         let old_entry = old_places(&self.entries, &entry_keys);
         let old_exit = old_places(&self.exits, &exit_keys);
         let old_width = self.exits.len();
-        let mut scores = Vec::with_capacity(entries.len() * exits.len());
+        let mut scores = std::mem::take(&mut self.spare);
+        scores.clear();
+        scores.reserve(entries.len() * exits.len());
         for (e, old_e) in entries.iter().zip(&old_entry) {
             for (x, old_x) in exits.iter().zip(&old_exit) {
                 scores.push(match (old_e, old_x) {
@@ -220,9 +224,27 @@ impl ScoreCache {
         }
         self.entries = entry_keys;
         self.exits = exit_keys;
-        self.scores = scores;
+        self.spare = std::mem::replace(&mut self.scores, scores);
         (old_entry, old_exit)
     }
+}
+
+/// [`match_points`] with the patch's scores kept in `cache` (see [`measure_patch_cached`]).
+pub fn match_points_cached(
+    entries: &[Endpoint],
+    exits: &[Endpoint],
+    ctx: &PatchContext,
+    cache: &mut ScoreCache,
+) -> Vec<usize> {
+    assert_eq!(
+        entries.len(),
+        exits.len(),
+        "parity: as many entries as exits"
+    );
+    cache.update(entries, exits, ctx);
+    // The matched pairs' durations are indexed by the last measurement's entries.
+    cache.matched.clear();
+    stable::gale_shapley(entries.len(), &cache.scores)
 }
 
 /// [`measure_patch`] with the patch's scores kept in `cache` between calls: the same figures,

@@ -30,7 +30,7 @@ pub fn align(state: &mut State) -> usize {
                 return Vec::new();
             }
             let ctx = st.context(p);
-            let pairs = crowd_match::match_points(&entries, &exits, &ctx);
+            let pairs = st.pairs(p, &entries, &exits);
             let mut out = Vec::with_capacity(2 * entries.len());
             for (e, &o) in entries.iter().zip(&pairs) {
                 let x = &exits[o];

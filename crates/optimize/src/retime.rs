@@ -32,7 +32,7 @@ pub fn retime(state: &mut State) -> usize {
         .map(|p| {
             let ctx = state.context(p);
             let (entries, exits) = state.endpoints(p);
-            let matched = crowd_match::match_points(&entries, &exits, &ctx);
+            let matched = state.pairs(p, &entries, &exits);
             entries
                 .iter()
                 .zip(matched)

@@ -126,7 +126,11 @@ impl<'a> State<'a> {
 
     /// Entries and exits of a patch, from the crossings of its borders.
     pub fn endpoints(&self, patch: usize) -> (Vec<Endpoint>, Vec<Endpoint>) {
-        let (mut entries, mut exits) = (Vec::new(), Vec::new());
+        let count: usize = self.links[patch]
+            .iter()
+            .map(|l| self.crossings[l.border].len())
+            .sum();
+        let (mut entries, mut exits) = (Vec::with_capacity(count), Vec::with_capacity(count));
         let side = self.graph.world.patch_side_m;
         for link in &self.links[patch] {
             let border = &self.graph.borders[link.border];
@@ -162,6 +166,15 @@ impl<'a> State<'a> {
             &self.context(patch),
             &mut cache,
         )
+    }
+
+    /// The exit of each entry of `patch` (as [`State::endpoints`] lists them), by the same
+    /// matching as [`State::measure`] and its kept scores.
+    pub fn pairs(&self, patch: usize, entries: &[Endpoint], exits: &[Endpoint]) -> Vec<usize> {
+        let mut cache = self.scores[patch]
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner);
+        crowd_match::match_points_cached(entries, exits, &self.context(patch), &mut cache)
     }
 
     pub fn remeasure(&mut self, patches: &[usize]) {

@@ -22,7 +22,7 @@ use std::collections::HashMap;
 
 /// The stage name in `smoothed.ron`'s header.
 pub const STAGE: &str = "smooth";
-pub const VERSION: u32 = 6;
+pub const VERSION: u32 = 7;
 
 /// What stage 6 reads of a pipeline besides its input files.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
