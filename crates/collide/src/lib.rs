@@ -88,8 +88,7 @@ fn with_attempts(
             } else {
                 RESCUE_ROUNDS
             };
-            let outcome =
-                replan::rescue(&mut rescued, patch, speeds, rounds, RESCUE_PUSHES, rng);
+            let outcome = replan::rescue(&mut rescued, patch, speeds, rounds, RESCUE_PUSHES, rng);
             used += outcome.iterations;
             if keep_better(&mut best, rescued, outcome) {
                 break;
