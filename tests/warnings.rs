@@ -110,3 +110,34 @@ fn a_patch_whose_walkers_must_hurry_is_a_warning_that_names_it() {
     assert!(md.contains(" runs at "), "{md}");
     assert!(dir.path().join("out/report_warnings.png").exists());
 }
+
+/// Random painting 105 (12 patches of 10 m, walkers of 0.35 m radius past walls): two of its
+/// patches stay colliding in every tier of stage 5 (the soak refuses it at the defaults after
+/// 84 s; with `collide.max_iterations: 200`, which bounds the rescues too, in seconds). The
+/// build is an error naming a patch, and writes nothing: no stage file, no library.
+#[test]
+fn a_patch_no_try_clears_is_an_error_that_names_it_and_nothing_is_written() {
+    let dir = tempfile::tempdir().unwrap();
+    let painting = crowd_paintings::random(105, crowd_paintings::Limits { max_patches: 8 });
+    let pipeline = painting.write(dir.path()).unwrap();
+    let text = std::fs::read_to_string(&pipeline).unwrap();
+    let text = text.replace(
+        "    output: \"out\",",
+        "    output: \"out\",\n    collide: (max_iterations: 200),",
+    );
+    assert!(text.contains("max_iterations: 200"), "{text}");
+    std::fs::write(&pipeline, text).unwrap();
+    let stderr = crowd_err(&["build", "-q", "--pipeline", s(&pipeline)]);
+    let error = stderr
+        .lines()
+        .find(|l| l.starts_with("error: stage 5 could not keep patch "))
+        .unwrap_or_else(|| panic!("an error naming the patch:\n{stderr}"));
+    assert!(
+        error.contains(" clear ") && error.contains("too close"),
+        "{error}"
+    );
+    let out = dir.path().join("out");
+    for file in ["collided.ron", "smoothed.ron", "library.crowd", "world.glb"] {
+        assert!(!out.join(file).exists(), "{file} was written");
+    }
+}

@@ -86,7 +86,7 @@ fn with_attempts(
                 patch,
                 speeds,
                 RESCUE_ROUNDS,
-                RESCUE_PUSHES,
+                rescue_pushes(max_iterations),
                 rng,
             );
             used += outcome.iterations;
@@ -300,6 +300,13 @@ pub const RESCUE_AFTER: u32 = 3;
 pub const RESCUE_ROUNDS: u32 = 40;
 pub const RESCUE_PUSHES: u32 = 400;
 
+/// The pushes after each planned walker of a rescue: [`RESCUE_PUSHES`] at the default
+/// `collide.max_iterations` (12,000), in proportion otherwise, so that the setting bounds a
+/// rescue's work too (a random painting refused after 3 min with `max_iterations: 200`).
+pub fn rescue_pushes(max_iterations: u32) -> u32 {
+    (u64::from(RESCUE_PUSHES) * u64::from(max_iterations) / 12_000).max(1) as u32
+}
+
 /// Removes collisions in every patch, in parallel; deterministic for a seed.
 pub fn collide(
     graph: &PatchGraph,
@@ -354,7 +361,7 @@ pub fn collide(
 
 /// The stage name in `collided.ron`'s header.
 pub const STAGE: &str = "collide";
-pub const VERSION: u32 = 11;
+pub const VERSION: u32 = 12;
 
 /// What stage 5 reads of a pipeline besides its input files.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
