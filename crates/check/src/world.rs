@@ -172,7 +172,7 @@ impl Scene {
         let grid = PieceGrid::new(self.pieces.iter().map(|p| &p.seg), 4.0, 2.0 * r);
         let reach = 2.0 * r + 1.0;
         // Found once each: in the cell holding the lower corner of their overlap.
-        let (found, nearest) = grid
+        let found = grid
             .cells()
             .par_iter()
             .map(|(k, ids)| {
@@ -201,14 +201,8 @@ impl Scene {
                 }
                 (out, nearest)
             })
-            .reduce(
-                || (Vec::new(), None),
-                |(mut a, x), (b, y)| {
-                    a.extend(b);
-                    (a, nearer(x, y))
-                },
-            );
-        (closest_per_key(found), nearest)
+            .reduce(|| (Vec::new(), None), merge);
+        gathered(found)
     }
 
     /// Every walker against every stander and obstacle it comes closer to than it may (they
@@ -218,7 +212,7 @@ impl Scene {
         let r = self.radius;
         let standers = BoxGrid::new(self.standers.iter().map(|&q| (q, q)), 2.0 * r + 1.0);
         let walls = BoxGrid::new(self.walls.iter().copied(), r + 1.0);
-        let (found, nearest) = self
+        let found = self
             .pieces
             .par_iter()
             .map(|piece| {
@@ -250,14 +244,8 @@ impl Scene {
                 out.retain(|e| e.1.0 < -COLLISION_M);
                 (out, nearest)
             })
-            .reduce(
-                || (Vec::new(), None),
-                |(mut a, x), (b, y)| {
-                    a.extend(b);
-                    (a, nearer(x, y))
-                },
-            );
-        (closest_per_key(found), nearest)
+            .reduce(|| (Vec::new(), None), merge);
+        gathered(found)
     }
 
     /// Collisions and the smallest clearance over every pair, added up in pair order.
@@ -287,6 +275,19 @@ impl Scene {
         }
         c
     }
+}
+
+/// Two parts' colliding pairs and nearest approaches as one.
+fn merge<K, V: Copy + Closer>(mut a: Found<K, V>, b: Found<K, V>) -> Found<K, V> {
+    a.0.extend(b.0);
+    (a.0, nearer(a.1, b.1))
+}
+
+/// The colliding pairs found, each once at its closest and in key order, and the nearest.
+fn gathered<K: Ord + std::hash::Hash + Copy, V: Copy + Closer>(
+    (found, nearest): Found<K, V>,
+) -> Found<K, V> {
+    (closest_per_key(found), nearest)
 }
 
 /// How far inside the clearance a pair must come to count as a collision, m (rounding).

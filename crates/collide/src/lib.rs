@@ -140,54 +140,40 @@ pub(crate) fn clear_patch(
     let margin = |o: &repair::Outcome| o.worst.map_or(f64::INFINITY, |w| w.margin);
     let mut best: Option<(Vec<Path>, repair::Outcome, Cleared)> = None;
     let mut iterations = 0;
-    let mut run = |paths: Vec<Path>, speeds, attempts, how: Cleared, best: &mut Option<_>| {
-        let mut paths = paths;
+    // One try from `paths`, kept if its worst encounter is the best so far; its stall, if any.
+    let mut run = |paths: &[Path], speeds, attempts, waited: &[u32], hurried| {
+        let mut paths = paths.to_vec();
         let outcome = with_attempts(&mut paths, patch, speeds, max_iterations, attempts, rng);
         iterations += outcome.iterations;
         if best
             .as_ref()
             .is_none_or(|b: &(Vec<Path>, repair::Outcome, Cleared)| margin(&outcome) > margin(&b.1))
         {
-            *best = Some((paths, outcome, how));
+            let how = Cleared {
+                waited: waited.to_vec(),
+                hurried,
+            };
+            best = Some((paths, outcome, how));
         }
-        outcome
+        outcome.worst
     };
-    let done = |o: &repair::Outcome| o.worst.is_none();
     let mut waiting = start.clone();
     let mut waited: Vec<u32> = Vec::new();
-    let mut outcome: Option<repair::Outcome> = None;
+    // The last try's stall: `None` once a try cleared the patch (or before any try).
+    let (mut stall, mut cleared) = (None, false);
     for attempts in [0..CHEAP, CHEAP..RESTARTS] {
-        let plain = |hurried| Cleared {
-            waited: Vec::new(),
-            hurried,
-        };
         for s in [speeds, speeds.second()] {
-            if outcome.is_none_or(|o| !done(&o)) {
-                outcome = Some(run(
-                    start.clone(),
-                    s,
-                    attempts.clone(),
-                    plain(false),
-                    &mut best,
-                ));
+            if !cleared {
+                stall = run(&start, s, attempts.clone(), &[], false);
+                cleared = stall.is_none();
             }
         }
         // The walkers waited so far, then one more at a time.
-        if !waited.is_empty() && outcome.is_some_and(|o| !done(&o)) {
-            let how = Cleared {
-                waited: waited.clone(),
-                hurried: false,
-            };
-            outcome = Some(run(
-                waiting.clone(),
-                speeds,
-                attempts.clone(),
-                how,
-                &mut best,
-            ));
+        if !cleared && !waited.is_empty() {
+            stall = run(&waiting, speeds, attempts.clone(), &waited, false);
+            cleared = stall.is_none();
         }
-        while let Some(o) = outcome.filter(|o| !done(o) && waited.len() < WAITERS) {
-            let w = o.worst.expect("a stall");
+        while let Some(w) = stall.filter(|_| waited.len() < WAITERS) {
             let other = match w.other {
                 repair::Other::Walker { b, .. } => Some(b),
                 _ => None,
@@ -203,29 +189,17 @@ pub(crate) fn clear_patch(
                 break;
             }
             waited.push(i as u32);
-            let how = Cleared {
-                waited: waited.clone(),
-                hurried: false,
-            };
-            outcome = Some(run(
-                waiting.clone(),
-                speeds,
-                attempts.clone(),
-                how,
-                &mut best,
-            ));
+            stall = run(&waiting, speeds, attempts.clone(), &waited, false);
+            cleared = stall.is_none();
         }
     }
     // Last, hurrying: from the straight lines, then with the waits (stalls are chancy).
-    for (paths, waited) in [(start, Vec::new()), (waiting, waited)] {
-        if outcome.is_some_and(|o| done(&o)) {
+    for (paths, waited) in [(&start, &[][..]), (&waiting, &waited[..])] {
+        if cleared {
             break;
         }
-        let how = Cleared {
-            waited,
-            hurried: true,
-        };
-        outcome = Some(run(paths, speeds.hurried(), 0..RESTARTS, how, &mut best));
+        stall = run(paths, speeds.hurried(), 0..RESTARTS, waited, true);
+        cleared = stall.is_none();
     }
     let (paths, outcome, how) = best.expect("one try at least");
     (
