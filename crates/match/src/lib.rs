@@ -154,8 +154,14 @@ fn point_key(e: &Endpoint) -> PointKey {
 /// are looked up and only the new ones scored (the n^2 scores, `atan` in each, were four fifths
 /// of stage 3), and a pair matched last time keeps its duration. The figures are exactly those
 /// [`measure_patch`] computes.
+///
+/// It also remembers the figures of the patch's recent endpoint sets ([`MEMO_SIZE`] at most):
+/// stage 3's polish tries many changes along cycles that share a border with the patch, and a
+/// third of ring's measurements were of a set measured before (the same crossing removed or
+/// turned by another cycle).
 #[derive(Debug, Clone, Default)]
 pub struct ScoreCache {
+    memo: foldhash::HashMap<u128, Measured>,
     entries: Vec<PointKey>,
     exits: Vec<PointKey>,
     scores: Vec<f64>,
@@ -191,6 +197,26 @@ fn old_places(old: &[PointKey], new: &[PointKey]) -> Vec<Option<usize>> {
             found
         })
         .collect()
+}
+
+/// Endpoint sets a [`ScoreCache`] remembers the figures of, at most; it forgets them all
+/// when full (a patch measured many times over keeps the recent ones).
+pub const MEMO_SIZE: usize = 64;
+
+/// A set of endpoints, as a 128-bit hash of every figure a measurement reads (two 64-bit
+/// hashes with fixed seeds, of the points and the standers: the same on every machine and run, and a collision within one
+/// patch's [`MEMO_SIZE`] sets is out of reach).
+fn set_key(entries: &[Endpoint], exits: &[Endpoint], standers: u32) -> u128 {
+    use std::hash::{BuildHasher, Hash, Hasher};
+    let half = |seed: u64| {
+        let mut h = foldhash::quality::FixedState::with_seed(seed).build_hasher();
+        (entries.len(), standers).hash(&mut h);
+        for e in entries.iter().chain(exits) {
+            point_key(e).hash(&mut h);
+        }
+        h.finish()
+    };
+    (u128::from(half(0x243f_6a88_85a3_08d3)) << 64) | u128::from(half(0x1319_8a2e_0370_7344))
 }
 
 impl ScoreCache {
@@ -261,6 +287,10 @@ pub fn measure_patch_cached(
         exits.len(),
         "parity: as many entries as exits"
     );
+    let key = set_key(entries, exits, standers);
+    if let Some(m) = cache.memo.get(&key) {
+        return *m;
+    }
     let (old_entry, old_exit) = cache.update(entries, exits, ctx);
     let pairs = stable::gale_shapley(entries.len(), &cache.scores);
     let area = ctx.side_m * ctx.side_m;
@@ -279,11 +309,16 @@ pub fn measure_patch_cached(
         direction += duration * (x.pos - e.pos).normalize_or_zero();
     }
     cache.matched = matched;
-    Measured {
+    let measured = Measured {
         density: standers as f64 / area + time / (area * ctx.period_s),
         direction: direction.try_normalize(),
         standers,
+    };
+    if cache.memo.len() >= MEMO_SIZE {
+        cache.memo.clear();
     }
+    cache.memo.insert(key, measured);
+    measured
 }
 
 /// Trajectories of a patch from its endpoints.
@@ -444,3 +479,6 @@ pub fn encode(
         None,
     )
 }
+
+#[cfg(test)]
+mod tests;

@@ -137,16 +137,46 @@ fn handovers(lib: &Library, paths: &[Vec<(DVec2, f64)>]) -> (Seams, Seams) {
 /// Everywhere.
 const EVERYWHERE: [f32; 4] = [f32::MIN, f32::MIN, f32::MAX, f32::MAX];
 
+/// Frames played by one sampler of [`sample`]: the period is cut into runs this long, played
+/// in parallel (a run's first frame searches each walker's loop; the others step on).
+const FRAMES_PER_RUN: u64 = 125;
+
 /// Plays `lib` through the runtime's sampler every `step` seconds over one period (every
 /// walker then walks each of its loop's periods once over all its laps): the longest step of
-/// any character between frames, and how many are longer than `fastest` allows.
+/// any character between frames, and how many are longer than `fastest` allows. The frames
+/// are played in runs of [`FRAMES_PER_RUN`], each by its own sampler, in parallel (the same
+/// figures for any thread count: a maximum and a count).
 pub fn sample(lib: &Library, step: f64, fastest: f64) -> Sampled {
+    use rayon::prelude::*;
     let frames = (lib.period_s() / step).round().max(1.0) as u64;
+    let runs: Vec<(u64, u64)> = (0..frames.div_ceil(FRAMES_PER_RUN))
+        .map(|r| (r * FRAMES_PER_RUN, ((r + 1) * FRAMES_PER_RUN).min(frames)))
+        .collect();
+    let (max_speed, jumps) = runs
+        .par_iter()
+        .map(|&(first, last)| play(lib, step, fastest, first..=last))
+        .reduce(|| (0.0, 0), |a, b| (a.0.max(b.0), a.1 + b.1));
+    Sampled {
+        step_s: step,
+        frames,
+        max_speed_m_s: max_speed,
+        jumps,
+    }
+}
+
+/// [`sample`]'s frames `frames` (each compared with the one before it, the first only as
+/// that): the fastest step and the jumps.
+fn play(
+    lib: &Library,
+    step: f64,
+    fastest: f64,
+    frames: std::ops::RangeInclusive<u64>,
+) -> (f64, u64) {
     let mut sampler = Sampler::new(lib);
     let (mut before, mut now): (Vec<Sample>, Vec<Sample>) = (Vec::new(), Vec::new());
-    sampler.sample(0.0, EVERYWHERE, &mut before);
+    sampler.sample(*frames.start() as f64 * step, EVERYWHERE, &mut before);
     let (mut max_speed, mut jumps) = (0.0f64, 0u64);
-    for f in 1..=frames {
+    for f in frames.skip(1) {
         sampler.sample(f as f64 * step, EVERYWHERE, &mut now);
         for (a, b) in before.iter().zip(&now) {
             let d = if a.id == b.id {
@@ -160,12 +190,7 @@ pub fn sample(lib: &Library, step: f64, fastest: f64) -> Sampled {
         jumps += before.len().abs_diff(now.len()) as u64;
         std::mem::swap(&mut before, &mut now);
     }
-    Sampled {
-        step_s: step,
-        frames,
-        max_speed_m_s: max_speed,
-        jumps,
-    }
+    (max_speed, jumps)
 }
 
 #[cfg(test)]
