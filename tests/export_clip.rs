@@ -18,6 +18,8 @@ const SAME_PLACE_M: f64 = 1e-3;
 struct Track {
     times: Vec<f32>,
     moves: Vec<[f32; 3]>,
+    /// Rotation keys, at their own times (where turns start and end).
+    turn_times: Vec<f32>,
     turns: Vec<[f32; 4]>,
     scale: Option<(Vec<f32>, Vec<f32>)>,
     next: Option<String>,
@@ -92,9 +94,10 @@ fn clip(glb: &Path) -> (f32, HashMap<String, Track>) {
             Track {
                 times: Vec::new(),
                 moves: Vec::new(),
+                turn_times: Vec::new(),
                 turns: Vec::new(),
                 scale: None,
-                next: extras["next"].as_str().map(str::to_string),
+                next: extras["crowd_next"].as_str().map(str::to_string),
             },
         );
     }
@@ -109,7 +112,10 @@ fn clip(glb: &Path) -> (f32, HashMap<String, Track>) {
                 track.times = times;
                 track.moves = t.collect();
             }
-            ReadOutputs::Rotations(Rotations::F32(r)) => track.turns = r.collect(),
+            ReadOutputs::Rotations(Rotations::F32(r)) => {
+                track.turn_times = times;
+                track.turns = r.collect();
+            }
             ReadOutputs::Scales(s) => track.scale = Some((times, s.map(|s| s[0]).collect())),
             _ => panic!("{name}: an unexpected channel"),
         }
@@ -173,7 +179,12 @@ fn hands_over(out: &Path, fastest: f64) -> Vec<Option<f64>> {
         let gap = distance(tr.end(), succ.start());
         assert!(gap <= SAME_PLACE_M, "{name} -> {next}: {gap} m apart");
         assert!(succ.shown(0.0), "{name} -> {next}: shown, then hidden");
-        let (a, b) = (tr.turns[n - 1], succ.turns[0]);
+        assert_eq!(
+            tr.turn_times.last(),
+            Some(&period),
+            "{name}: rotation keys end early"
+        );
+        let (a, b) = (*tr.turns.last().unwrap(), succ.turns[0]);
         let dot: f32 = a.iter().zip(&b).map(|(x, y)| x * y).sum();
         let turn = 2.0 * f64::from(dot.abs().min(1.0)).acos().to_degrees();
         assert!(turn < 0.5, "{name} -> {next}: heading turns {turn} degrees");
@@ -263,4 +274,65 @@ fn export_region_clip_shows_the_characters_inside_and_loops() {
         }
     }
     assert!(period > 0.0);
+}
+
+/// The turn between two rotation keys, radians (robust for small turns: see `crowd check`).
+fn turn_between_keys(a: [f32; 4], b: [f32; 4]) -> f64 {
+    let (a, b) = (a.map(f64::from), b.map(f64::from));
+    let dot: f64 = a.iter().zip(&b).map(|(x, y)| x * y).sum();
+    let b = if dot < 0.0 { b.map(|v| -v) } else { b };
+    let norm = |v: [f64; 4]| v.iter().map(|x| x * x).sum::<f64>().sqrt();
+    let (minus, plus) = (
+        norm(std::array::from_fn(|i| a[i] - b[i])),
+        norm(std::array::from_fn(|i| a[i] + b[i])),
+    );
+    4.0 * minus.atan2(plus)
+}
+
+/// Every node of `world.glb` turns like a person: no two rotation keys further apart than
+/// `export.turn_rate_deg_s` (360 degrees a second) allows, and while it stands, no rotation
+/// key but those of one turn that ends as it walks off. Before: 114 of bands' nodes turned
+/// faster than 720 degrees a second (3,472 at most), city's up to 10,655.
+#[test]
+fn world_glb_headings_turn_no_faster_than_the_turn_rate_and_hold_while_standing() {
+    let rate = 360f64.to_radians();
+    for name in ["bands", "city"] {
+        let (period, tracks) = clip(&scene(name).join("world.glb"));
+        let mut fastest = 0.0f64;
+        for (node, tr) in &tracks {
+            assert_eq!(tr.turn_times.first(), Some(&0.0), "{name} {node}");
+            assert_eq!(tr.turn_times.last(), Some(&period), "{name} {node}");
+            for k in 1..tr.turns.len() {
+                let dt = f64::from(tr.turn_times[k] - tr.turn_times[k - 1]);
+                fastest = fastest.max(turn_between_keys(tr.turns[k - 1], tr.turns[k]) / dt);
+            }
+            // Standing from one translation key to the next (longer than a turn can take):
+            // rotation keys inside only in its last half second, the turn to walk off.
+            for k in 1..tr.times.len() {
+                let (t0, t1) = (tr.times[k - 1], tr.times[k]);
+                let still = tr.moves[k - 1] == tr.moves[k];
+                if still && t1 - t0 > 0.6 && t1 < period {
+                    let early: Vec<f32> = tr
+                        .turn_times
+                        .iter()
+                        .copied()
+                        .filter(|&t| t > t0 + 1e-3 && t < t1 - 0.5)
+                        .collect();
+                    assert!(
+                        early.is_empty(),
+                        "{name} {node}: turns while standing at {early:?}"
+                    );
+                }
+            }
+        }
+        assert!(
+            fastest <= rate * 1.005,
+            "{name}: a node turns at {:.1} degrees a second",
+            fastest.to_degrees()
+        );
+        eprintln!(
+            "{name}: fastest turn {:.1} degrees a second",
+            fastest.to_degrees()
+        );
+    }
 }

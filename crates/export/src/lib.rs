@@ -17,7 +17,7 @@ use crowd_core::{Hash, Hasher};
 
 /// The stage name in `export.ron`'s header.
 pub const STAGE: &str = "export";
-pub const VERSION: u32 = 4;
+pub const VERSION: u32 = 5;
 
 /// What stage 8 reads of a pipeline besides its input files.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
@@ -123,6 +123,7 @@ pub fn export(
         seed: inputs.seed,
         input_hash: hash.to_string(),
         region: inputs.settings.gltf_region,
+        turn_rate_deg_s: inputs.settings.turn_rate_deg_s,
     });
     let file = ExportFile {
         header: crowd_core::files::Header::new(STAGE, VERSION, hash),

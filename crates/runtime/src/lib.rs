@@ -11,6 +11,7 @@ pub mod crc;
 mod error;
 mod format;
 mod sampler;
+pub mod turn;
 
 pub use crc::crc32;
 pub use error::LoadError;

@@ -47,6 +47,7 @@ fn figures_of(
         seed: 1,
         input_hash: String::new(),
         region,
+        turn_rate_deg_s: 360.0,
     };
     let inputs = Inputs {
         radius_m: 0.3,
@@ -85,13 +86,10 @@ fn a_one_lap_node_loops_onto_itself_without_a_jump() {
     );
     assert!(f.max_seam_heading_jump_rad < 1e-3, "{f:?}");
     assert!((f.max_speed_m_s - 1.2).abs() < 1e-3, "{f:?}");
-    // A quarter turn over the 2.5 s piece before a corner (rotation keys face the piece
-    // after each key, and glTF interpolates between them).
+    // Each corner a quarter turn at the turn rate, 360 degrees a second, over the first
+    // quarter second after it.
     let turn = f.max_turn_rate_rad_s.unwrap();
-    assert!(
-        (turn - std::f64::consts::FRAC_PI_2 / 2.5).abs() < 1e-3,
-        "{turn}"
-    );
+    assert!((turn - std::f64::consts::TAU).abs() < 1e-2, "{turn}");
 }
 
 #[test]

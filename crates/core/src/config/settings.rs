@@ -269,10 +269,19 @@ pub struct ExportSettings {
     /// runtime's steps onto new pieces. 0 keeps every keyframe.
     #[serde(default = "default_simplify_mm")]
     pub simplify_mm: f64,
+    /// How fast a character turns to face the way it walks, degrees a second (a person's
+    /// brisk turn: 360). Players show headings that never turn faster, and a standing
+    /// character turns once, just before it walks off.
+    #[serde(default = "default_turn_rate_deg_s")]
+    pub turn_rate_deg_s: f64,
 }
 
 fn default_simplify_mm() -> f64 {
     0.75
+}
+
+fn default_turn_rate_deg_s() -> f64 {
+    360.0
 }
 
 impl Default for ExportSettings {
@@ -280,6 +289,7 @@ impl Default for ExportSettings {
         ExportSettings {
             gltf_region: None,
             simplify_mm: default_simplify_mm(),
+            turn_rate_deg_s: default_turn_rate_deg_s(),
         }
     }
 }
@@ -301,6 +311,17 @@ impl ExportSettings {
             "export.simplify_mm",
             self.simplify_mm,
             "a distance in millimetres from 0 (every keyframe) to 10",
+        )?;
+        require(
+            (30.0..=3600.0).contains(&self.turn_rate_deg_s),
+            "export.turn_rate_deg_s",
+            self.turn_rate_deg_s,
+            "a turning speed in degrees a second from 30 to 3600 (a person: about 360)",
         )
+    }
+
+    /// [`Self::turn_rate_deg_s`] in radians a second.
+    pub fn turn_rate_rad_s(&self) -> f64 {
+        self.turn_rate_deg_s.to_radians()
     }
 }

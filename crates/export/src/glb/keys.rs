@@ -8,6 +8,7 @@
 //! so the last piece of a slot and the first of its successor are two pieces of one walk.
 
 use crate::glb::World;
+use crowd_runtime::turn::{self, Piece};
 use glam::DVec2;
 
 /// Loop times closer than this (seconds) are one instant: a clip's window starts at a period's
@@ -20,8 +21,10 @@ const EDGE_S: f64 = 1e-6;
 pub(super) struct LoopPath {
     pub(super) times: Vec<f64>,
     pub(super) points: Vec<DVec2>,
-    /// The direction walked from each point on (standing: the last one walked, round the loop).
-    headings: Vec<DVec2>,
+    /// The heading at each point (`crowd_runtime::turn`: periodic, turning at `rate`).
+    headings: Vec<f64>,
+    /// Turning speed, rad/s (`export.turn_rate_deg_s`).
+    rate: f64,
     /// World time at which the loop's first trajectory starts.
     pub(super) start: f64,
     pub(super) laps: u32,
@@ -61,35 +64,44 @@ impl LoopPath {
         self.points[k].lerp(self.points[k + 1], s.clamp(0.0, 1.0))
     }
 
-    /// The direction walked from loop time `tau` on (standing: the last one walked).
-    pub(super) fn heading(&self, tau: f64) -> DVec2 {
-        self.headings[self.piece(tau)]
+    /// Piece `k` of the loop (from point `k` to `k + 1`) as the heading model sees it.
+    fn turn_piece(&self, k: usize) -> Piece {
+        Piece {
+            t0: self.times[k],
+            t1: self.times[k + 1],
+            walks: self.points[k].distance(self.points[k + 1]) > turn::STILL_M,
+            h0: self.headings[k],
+            h1: self.headings[k + 1],
+        }
     }
-}
 
-/// Pieces shorter than this (metres) are standing: they do not turn the character.
-const STILL_M: f64 = 1e-5;
+    /// The heading at loop time `tau`, radians (world axes).
+    pub(super) fn heading(&self, tau: f64) -> f64 {
+        if self.times.len() < 2 {
+            return self.headings.first().copied().unwrap_or(0.0);
+        }
+        let k = self.piece(tau).min(self.times.len() - 2);
+        self.turn_piece(k).at(tau, self.rate)
+    }
 
-/// The direction walked from each of `points` on; standing, the last one walked before it,
-/// round the loop (whose last point is its first).
-fn headings(points: &[DVec2]) -> Vec<DVec2> {
-    let n = points.len();
-    let walked = |k: usize| {
-        let d = points[(k + 1).min(n - 1)] - points[k];
-        (d.length() > STILL_M).then(|| d.normalize())
-    };
-    let mut last = (0..n - 1).rev().find_map(walked).unwrap_or(DVec2::Y);
-    let mut out: Vec<DVec2> = (0..n - 1)
-        .map(|k| {
-            if let Some(d) = walked(k) {
-                last = d;
+    /// Loop times in `[from, to)` where a turn starts or ends.
+    fn turn_breaks(&self, from: f64, to: f64) -> Vec<f64> {
+        let n = self.times.len();
+        let first = self.times.partition_point(|&t| t <= from).saturating_sub(1);
+        let mut out = Vec::new();
+        for k in first..n.saturating_sub(1) {
+            if self.times[k] >= to {
+                break;
             }
-            last
-        })
-        .collect();
-    // The loop's end is its start: the direction walked from there on.
-    out.push(out.first().copied().unwrap_or(DVec2::Y));
-    out
+            let piece = self.turn_piece(k);
+            if piece.turn() == 0.0 {
+                continue;
+            }
+            let (start, end) = piece.turning(self.rate);
+            out.extend([start, end].into_iter().filter(|&t| t > from && t < to));
+        }
+        out
+    }
 }
 
 pub(super) fn loop_paths(w: &World) -> Vec<LoopPath> {
@@ -116,8 +128,10 @@ pub(super) fn loop_paths(w: &World) -> Vec<LoopPath> {
                 offset += tr.duration();
             }
             let laps = (offset / w.period_s).round().max(1.0) as u32;
+            let xy: Vec<[f64; 2]> = points.iter().map(|p| [p.x, p.y]).collect();
             LoopPath {
-                headings: headings(&points),
+                headings: turn::loop_headings(&times, &xy, w.turn_rate_deg_s.to_radians()),
+                rate: w.turn_rate_deg_s.to_radians(),
                 times,
                 points,
                 start,
@@ -133,20 +147,135 @@ pub(super) fn gltf_point(p: DVec2) -> [f32; 3] {
     [p.x as f32, 0.0, -p.y as f32]
 }
 
-/// The rotation that turns the character's +Z towards world direction `d`, about +Y.
-fn facing(d: DVec2) -> [f32; 4] {
-    // glTF direction (d.x, 0, -d.y); yaw from +Z towards +X.
-    let yaw = d.x.atan2(-d.y);
+/// The rotation that turns the character's +Z towards world heading `h` (radians from +x
+/// towards +y), about +Y: glTF direction (cos h, 0, -sin h), a yaw of h + pi/2 from +Z
+/// towards +X.
+fn facing(h: f64) -> [f32; 4] {
+    let yaw = h + std::f64::consts::FRAC_PI_2;
     let (s, c) = (0.5 * yaw).sin_cos();
     [0.0, s as f32, 0.0, c as f32]
 }
 
-/// One slot's keys over the clip: times (seconds from 0 to the period), world positions and
-/// rotations, as many of each.
+/// One slot's keys over the clip: times (seconds from 0 to the period) and world positions;
+/// rotation keys at their own times, where turns start and end.
 pub(super) struct Keys {
     pub(super) times: Vec<f64>,
     pub(super) points: Vec<DVec2>,
+    pub(super) turn_times: Vec<f64>,
     pub(super) turns: Vec<[f32; 4]>,
+}
+
+/// Rotation keys closer than this (seconds) are one: the later goes (the clip's end stays).
+/// Dropping a sample of a heading that turns at most `rate` leaves the keys turning at most
+/// `rate` (the turn between two kept keys is at most `rate` times the time between them).
+/// A quarter of a 60 fps frame: far above f32's step near a period's end (2 us), and turns
+/// between keys large enough that a reader's `acos` of their f32 quaternions' dot product
+/// measures them within 0.1 % (at 1 ms, 0.6 %).
+const TURN_KEY_S: f64 = 4e-3;
+/// Largest turn between two rotation keys, radians: a player interpolates the shorter way,
+/// which is the way turned only below half a turn.
+const MAX_KEY_TURN: f64 = std::f64::consts::FRAC_PI_2;
+
+/// Rotation keys are dropped where the turn between the kept ones stays within this many
+/// radians of the heading (half a degree): a smoothed walk turns a little at every keyframe,
+/// and its keys then cost more than its positions.
+const TURN_TOLERANCE: f64 = 0.5 * std::f64::consts::PI / 180.0;
+
+/// The keys of `keys` (clip time, heading) that a player needs: Douglas-Peucker on the
+/// unwrapped heading, the first and last kept, no two kept keys more than [`MAX_KEY_TURN`]
+/// apart. Any subset of samples of a heading turns no faster than it.
+fn simplify_turns(keys: &[(f64, f64)]) -> Vec<(f64, f64)> {
+    let mut unwrapped = Vec::with_capacity(keys.len());
+    for &(t, h) in keys {
+        let u = unwrapped.last().map_or(h, |&(_, prev): &(f64, f64)| {
+            prev + turn::turn_between(h, prev)
+        });
+        unwrapped.push((t, u));
+    }
+    let mut keep = vec![false; keys.len()];
+    keep[0] = true;
+    keep[keys.len() - 1] = true;
+    let mut spans = vec![(0, keys.len() - 1)];
+    while let Some((i, j)) = spans.pop() {
+        if j <= i + 1 {
+            continue;
+        }
+        let ((ti, hi), (tj, hj)) = (unwrapped[i], unwrapped[j]);
+        let off = |k: usize| {
+            let (t, h) = unwrapped[k];
+            (h - (hi + (hj - hi) * (t - ti) / (tj - ti))).abs()
+        };
+        let (k, worst) = (i + 1..j)
+            .map(|k| (k, off(k)))
+            .fold((i + 1, -1.0), |a, b| if b.1 > a.1 { b } else { a });
+        if worst > TURN_TOLERANCE || (hj - hi).abs() > MAX_KEY_TURN {
+            keep[k] = true;
+            spans.push((i, k));
+            spans.push((k, j));
+        }
+    }
+    keys.iter()
+        .zip(keep)
+        .filter_map(|(&k, kept)| kept.then_some(k))
+        .collect()
+}
+
+/// The rotation keys of the clip that starts at loop time `tau0` and ends at `tau_end`: at 0,
+/// at every start and end of a turn inside, and at the period, each a sample of the loop's
+/// heading (so the last is the successor's first, bit for bit).
+fn turn_keys(path: &LoopPath, tau0: f64, tau_end: f64) -> (Vec<f64>, Vec<[f32; 4]>) {
+    let (period, length) = (path.period, path.length());
+    let end_tau = tau0 + period;
+    let mut breaks: Vec<f64> = if end_tau <= length {
+        path.turn_breaks(tau0, end_tau)
+            .into_iter()
+            .map(|t| t - tau0)
+            .collect()
+    } else {
+        let head = path.turn_breaks(tau0, length).into_iter().map(|t| t - tau0);
+        let tail = path.turn_breaks(-1.0, end_tau - length);
+        head.chain(tail.into_iter().map(|t| t + length - tau0))
+            .collect()
+    };
+    breaks.sort_by(f64::total_cmp);
+    let loop_time = |c: f64| {
+        let tau = tau0 + c;
+        if tau >= length { tau - length } else { tau }
+    };
+    let mut keys: Vec<(f64, f64)> = vec![(0.0, path.heading(tau0))];
+    for c in breaks {
+        if c >= keys.last().expect("the key at 0").0 + TURN_KEY_S && c <= period - TURN_KEY_S {
+            keys.push((c, path.heading(loop_time(c))));
+        }
+    }
+    keys.push((period, path.heading(tau_end)));
+    let keys = simplify_turns(&keys);
+    // A turn of more than a quarter turn between two keys gets keys between.
+    let mut split: Vec<(f64, f64)> = Vec::with_capacity(keys.len());
+    for w in keys.windows(2) {
+        let ((c0, h0), (c1, h1)) = (w[0], w[1]);
+        let pieces = (turn::turn_between(h1, h0).abs() / MAX_KEY_TURN)
+            .ceil()
+            .max(1.0) as usize;
+        split.push((c0, h0));
+        for i in 1..pieces {
+            let c = c0 + (c1 - c0) * i as f64 / pieces as f64;
+            split.push((c, path.heading(loop_time(c))));
+        }
+    }
+    split.push(*keys.last().expect("the key at the period"));
+    let mut turns: Vec<[f32; 4]> = Vec::with_capacity(split.len());
+    for &(_, h) in &split {
+        let mut r = facing(h);
+        if let Some(prev) = turns.last() {
+            let dot: f32 = prev.iter().zip(&r).map(|(a, b)| a * b).sum();
+            if dot < 0.0 {
+                r = r.map(|v| -v);
+            }
+        }
+        turns.push(r);
+    }
+    (split.into_iter().map(|k| k.0).collect(), turns)
 }
 
 /// The keys of slot `lap` of `path` (at loop time `path.tau(lap)` at clip time 0).
@@ -187,22 +316,11 @@ pub(super) fn slot_keys(path: &LoopPath, lap: u32) -> Keys {
         }
     }
     keys.push((period, tau_end, path.at(tau_end)));
-    // Facing: the direction walked from each key on, taken from the loop, so that the last
-    // key faces as the successor's first does.
-    let mut turns: Vec<[f32; 4]> = Vec::with_capacity(keys.len());
-    for &(_, tau, _) in &keys {
-        let mut r = facing(path.heading(tau));
-        if let Some(prev) = turns.last() {
-            let dot: f32 = prev.iter().zip(&r).map(|(a, b)| a * b).sum();
-            if dot < 0.0 {
-                r = r.map(|v| -v);
-            }
-        }
-        turns.push(r);
-    }
+    let (turn_times, turns) = turn_keys(path, tau0, tau_end);
     Keys {
         times: keys.iter().map(|k| k.0).collect(),
         points: keys.iter().map(|k| k.2).collect(),
+        turn_times,
         turns,
     }
 }
@@ -210,6 +328,21 @@ pub(super) fn slot_keys(path: &LoopPath, lap: u32) -> Keys {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    const RATE: f64 = std::f64::consts::TAU;
+
+    fn path(times: Vec<f64>, points: Vec<DVec2>, start: f64, laps: u32, period: f64) -> LoopPath {
+        let xy: Vec<[f64; 2]> = points.iter().map(|p| [p.x, p.y]).collect();
+        LoopPath {
+            headings: turn::loop_headings(&times, &xy, RATE),
+            rate: RATE,
+            times,
+            points,
+            start,
+            laps,
+            period,
+        }
+    }
 
     /// A square loop of 4 m sides walked at 1 m/s in 16 s, two laps of an 8 s period, with
     /// a period split point at every corner, entered at world time 3.
@@ -221,15 +354,19 @@ mod tests {
             DVec2::new(0.0, 4.0),
             DVec2::new(0.0, 0.0),
         ];
-        let points = corners.to_vec();
-        LoopPath {
-            headings: headings(&points),
-            times: vec![0.0, 4.0, 8.0, 12.0, 16.0],
-            points,
-            start: 3.0,
-            laps: 2,
-            period: 8.0,
-        }
+        path(
+            vec![0.0, 4.0, 8.0, 12.0, 16.0],
+            corners.to_vec(),
+            3.0,
+            2,
+            8.0,
+        )
+    }
+
+    /// The angle between two rotation keys, radians.
+    fn angle(a: [f32; 4], b: [f32; 4]) -> f64 {
+        let dot: f32 = a.iter().zip(&b).map(|(x, y)| x * y).sum();
+        2.0 * f64::from(dot.abs().min(1.0)).acos()
     }
 
     #[test]
@@ -239,9 +376,10 @@ mod tests {
             let (a, b) = (slot_keys(&path, lap), slot_keys(&path, path.next_lap(lap)));
             let n = a.times.len();
             assert_eq!(a.points[n - 1], b.points[0]);
-            let (qa, qb) = (a.turns[n - 1], b.turns[0]);
-            let dot: f32 = qa.iter().zip(&qb).map(|(x, y)| x * y).sum();
-            assert!((dot.abs() - 1.0).abs() < 1e-6, "{qa:?} {qb:?}");
+            assert_eq!(
+                a.turns.last().unwrap().map(f32::abs),
+                b.turns[0].map(f32::abs)
+            );
             // Both pieces at the handover are pieces of the walk at 1 m/s.
             let speed = |k: &Keys, i: usize| {
                 k.points[i].distance(k.points[i + 1]) / (k.times[i + 1] - k.times[i])
@@ -252,20 +390,44 @@ mod tests {
     }
 
     #[test]
-    fn a_standing_walker_faces_the_way_it_last_walked_round_the_loop() {
-        // Stands at its start and end: the loop's last walk faces -y.
+    fn corners_turn_at_the_rate_over_a_quarter_second() {
+        let path = square();
+        for lap in 0..path.laps {
+            let k = slot_keys(&path, lap);
+            for i in 1..k.turns.len() {
+                let dt = k.turn_times[i] - k.turn_times[i - 1];
+                let rate = angle(k.turns[i - 1], k.turns[i]) / dt;
+                assert!(rate <= RATE * 1.0001, "{rate} rad/s at {}", k.turn_times[i]);
+            }
+            // Two corners in the clip, each a quarter turn over 0.25 s: keys where each turn
+            // starts and ends, and at the clip's ends.
+            assert_eq!(k.turn_times.len(), 6, "{:?}", k.turn_times);
+        }
+    }
+
+    #[test]
+    fn a_standing_walker_holds_its_heading_and_turns_as_it_walks_off() {
+        // Walks east 0-3 s, stands 3-10 s, walks back west 10-13 s, stands to 16 s.
         let points = vec![
             DVec2::new(0.0, 0.0),
-            DVec2::new(0.0, 0.0),
+            DVec2::new(3.0, 0.0),
             DVec2::new(3.0, 0.0),
             DVec2::new(0.0, 0.0),
             DVec2::new(0.0, 0.0),
         ];
-        let h = headings(&points);
-        assert_eq!(h[0], DVec2::NEG_X);
-        assert_eq!(h[1], DVec2::X);
-        assert_eq!(h[2], DVec2::NEG_X);
-        assert_eq!(h[3], DVec2::NEG_X);
-        assert_eq!(h[4], h[0]);
+        let path = path(vec![0.0, 3.0, 10.0, 13.0, 16.0], points, 0.0, 1, 16.0);
+        let east = path.heading(3.0);
+        assert!(east.abs() < 1e-12);
+        assert_eq!(path.heading(9.5), east);
+        // Half a turn at 360 degrees a second: 9.5-10 s.
+        assert!((turn::turn_between(path.heading(10.0), std::f64::consts::PI)).abs() < 1e-12);
+        let k = slot_keys(&path, 0);
+        let quiet: Vec<f64> = k
+            .turn_times
+            .iter()
+            .copied()
+            .filter(|&t| t > 3.0 && t < 9.5 - 1e-9)
+            .collect();
+        assert!(quiet.is_empty(), "keys while standing: {quiet:?}");
     }
 }

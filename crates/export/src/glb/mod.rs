@@ -3,14 +3,17 @@
 //!
 //! One shared capsule mesh; one node per character slot (the runtime's ids, `walker_<id>`,
 //! and `stander_<i>`); one animation, `crowd_loop`, that lasts exactly one period, with
-//! translation and rotation keys at the trajectory points inside it and at 0 and the period.
+//! translation keys at the trajectory points inside it and at 0 and the period, and rotation
+//! keys at their own times, where the heading model of `crowd_runtime::turn` starts and ends a
+//! turn (at most `export.turn_rate_deg_s`).
 //! A slot of a one-period loop has equal keys at 0 and at the period, so a looping player shows
 //! no jump. A loop of k periods has k slots: slot j is the walker a runtime calls lap j, one
 //! period behind slot j - 1, so at the clip's end it stands where slot j - 1 starts, facing the
 //! same way: the set of positions is continuous at every time while each node, looping, hands
 //! its walker over to the next. Each walker node names that successor in its `extras`
-//! (`{"next": "walker_<id>"}`; itself for a one-period loop), so that a player that plays
-//! nodes one by one can chain them.
+//! (`{"crowd_next": "walker_<id>", "crowd_loop": l, "crowd_lap": j}`; itself for a one-period
+//! loop), so that a player that plays nodes one by one can chain them and pass a character's
+//! look on (FORMAT.md).
 //!
 //! `keys.rs` makes each slot's keys, `region.rs` shows only what is inside
 //! `export.gltf_region`, `mesh.rs` the capsule, `buffers.rs` the binary chunk's views and
@@ -42,6 +45,8 @@ pub struct World<'a> {
     pub input_hash: String,
     /// Characters only while inside `(x0, y0, x1, y1)` (`region.rs`).
     pub region: Option<(f64, f64, f64, f64)>,
+    /// How fast characters turn, degrees a second (`crowd_runtime::turn`).
+    pub turn_rate_deg_s: f64,
 }
 
 /// The bytes of `world.glb`.
@@ -60,12 +65,15 @@ pub fn world_glb(w: &World) -> Vec<u8> {
     // Animation data goes into three views, one per kind, after the mesh.
     let (mut times, mut moves, mut turns): (Vec<f32>, Vec<[f32; 3]>, Vec<[f32; 4]>) =
         (Vec::new(), Vec::new(), Vec::new());
+    let mut turn_times: Vec<f32> = Vec::new();
     // Region only: STEP scale keys that hide a character outside it.
     let (mut scale_times, mut scales): (Vec<f32>, Vec<[f32; 3]>) = (Vec::new(), Vec::new());
     struct Track {
         node: json::Index<json::Node>,
         first: usize,
         count: usize,
+        /// First and count of its rotation keys.
+        turns: (usize, usize),
         /// First and count of its scale keys, if it leaves the region.
         scale: Option<(usize, usize)>,
     }
@@ -80,13 +88,18 @@ pub fn world_glb(w: &World) -> Vec<u8> {
     struct Slot {
         id: u32,
         next: u32,
+        /// Its loop (in the library's CHAR order) and lap.
+        lp: u32,
+        lap: u32,
         keys: Keys,
         shown: Vec<(f64, f64)>,
     }
     let mut slots = Vec::new();
     let mut id = 0u32;
-    for path in loop_paths(w) {
+    let mut laps = Vec::new();
+    for (lp, path) in loop_paths(w).into_iter().enumerate() {
         let first = id;
+        laps.push(path.laps);
         for lap in 0..path.laps {
             let keys = slot_keys(&path, lap);
             let shown = match w.region {
@@ -96,6 +109,8 @@ pub fn world_glb(w: &World) -> Vec<u8> {
             slots.push(Slot {
                 id: first + lap,
                 next: first + path.next_lap(lap),
+                lp: lp as u32,
+                lap,
                 keys,
                 shown,
             });
@@ -111,6 +126,7 @@ pub fn world_glb(w: &World) -> Vec<u8> {
         let Keys {
             times: key_t,
             points: key_p,
+            turn_times: key_q,
             turns: q,
         } = slot.keys;
         let scale = region::scale_keys(&slot.shown, period);
@@ -131,8 +147,11 @@ pub fn world_glb(w: &World) -> Vec<u8> {
                 .filter(|(_, s)| s[0] == 0.0)
                 .map(|_| [0.0; 3]),
             extras: Some(
-                json::extras::RawValue::from_string(format!("{{\"next\":{next}}}"))
-                    .expect("valid JSON"),
+                json::extras::RawValue::from_string(format!(
+                    "{{\"crowd_next\":{next},\"crowd_loop\":{},\"crowd_lap\":{}}}",
+                    slot.lp, slot.lap
+                ))
+                .expect("valid JSON"),
             ),
             ..Default::default()
         });
@@ -141,10 +160,12 @@ pub fn world_glb(w: &World) -> Vec<u8> {
             node,
             first: times.len(),
             count: key_t.len(),
+            turns: (turn_times.len(), key_q.len()),
             scale: scale.as_ref().map(|(t, _)| (scale_times.len(), t.len())),
         });
         times.extend(key_t.iter().map(|&t| t as f32));
         moves.extend(key_p.iter().map(|&p| gltf_point(p)));
+        turn_times.extend(key_q.iter().map(|&t| t as f32));
         turns.extend(q);
         if let Some((t, s)) = scale {
             scale_times.extend(t.iter().map(|&t| t as f32));
@@ -172,6 +193,7 @@ pub fn world_glb(w: &World) -> Vec<u8> {
         let time_view = view(&mut root, &mut bin, bytes_of(&times), None);
         let move_view = view(&mut root, &mut bin, bytes_of_3(&moves), None);
         let turn_view = view(&mut root, &mut bin, bytes_of_4(&turns), None);
+        let turn_time_view = view(&mut root, &mut bin, bytes_of(&turn_times), None);
         let scale_views = (!scales.is_empty()).then(|| {
             (
                 view(&mut root, &mut bin, bytes_of(&scale_times), None),
@@ -226,7 +248,15 @@ pub fn world_glb(w: &World) -> Vec<u8> {
             ));
             let output = root.push(accessor(move_view, tr.first * 12, tr.count, Vec3, None));
             channel(tr.node, input, output, Translation, Linear);
-            let output = root.push(accessor(turn_view, tr.first * 16, tr.count, Vec4, None));
+            let (first, count) = tr.turns;
+            let input = root.push(accessor(
+                turn_time_view,
+                first * 4,
+                count,
+                Scalar,
+                Some((vec![0.0], vec![period as f32])),
+            ));
+            let output = root.push(accessor(turn_view, first * 16, count, Vec4, None));
             channel(tr.node, input, output, Rotation, Linear);
             if let (Some((first, count)), Some((time_view, scale_view))) = (tr.scale, scale_views) {
                 let last = scale_times[first + count - 1];
@@ -249,8 +279,14 @@ pub fn world_glb(w: &World) -> Vec<u8> {
         nodes,
         extras: Some(
             json::extras::RawValue::from_string(format!(
-                "{{\"patch_side_m\":{},\"period_s\":{},\"seed\":{},\"input_hash\":\"{}\",\"radius_m\":{}}}",
-                world.patch_side_m, period, w.seed, w.input_hash, w.graph.radius_m
+                "{{\"patch_side_m\":{},\"period_s\":{},\"seed\":{},\"input_hash\":\"{}\",\"radius_m\":{},\"turn_rate_deg_s\":{},\"crowd_loop_laps\":{:?}}}",
+                world.patch_side_m,
+                period,
+                w.seed,
+                w.input_hash,
+                w.graph.radius_m,
+                w.turn_rate_deg_s,
+                laps
             ))
             .expect("valid JSON"),
         ),

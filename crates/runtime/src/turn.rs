@@ -1,0 +1,273 @@
+//! Where a walker faces: the one heading model of `library.crowd`'s players and `world.glb`.
+//!
+//! A walker faces the way it walks, turns at most `rate` radians a second, and holds its
+//! heading while it stands, turning once, as late as it can, to face the way it walks off.
+//! On a walking piece it turns from the piece's start towards the piece's direction (a corner
+//! turns the character over the first moments of the new piece); on a standing piece it holds
+//! and ends the turn as it leaves. A loop's headings are periodic: the heading at the loop's
+//! end is the heading at its start, so a character shows no turn at its seam.
+//!
+//! [`loop_headings`] gives the heading at every key of a loop; [`Piece::at`] the heading inside
+//! a piece from its two keys' headings, so a player needs only the key headings and the rate.
+//! Over any interval the heading changes by at most `rate` times its length, so any samples of
+//! it, joined by the shorter turn between each two, turn no faster than `rate`.
+
+use std::f64::consts::{PI, TAU};
+
+/// A person's turning speed, and the default of `export.turn_rate_deg_s`: 360 degrees a second.
+pub const DEFAULT_TURN_RATE_DEG_S: f64 = 360.0;
+/// A piece shorter than this (metres) is standing: it does not turn the character.
+pub const STILL_M: f64 = 1e-5;
+
+/// `a - b` as the shorter turn, in (-pi, pi].
+pub fn turn_between(a: f64, b: f64) -> f64 {
+    let d = (a - b).rem_euclid(TAU);
+    if d > PI { d - TAU } else { d }
+}
+
+/// The heading `from`, turned towards `to` by at most `step` radians (the shorter way).
+fn towards(from: f64, to: f64, step: f64) -> f64 {
+    let d = turn_between(to, from);
+    from + d.clamp(-step, step)
+}
+
+/// One piece of a loop as the heading model sees it: its times, whether it walks, and the
+/// headings at its two keys (from [`loop_headings`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Piece {
+    pub t0: f64,
+    pub t1: f64,
+    pub walks: bool,
+    pub h0: f64,
+    pub h1: f64,
+}
+
+impl Piece {
+    /// The turn over the piece, radians (signed, the shorter way).
+    pub fn turn(&self) -> f64 {
+        turn_between(self.h1, self.h0)
+    }
+
+    /// When the piece's turn runs, at `rate`: from its start on a walking piece, up to its end
+    /// on a standing one (and over the whole piece when it is shorter than the turn).
+    pub fn turning(&self, rate: f64) -> (f64, f64) {
+        let needs = (self.turn().abs() / rate).min(self.t1 - self.t0);
+        if self.walks {
+            (self.t0, self.t0 + needs)
+        } else {
+            (self.t1 - needs, self.t1)
+        }
+    }
+
+    /// The heading at time `t` inside the piece, at `rate`.
+    pub fn at(&self, t: f64, rate: f64) -> f64 {
+        let (start, end) = self.turning(rate);
+        let turn = self.turn();
+        if t <= start || end <= start {
+            return if t >= end { self.h0 + turn } else { self.h0 };
+        }
+        let s = ((t - start) / (end - start)).clamp(0.0, 1.0);
+        self.h0 + turn * s
+    }
+}
+
+/// The heading (radians, `atan2(dy, dx)`, world axes) at every key of a closed loop: `times`
+/// increase from the loop's start, `points` are world metres, and the last key is the first
+/// one a loop later (the same place). Headings are periodic: the last equals the first.
+/// A loop that never walks faces +y.
+pub fn loop_headings(times: &[f64], points: &[[f64; 2]], rate: f64) -> Vec<f64> {
+    let n = times.len();
+    if n < 2 {
+        return vec![PI / 2.0; n];
+    }
+    let direction = |k: usize| {
+        let (a, b) = (points[k], points[k + 1]);
+        let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
+        (dx.hypot(dy) > STILL_M).then(|| dy.atan2(dx))
+    };
+    let directions: Vec<Option<f64>> = (0..n - 1).map(direction).collect();
+    // Standing pieces aim at the next walk round the loop (the direction they walk off in),
+    // and their run of standing ends when it starts (loop time, maybe a loop later).
+    let length = times[n - 1] - times[0];
+    let mut next_walk: Vec<Option<(f64, f64)>> = vec![None; n - 1];
+    let mut ahead = (0..n - 1).find_map(|k| directions[k].map(|d| (d, times[k] + length)));
+    for k in (0..n - 1).rev() {
+        if let Some(d) = directions[k] {
+            ahead = Some((d, times[k]));
+        }
+        next_walk[k] = ahead;
+    }
+    let Some(first_walk) = directions.iter().flatten().next().copied() else {
+        return vec![PI / 2.0; n];
+    };
+    // Walk the loop from its first walking direction until the heading at the loop's start
+    // repeats: a heading that catches up with its target once forgets where it started, so
+    // two laps settle any loop that walks straight for as long as a turn takes.
+    let lap = |h0: f64| {
+        let mut h = vec![h0; n];
+        for k in 0..n - 1 {
+            let (t0, t1) = (times[k], times[k + 1]);
+            h[k + 1] = match (directions[k], next_walk[k]) {
+                (Some(d), _) => towards(h[k], d, rate * (t1 - t0)),
+                // Standing: the run's one turn ends as it walks off; this piece turns only
+                // for the part of it that falls inside the piece.
+                (None, Some((d, walk_off))) => {
+                    let starts = walk_off - turn_between(d, h[k]).abs() / rate;
+                    towards(h[k], d, rate * (t1 - starts.max(t0)).max(0.0))
+                }
+                (None, None) => h[k],
+            };
+        }
+        h
+    };
+    let mut h = lap(first_walk);
+    for _ in 0..8 {
+        let end = h[n - 1];
+        if turn_between(end, h[0]).abs() <= 1e-12 {
+            break;
+        }
+        h = lap(end);
+    }
+    // The loop's end is its start (a loop that never caught up keeps its last lap's start).
+    let wrapped: Vec<f64> = h.iter().map(|&a| turn_between(a, 0.0)).collect();
+    let mut out = wrapped;
+    out[n - 1] = out[0];
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    const RATE: f64 = TAU; // 360 degrees a second
+
+    fn pieces(times: &[f64], points: &[[f64; 2]]) -> Vec<Piece> {
+        let h = loop_headings(times, points, RATE);
+        (0..times.len() - 1)
+            .map(|k| {
+                let (a, b) = (points[k], points[k + 1]);
+                Piece {
+                    t0: times[k],
+                    t1: times[k + 1],
+                    walks: (b[0] - a[0]).hypot(b[1] - a[1]) > STILL_M,
+                    h0: h[k],
+                    h1: h[k + 1],
+                }
+            })
+            .collect()
+    }
+
+    /// A square walked at 1 m/s, 4 m sides, with a 3 s stop at one corner.
+    fn square_with_a_stop() -> (Vec<f64>, Vec<[f64; 2]>) {
+        let times = vec![0.0, 4.0, 8.0, 11.0, 15.0, 19.0];
+        let points = vec![
+            [0.0, 0.0],
+            [4.0, 0.0],
+            [4.0, 4.0],
+            [4.0, 4.0],
+            [0.0, 4.0],
+            [0.0, 0.0],
+        ];
+        (times, points)
+    }
+
+    #[test]
+    fn a_corner_turns_at_the_rate_from_the_start_of_the_next_side() {
+        let (times, points) = square_with_a_stop();
+        let p = pieces(&times, &points);
+        // East, then north from 4 s: a quarter turn takes 0.25 s.
+        assert!((p[1].at(4.0, RATE) - 0.0).abs() < 1e-12);
+        assert!((p[1].at(4.125, RATE) - PI / 4.0).abs() < 1e-12);
+        assert!((p[1].at(4.25, RATE) - PI / 2.0).abs() < 1e-12);
+        assert!((p[1].at(7.0, RATE) - PI / 2.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn a_standing_walker_holds_then_turns_just_before_it_walks_off() {
+        let (times, points) = square_with_a_stop();
+        let p = pieces(&times, &points);
+        // Stands 8-11 s facing north; walks off west at 11 s: turns over 10.75-11 s.
+        assert!(!p[2].walks);
+        assert!((p[2].at(8.0, RATE) - PI / 2.0).abs() < 1e-12);
+        assert!((p[2].at(10.75, RATE) - PI / 2.0).abs() < 1e-12);
+        assert!((p[2].at(11.0, RATE) - PI).abs() < 1e-12);
+        assert!((p[3].at(11.0, RATE) - PI).abs() < 1e-12);
+    }
+
+    #[test]
+    fn a_stop_cut_in_two_turns_once_at_its_end() {
+        // Stands 8-11 s in two pieces (8-10.9, 10.9-11): the quarter turn runs 10.75-11 s.
+        let times = vec![0.0, 4.0, 8.0, 10.9, 11.0, 15.0, 19.0];
+        let points = vec![
+            [0.0, 0.0],
+            [4.0, 0.0],
+            [4.0, 4.0],
+            [4.0, 4.0],
+            [4.0, 4.0],
+            [0.0, 4.0],
+            [0.0, 0.0],
+        ];
+        let p = pieces(&times, &points);
+        assert!((p[2].at(10.75, RATE) - PI / 2.0).abs() < 1e-12);
+        assert!((p[2].at(10.9, RATE) - (PI / 2.0 + 0.15 * RATE)).abs() < 1e-9);
+        assert!((p[3].at(11.0, RATE) - PI).abs() < 1e-12);
+    }
+
+    #[test]
+    fn a_loop_ends_facing_as_it_starts() {
+        let (times, points) = square_with_a_stop();
+        let h = loop_headings(&times, &points, RATE);
+        assert_eq!(h[0], h[h.len() - 1]);
+        // The last side walks south: the loop starts facing south and turns east over its
+        // first quarter second.
+        assert!((h[0] + PI / 2.0).abs() < 1e-12);
+        let p = pieces(&times, &points);
+        assert!((p[0].at(0.25, RATE) - 0.0).abs() < 1e-12);
+    }
+
+    fn any_loop() -> impl Strategy<Value = (Vec<f64>, Vec<[f64; 2]>)> {
+        proptest::collection::vec(
+            (0.001f64..3.0, -3.0f64..3.0, -3.0f64..3.0, any::<bool>()),
+            1..20,
+        )
+        .prop_map(|steps| {
+            let (mut times, mut points) = (vec![0.0], vec![[0.0, 0.0]]);
+            for (dt, dx, dy, stands) in steps {
+                let [x, y] = *points.last().unwrap();
+                times.push(times.last().unwrap() + dt);
+                points.push(if stands { [x, y] } else { [x + dx, y + dy] });
+            }
+            // Back to the start.
+            times.push(times.last().unwrap() + 2.0);
+            points.push([0.0, 0.0]);
+            (times, points)
+        })
+    }
+
+    proptest! {
+        /// Sampled anywhere, the heading turns no faster than the rate, does not turn while
+        /// standing but for the turn that ends as it walks off, and loops.
+        #[test]
+        fn headings_turn_within_the_rate_and_loop((times, points) in any_loop(), k in 2usize..200) {
+            let p = pieces(&times, &points);
+            let end = *times.last().unwrap();
+            let at = |t: f64| {
+                let i = p.partition_point(|q| q.t1 < t).min(p.len() - 1);
+                p[i].at(t, RATE)
+            };
+            let dt = end / k as f64;
+            for i in 0..k {
+                let (a, b) = (i as f64 * dt, (i + 1) as f64 * dt);
+                let turned = turn_between(at(b), at(a)).abs();
+                prop_assert!(turned <= RATE * (b - a) * (1.0 + 1e-9) + 1e-9, "{turned} in {}", b - a);
+            }
+            prop_assert!(turn_between(at(end), at(0.0)).abs() < 1e-9);
+            for q in p.iter().filter(|q| !q.walks) {
+                let (start, stop) = q.turning(RATE);
+                prop_assert!((stop - q.t1).abs() < 1e-12);
+                prop_assert!(turn_between(q.at(start, RATE), q.h0).abs() < 1e-12);
+            }
+        }
+    }
+}
