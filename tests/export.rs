@@ -378,3 +378,41 @@ fn export_region_puts_part_of_the_world_in_the_gltf() {
         );
     }
 }
+
+/// `world.glb` played by three.js (`tools/gltf/play.mjs`: GLTFLoader, an AnimationMixer looping
+/// `crowd_loop`, two periods at 60 fps), as a game shows it: every node names its successor,
+/// no node turns faster than 360 degrees a second between frames, and following `crowd_next`
+/// at each wrap, a character goes on through the seam with no gap beyond a frame's walk, no
+/// faster turn, and no larger change of velocity from frame to frame than inside the nodes
+/// (the walks' own starts, stops and corners).
+#[test]
+fn world_glb_played_by_three_js_turns_like_people_and_goes_on_through_the_seam() {
+    for name in ["bands", "city"] {
+        let glb = scene(name).join("world.glb");
+        let out = node_tool("play.mjs", &[s(&glb)]);
+        let text = String::from_utf8_lossy(&out.stdout);
+        assert!(
+            out.status.success(),
+            "{name}: {text} {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let f: serde_json::Value = serde_json::from_str(text.lines().next().unwrap()).unwrap();
+        let num = |k: &str| {
+            f[k].as_f64()
+                .unwrap_or_else(|| panic!("{name}: {k} in {f}"))
+        };
+        assert_eq!(num("named"), num("nodes"), "{name}: {f}");
+        assert!(num("fastest_turn_deg_s") <= 360.0 * 1.005, "{name}: {f}");
+        assert!(
+            num("seam_fastest_turn_deg_s") <= 360.0 * 1.005,
+            "{name}: {f}"
+        );
+        assert!(num("seam_gap_beyond_a_walk_m") < 1e-3, "{name}: {f}");
+        assert!(
+            num("seam_largest_velocity_change_m_s")
+                <= num("largest_velocity_change_per_frame_m_s") + 1e-6,
+            "{name}: {f}"
+        );
+        eprintln!("{name}: {f}");
+    }
+}
