@@ -416,3 +416,29 @@ fn world_glb_played_by_three_js_turns_like_people_and_goes_on_through_the_seam()
         eprintln!("{name}: {f}");
     }
 }
+
+/// The library says how fast its characters turn (`TURN`, optional: a library without it plays
+/// at 360 degrees a second), and a rate outside 30-3600 is refused with the section named.
+#[test]
+fn the_turn_rate_section_is_read_defaulted_and_checked() {
+    let bytes = std::fs::read(scene("bands").join("library.crowd")).unwrap();
+    let lib = Library::from_bytes(&bytes).unwrap();
+    assert_eq!(lib.world.turn_rate_deg_s, 360.0);
+    // The section's entry, and its body.
+    let count = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
+    let entry = (0..count)
+        .map(|e| 16 + 24 * e)
+        .find(|&at| &bytes[at..at + 4] == b"TURN")
+        .expect("a TURN section");
+    let offset = u64::from_le_bytes(bytes[entry + 8..entry + 16].try_into().unwrap()) as usize;
+    // Renamed to a tag no reader knows: the default.
+    let mut unnamed = bytes.clone();
+    unnamed[entry..entry + 4].copy_from_slice(b"XXXX");
+    let lib = Library::from_bytes(&unnamed).unwrap();
+    assert_eq!(lib.world.turn_rate_deg_s, 360.0);
+    // Out of range, checksum fixed: refused, naming the section.
+    let mut fast = bytes.clone();
+    fast[offset..offset + 4].copy_from_slice(&5000f32.to_le_bytes());
+    let err = Library::from_bytes(&with_fresh_checksums(fast)).unwrap_err();
+    assert!(err.to_string().contains("TURN"), "{err}");
+}

@@ -211,8 +211,10 @@ const STANDING_M_S: f64 = 0.05;
 /// (10.8 m/s on city), nodes named nobody, and stage 5 bent walks at their split points, so
 /// that 1 % of handovers changed velocity by 1.3-1.6 m/s. The pieces at the seam are the
 /// walk's own, at most `match.max_speed` + 5 % (1.89 m/s), and the velocity goes on: within
-/// 0.1 m/s at 99 % of handovers, within 0.5 m/s at all (where a band ends a moment from the
-/// period, its corner, which stage 4 draws, is at the seam).
+/// 0.12 m/s at 99 % of handovers, within 0.5 m/s at all (where a band ends a moment from the
+/// period, its corner, which stage 4 draws, is at the seam). (The nodes play the library's
+/// points: a piece of a few milliseconds at the seam carries its 0.05 ms tick rounding, 0.107
+/// m/s at bands' 99th percentile against 0.1 with stage 6's times.)
 #[test]
 fn every_world_glb_node_hands_over_to_the_successor_it_names_without_a_jump() {
     for name in ["bands", "city"] {
@@ -223,7 +225,7 @@ fn every_world_glb_node_hands_over_to_the_successor_it_names_without_a_jump() {
         dv.sort_by(f64::total_cmp);
         let (p99, max) = (dv[dv.len() * 99 / 100], dv[dv.len() - 1]);
         assert!(
-            p99 <= 0.1 && max <= 0.5,
+            p99 <= 0.12 && max <= 0.5,
             "{name}: velocity changes by {p99} m/s at the 99th percentile, {max} at most"
         );
     }
@@ -307,7 +309,8 @@ fn world_glb_headings_turn_no_faster_than_the_turn_rate_and_hold_while_standing(
                 fastest = fastest.max(turn_between_keys(tr.turns[k - 1], tr.turns[k]) / dt);
             }
             // Standing from one translation key to the next (longer than a turn can take):
-            // rotation keys inside only in its last half second, the turn to walk off.
+            // rotation keys inside only in its last half second, the turn to walk off (a half
+            // turn takes all of it; the turns run on the library's ticks, 0.1 ms off at most).
             for k in 1..tr.times.len() {
                 let (t0, t1) = (tr.times[k - 1], tr.times[k]);
                 let still = tr.moves[k - 1] == tr.moves[k];
@@ -316,7 +319,7 @@ fn world_glb_headings_turn_no_faster_than_the_turn_rate_and_hold_while_standing(
                         .turn_times
                         .iter()
                         .copied()
-                        .filter(|&t| t > t0 + 1e-3 && t < t1 - 0.5)
+                        .filter(|&t| t > t0 + 1e-3 && t < t1 - 0.501)
                         .collect();
                     assert!(
                         early.is_empty(),
@@ -335,4 +338,73 @@ fn world_glb_headings_turn_no_faster_than_the_turn_rate_and_hold_while_standing(
             fastest.to_degrees()
         );
     }
+}
+
+/// Node `tr`'s heading at clip time `t` from its rotation keys (world radians, as
+/// `crowd_runtime::turn` counts them), turning the shorter way between keys as players do.
+fn heading_at(tr: &Track, t: f32) -> f64 {
+    let k = tr
+        .turn_times
+        .partition_point(|&k| k <= t)
+        .clamp(1, tr.turn_times.len() - 1);
+    let (t0, t1) = (tr.turn_times[k - 1], tr.turn_times[k]);
+    let s = f64::from(((t - t0) / (t1 - t0)).clamp(0.0, 1.0));
+    // A yaw about +Y of h + pi/2 (FORMAT.md): q = (0, sin, 0, cos) of half of it.
+    let yaw = |q: [f32; 4]| 2.0 * f64::from(q[1]).atan2(f64::from(q[3]));
+    let (a, b) = (yaw(tr.turns[k - 1]), yaw(tr.turns[k]));
+    let d = (b - a + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI;
+    a + d * s - std::f64::consts::FRAC_PI_2
+}
+
+/// The library's sampler and `world.glb` show one heading: sampled every 10 ms over a period,
+/// every walker of bands' library faces within 2 degrees of its node's rotation keys (which
+/// drop keys within 4 ms of another, 1.44 degrees at the turn rate, and where the heading
+/// strays less than half a degree),
+/// and turns
+/// between two samples no faster than 360 degrees a second (plus the library's 65536ths of a
+/// turn).
+#[test]
+fn the_library_sampler_and_world_glb_face_the_same_way_and_turn_at_the_rate() {
+    let out = scene("bands");
+    let (period, tracks) = clip(&out.join("world.glb"));
+    let lib = library(out);
+    let mut sampler = Sampler::new(&lib);
+    let (mut before, mut now) = (Vec::new(), Vec::new());
+    let step = 0.01;
+    let (mut fastest, mut worst) = (0.0f64, 0.0f64);
+    let wrap = |d: f64| {
+        (d + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI
+    };
+    for f in 0..=(f64::from(period) / step).round() as u32 {
+        let t = f64::from(f) * step;
+        sampler.sample(t, [-1e9, -1e9, 1e9, 1e9], &mut now);
+        for c in now.iter().filter(|c| u64::from(c.id) < lib.walkers()) {
+            let node = &tracks[&format!("walker_{}", c.id)];
+            let off = wrap(f64::from(c.heading) - heading_at(node, t as f32)).abs();
+            worst = worst.max(off);
+        }
+        if f > 0 {
+            for (a, b) in before.iter().zip(&now) {
+                let a: &crowd_runtime::Sample = a;
+                assert_eq!(a.id, b.id);
+                fastest = fastest.max(wrap(f64::from(b.heading - a.heading)).abs() / step);
+            }
+        }
+        std::mem::swap(&mut before, &mut now);
+    }
+    eprintln!(
+        "fastest turn {:.2} deg/s, largest heading difference {:.3} deg",
+        fastest.to_degrees(),
+        worst.to_degrees()
+    );
+    assert!(
+        fastest.to_degrees() <= 360.0 + 0.02 / step,
+        "{} deg/s",
+        fastest.to_degrees()
+    );
+    assert!(
+        worst.to_degrees() < 2.0,
+        "{} degrees apart",
+        worst.to_degrees()
+    );
 }

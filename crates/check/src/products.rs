@@ -108,6 +108,10 @@ pub struct Sampled {
     pub max_speed_m_s: f64,
     /// Steps longer than the library's fastest piece allows (plus 1 mm of f32 rounding).
     pub jumps: u64,
+    /// The fastest turn of any character between two frames, rad/s (None: checked before
+    /// headings were).
+    #[serde(default)]
+    pub max_turn_rate_rad_s: Option<f64>,
 }
 
 /// Speeds and key jumps of paths, summed in path order.

@@ -17,7 +17,7 @@ use crowd_core::{Hash, Hasher};
 
 /// The stage name in `export.ron`'s header.
 pub const STAGE: &str = "export";
-pub const VERSION: u32 = 5;
+pub const VERSION: u32 = 9;
 
 /// What stage 8 reads of a pipeline besides its input files.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
@@ -105,7 +105,7 @@ pub fn export(
     let links = characters::link(motion, crossings.len()).map_err(library::LibraryError::Links)?;
     let mut short = [0u8; 8];
     short.copy_from_slice(&hash.as_bytes()[..8]);
-    let (lib, eased_m) = library::build(
+    let (mut lib, eased_m) = library::build(
         graph,
         crossings,
         motion,
@@ -114,6 +114,7 @@ pub fn export(
         inputs.seed,
         short,
     )?;
+    lib.world.turn_rate_deg_s = inputs.settings.turn_rate_deg_s as f32;
     let bytes = lib.to_bytes();
     let glb = glb::world_glb(&glb::World {
         graph,
@@ -123,7 +124,7 @@ pub fn export(
         seed: inputs.seed,
         input_hash: hash.to_string(),
         region: inputs.settings.gltf_region,
-        turn_rate_deg_s: inputs.settings.turn_rate_deg_s,
+        library: &lib,
     });
     let file = ExportFile {
         header: crowd_core::files::Header::new(STAGE, VERSION, hash),

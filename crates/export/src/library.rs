@@ -70,6 +70,7 @@ pub fn build(
         rows: graph.world.rows,
         seed,
         input_hash,
+        turn_rate_deg_s: crowd_runtime::turn::DEFAULT_TURN_RATE_DEG_S as f32,
     };
     let mut patches = Vec::with_capacity(motion.len());
     let mut standers = Vec::new();

@@ -6,7 +6,6 @@
 //! a view rectangle at a time: per-character cursors make a frame O(characters), with no
 //! search while time moves forward. `FORMAT.md` at the repository root documents the bytes.
 
-mod angle;
 pub mod crc;
 mod error;
 mod format;

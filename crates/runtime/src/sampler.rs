@@ -12,11 +12,13 @@
 
 mod place;
 mod steps;
+mod turning;
 mod walker;
 
 use crate::format::{Library, TICK_S};
 use place::place;
 use steps::Steps;
+use turning::Turning;
 use walker::{Cursor, Loops, Scale, Walkers};
 
 /// One character seen in a frame: world metres (x east, y north), heading in radians
@@ -51,6 +53,9 @@ pub struct Sampler<'a> {
     /// Those of them that need more than a [`Steps`] step.
     slow: Vec<u32>,
     steps: Steps,
+    /// Walkers whose piece's turn is under way or still to come ([`crate::turn`]): their
+    /// samples' headings are set from these after placing.
+    turning: Turning,
 }
 
 /// Walkers per block: their records stay in L1 from finding the ended pieces to writing the
@@ -103,6 +108,7 @@ impl<'a> Sampler<'a> {
             ended: [Vec::with_capacity(BLOCK), Vec::with_capacity(BLOCK)],
             steps: Steps::default(),
             slow: Vec::with_capacity(BLOCK),
+            turning: Turning::default(),
         }
     }
 
@@ -133,6 +139,7 @@ impl<'a> Sampler<'a> {
                 self.write(b - 1, whole, frac, view, out);
             }
         }
+        self.turning.apply(now, out);
         out.extend(
             self.standers
                 .iter()
@@ -157,6 +164,7 @@ impl<'a> Sampler<'a> {
         for &id in ended.iter() {
             let (f, l) = (&w.fours[id as usize / 4], id as usize % 4);
             prefetch(self.lib.points.as_ptr().wrapping_add(f.at[l] as usize + 1));
+            prefetch(self.loops.headings.as_ptr().wrapping_add(f.at[l] as usize));
             if f.left[l] == 0 {
                 // Leaving its trajectory: the cursor now, its way onward when it has come.
                 let traj = self.cursors[id as usize].traj as usize;
@@ -201,6 +209,12 @@ impl<'a> Sampler<'a> {
             w.set(id as usize, &h);
         }
         self.steps.finish(self.scale.quantum, &mut self.walkers);
+        for &id in &self.ended[b % 2] {
+            let four = (&mut self.walkers.fours[id as usize / 4], id as usize % 4);
+            if let Some(t) = loops.face(lib, four, id, now, epoch) {
+                self.turning.add(t, now);
+            }
+        }
     }
 
     /// Appends block `b`'s walkers inside `view` at `whole` ticks and `frac` of a tick after
@@ -223,10 +237,15 @@ impl<'a> Sampler<'a> {
             self.epoch = (now / step).floor() as i64 * EPOCH_STEP;
             let (lib, loops, epoch) = (self.lib, &self.loops, self.epoch);
             let w = &mut self.walkers;
+            self.turning.clear();
             for (id, c) in self.cursors.iter_mut().enumerate() {
                 let mut h = w.get(id);
                 walker::seek(lib, loops, c, &mut h, id as u32, now, epoch);
                 w.set(id, &h);
+                let four = (&mut w.fours[id / 4], id % 4);
+                if let Some(t) = loops.face(lib, four, id as u32, now, epoch) {
+                    self.turning.add(t, now);
+                }
             }
         } else if let Some(last) = self.last
             && now - self.epoch as f64 >= 2.0 * step

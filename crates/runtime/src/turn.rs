@@ -16,13 +16,30 @@ use std::f64::consts::{PI, TAU};
 
 /// A person's turning speed, and the default of `export.turn_rate_deg_s`: 360 degrees a second.
 pub const DEFAULT_TURN_RATE_DEG_S: f64 = 360.0;
-/// A piece shorter than this (metres) is standing: it does not turn the character.
-pub const STILL_M: f64 = 1e-5;
+/// A piece slower than this (m/s) is standing: it does not turn the character (a creep of a
+/// few tenths of a millimetre, the rounding of a pause's points, would turn it round).
+pub const WALKING_M_S: f64 = 0.05;
+
+/// Whether a piece `metres` long lasting `seconds` walks (else it stands).
+pub fn walks(metres: f64, seconds: f64) -> bool {
+    metres > 1e-9 && metres > WALKING_M_S * seconds
+}
 
 /// `a - b` as the shorter turn, in (-pi, pi].
 pub fn turn_between(a: f64, b: f64) -> f64 {
-    let d = (a - b).rem_euclid(TAU);
-    if d > PI { d - TAU } else { d }
+    let mut d = a - b;
+    // Headings are within a turn or two of each other: a step or two, not `fmod` (which was a
+    // tenth of loading painting's headings).
+    if d.abs() > 4.0 * TAU {
+        d = d.rem_euclid(TAU);
+    }
+    while d > PI {
+        d -= TAU;
+    }
+    while d <= -PI {
+        d += TAU;
+    }
+    d
 }
 
 /// The heading `from`, turned towards `to` by at most `step` radians (the shorter way).
@@ -72,10 +89,27 @@ impl Piece {
 }
 
 /// The heading (radians, `atan2(dy, dx)`, world axes) at every key of a closed loop: `times`
-/// increase from the loop's start, `points` are world metres, and the last key is the first
+/// (seconds) increase from the loop's start, `points` are world metres, `rate` is rad/s, and the last key is the first
 /// one a loop later (the same place). Headings are periodic: the last equals the first.
 /// A loop that never walks faces +y.
 pub fn loop_headings(times: &[f64], points: &[[f64; 2]], rate: f64) -> Vec<f64> {
+    let walking: Vec<bool> = (1..times.len())
+        .map(|k| {
+            let (a, b) = (points[k - 1], points[k]);
+            walks((b[0] - a[0]).hypot(b[1] - a[1]), times[k] - times[k - 1])
+        })
+        .collect();
+    loop_headings_walking(times, points, &walking, rate)
+}
+
+/// [`loop_headings`] with whether each piece walks given (`walking[k]`: from key `k` to
+/// `k + 1`), as the library's quantised points say ([`piece_walks`]).
+pub fn loop_headings_walking(
+    times: &[f64],
+    points: &[[f64; 2]],
+    walking: &[bool],
+    rate: f64,
+) -> Vec<f64> {
     let n = times.len();
     if n < 2 {
         return vec![PI / 2.0; n];
@@ -83,7 +117,7 @@ pub fn loop_headings(times: &[f64], points: &[[f64; 2]], rate: f64) -> Vec<f64> 
     let direction = |k: usize| {
         let (a, b) = (points[k], points[k + 1]);
         let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
-        (dx.hypot(dy) > STILL_M).then(|| dy.atan2(dx))
+        walking[k].then(|| dy.atan2(dx))
     };
     let directions: Vec<Option<f64>> = (0..n - 1).map(direction).collect();
     // Standing pieces aim at the next walk round the loop (the direction they walk off in),
@@ -135,6 +169,54 @@ pub fn loop_headings(times: &[f64], points: &[[f64; 2]], rate: f64) -> Vec<f64> 
     out
 }
 
+/// Whether the piece of `lib` from point `a` to the next, `b`, walks ([`walks`], on the
+/// quantised points as the library holds them).
+pub fn piece_walks(lib: &crate::Library, a: crate::Point, b: crate::Point) -> bool {
+    let steps = f64::from(i32::from(b.x) - i32::from(a.x))
+        .hypot(f64::from(i32::from(b.y) - i32::from(a.y)));
+    let metres = steps * f64::from(lib.world.patch_side_m) / crate::format::QUANT_STEPS;
+    walks(metres, f64::from(b.t.wrapping_sub(a.t)) * crate::TICK_S)
+}
+
+/// Every point's heading in `lib` (radians), at the library's turn rate: [`loop_headings`]
+/// over each loop's points (a trajectory's first point is its predecessor's last). Stage 8
+/// takes `world.glb`'s headings from here, so the glTF and the runtime face the same way.
+pub fn library_headings(lib: &crate::Library) -> Vec<f64> {
+    let rate = f64::from(lib.world.turn_rate_deg_s).to_radians();
+    let mut out = vec![0.0; lib.points.len()];
+    let (mut times, mut places, mut keys, mut walking) =
+        (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    for ch in &lib.characters {
+        times.clear();
+        places.clear();
+        keys.clear();
+        walking.clear();
+        let (mut at, mut tick) = (ch.first_trajectory, 0u64);
+        for j in 0..ch.trajectories {
+            let tr = &lib.trajectories[at as usize];
+            let patch = &lib.patches[tr.patch as usize];
+            let pts = lib.points_of(tr);
+            for (i, p) in pts.iter().enumerate() {
+                if i > 0 || j == 0 {
+                    times.push((tick + u64::from(p.t)) as f64 * crate::TICK_S);
+                    places.push(lib.world_position(patch, *p));
+                }
+                if i > 0 {
+                    walking.push(piece_walks(lib, pts[i - 1], *p));
+                }
+                keys.push((tr.first_point as usize + i, times.len() - 1));
+            }
+            tick += u64::from(lib.duration_ticks(tr));
+            at = tr.next;
+        }
+        let h = loop_headings_walking(&times, &places, &walking, rate);
+        for &(point, key) in &keys {
+            out[point] = h[key];
+        }
+    }
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -150,7 +232,7 @@ mod tests {
                 Piece {
                     t0: times[k],
                     t1: times[k + 1],
-                    walks: (b[0] - a[0]).hypot(b[1] - a[1]) > STILL_M,
+                    walks: walks((b[0] - a[0]).hypot(b[1] - a[1]), times[k + 1] - times[k]),
                     h0: h[k],
                     h1: h[k + 1],
                 }

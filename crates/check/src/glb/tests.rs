@@ -1,6 +1,7 @@
 //! Tests of `glb`: hand-made `world.glb`s written by stage 8's own writer, each showing a figure catch its defect.
 
 use super::*;
+use crowd_core::patterns::{Crossing, Way};
 use crowd_core::trajectories::{ControlPoint, PatchMotion, PointKind, Trajectory};
 use crowd_export::characters::link;
 use crowd_export::glb::{World, world_glb};
@@ -39,6 +40,18 @@ fn figures_of(
         PatchMotion::default(),
     ];
     let links = link(&motion, loops.len()).unwrap();
+    // The library the glTF takes its headings from (its crossings are never read here).
+    let crossings: Vec<Crossing> = (0..loops.len())
+        .map(|_| Crossing {
+            border: 0,
+            way: Way::AToB,
+            s: 4.0,
+            t: 0.0,
+            velocity: DVec2::X,
+        })
+        .collect();
+    let (library, _) =
+        crowd_export::library::build(&graph, &crossings, &motion, &links, 20.0, 1, [0; 8]).unwrap();
     let world = World {
         graph: &graph,
         motion: &motion,
@@ -47,7 +60,7 @@ fn figures_of(
         seed: 1,
         input_hash: String::new(),
         region,
-        turn_rate_deg_s: 360.0,
+        library: &library,
     };
     let inputs = Inputs {
         radius_m: 0.3,

@@ -61,6 +61,7 @@ pub fn figures(lib: &Library, inputs: &Inputs) -> ProductFigures {
     ProductFigures {
         max_border_velocity_jump: Some(borders.max_jump),
         max_border_gap_m: Some(borders.max_gap),
+        max_turn_rate_rad_s: sampled.as_ref().and_then(|s| s.max_turn_rate_rad_s),
         sampled,
         ..ProductFigures::measured(
             "library.crowd",
@@ -152,30 +153,34 @@ pub fn sample(lib: &Library, step: f64, fastest: f64) -> Sampled {
     let runs: Vec<(u64, u64)> = (0..frames.div_ceil(FRAMES_PER_RUN))
         .map(|r| (r * FRAMES_PER_RUN, ((r + 1) * FRAMES_PER_RUN).min(frames)))
         .collect();
-    let (max_speed, jumps) = runs
+    let (max_speed, jumps, max_turn) = runs
         .par_iter()
         .map(|&(first, last)| play(lib, step, fastest, first..=last))
-        .reduce(|| (0.0, 0), |a, b| (a.0.max(b.0), a.1 + b.1));
+        .reduce(
+            || (0.0, 0, 0.0),
+            |a, b| (a.0.max(b.0), a.1 + b.1, a.2.max(b.2)),
+        );
     Sampled {
         step_s: step,
         frames,
         max_speed_m_s: max_speed,
         jumps,
+        max_turn_rate_rad_s: Some(max_turn),
     }
 }
 
 /// [`sample`]'s frames `frames` (each compared with the one before it, the first only as
-/// that): the fastest step and the jumps.
+/// that): the fastest step, the jumps and the fastest turn (rad/s).
 fn play(
     lib: &Library,
     step: f64,
     fastest: f64,
     frames: std::ops::RangeInclusive<u64>,
-) -> (f64, u64) {
+) -> (f64, u64, f64) {
     let mut sampler = Sampler::new(lib);
     let (mut before, mut now): (Vec<Sample>, Vec<Sample>) = (Vec::new(), Vec::new());
     sampler.sample(*frames.start() as f64 * step, EVERYWHERE, &mut before);
-    let (mut max_speed, mut jumps) = (0.0f64, 0u64);
+    let (mut max_speed, mut jumps, mut max_turn) = (0.0f64, 0u64, 0.0f64);
     for f in frames.skip(1) {
         sampler.sample(f as f64 * step, EVERYWHERE, &mut now);
         for (a, b) in before.iter().zip(&now) {
@@ -186,11 +191,15 @@ fn play(
             };
             max_speed = max_speed.max(d / step);
             jumps += u64::from(d > fastest * step + 1e-3);
+            if a.id == b.id {
+                let turn = f64::from(b.heading - a.heading).rem_euclid(std::f64::consts::TAU);
+                max_turn = max_turn.max(turn.min(std::f64::consts::TAU - turn) / step);
+            }
         }
         jumps += before.len().abs_diff(now.len()) as u64;
         std::mem::swap(&mut before, &mut now);
     }
-    (max_speed, jumps)
+    (max_speed, jumps, max_turn)
 }
 
 #[cfg(test)]

@@ -29,6 +29,7 @@ fn library(cols: u32, ways: &[Way], standers: &[(f64, f64)]) -> Library {
             rows: 1,
             seed: 1,
             input_hash: [0; 8],
+            turn_rate_deg_s: 360.0,
         },
         patches: Vec::new(),
         standers: standers

@@ -8,6 +8,7 @@
 //! so the last piece of a slot and the first of its successor are two pieces of one walk.
 
 use crate::glb::World;
+use crowd_runtime::TICK_S;
 use crowd_runtime::turn::{self, Piece};
 use glam::DVec2;
 
@@ -21,8 +22,14 @@ const EDGE_S: f64 = 1e-6;
 pub(super) struct LoopPath {
     pub(super) times: Vec<f64>,
     pub(super) points: Vec<DVec2>,
-    /// The heading at each point (`crowd_runtime::turn`: periodic, turning at `rate`).
+    /// The heading at each point (`crowd_runtime::turn`: periodic, turning at `rate`), and
+    /// whether each piece walks: the library's, so that `world.glb` and the runtime face the
+    /// same way.
     headings: Vec<f64>,
+    walking: Vec<bool>,
+    /// Each point's loop time in the library's ticks: the heading model's clock (within
+    /// 0.1 ms of `times`).
+    turn_times: Vec<f64>,
     /// Turning speed, rad/s (`export.turn_rate_deg_s`).
     rate: f64,
     /// World time at which the loop's first trajectory starts.
@@ -67,9 +74,9 @@ impl LoopPath {
     /// Piece `k` of the loop (from point `k` to `k + 1`) as the heading model sees it.
     fn turn_piece(&self, k: usize) -> Piece {
         Piece {
-            t0: self.times[k],
-            t1: self.times[k + 1],
-            walks: self.points[k].distance(self.points[k + 1]) > turn::STILL_M,
+            t0: self.turn_times[k],
+            t1: self.turn_times[k + 1],
+            walks: self.walking[k],
             h0: self.headings[k],
             h1: self.headings[k + 1],
         }
@@ -80,17 +87,24 @@ impl LoopPath {
         if self.times.len() < 2 {
             return self.headings.first().copied().unwrap_or(0.0);
         }
-        let k = self.piece(tau).min(self.times.len() - 2);
+        let k = self
+            .turn_times
+            .partition_point(|&t| t <= tau)
+            .clamp(1, self.turn_times.len() - 1)
+            - 1;
         self.turn_piece(k).at(tau, self.rate)
     }
 
     /// Loop times in `[from, to)` where a turn starts or ends.
     fn turn_breaks(&self, from: f64, to: f64) -> Vec<f64> {
-        let n = self.times.len();
-        let first = self.times.partition_point(|&t| t <= from).saturating_sub(1);
+        let n = self.turn_times.len();
+        let first = self
+            .turn_times
+            .partition_point(|&t| t <= from)
+            .saturating_sub(1);
         let mut out = Vec::new();
         for k in first..n.saturating_sub(1) {
-            if self.times[k] >= to {
+            if self.turn_times[k] >= to {
                 break;
             }
             let piece = self.turn_piece(k);
@@ -104,13 +118,20 @@ impl LoopPath {
     }
 }
 
+/// Every loop, in the library's CHAR order: stage 6's kept points at their times (what the
+/// translation keys show), and the headings of `crowd_runtime::turn::library_headings` with
+/// the library's own ticks for their turns, so that `world.glb` and `crowd-runtime` face the
+/// same way.
 pub(super) fn loop_paths(w: &World) -> Vec<LoopPath> {
+    let lib = w.library;
+    let table = turn::library_headings(lib);
     w.links
         .loops
         .iter()
         .map(|lp| {
             let (mut times, mut points) = (Vec::new(), Vec::new());
-            let mut offset = 0.0;
+            let (mut headings, mut walking, mut turn_times) = (Vec::new(), Vec::new(), Vec::new());
+            let (mut offset, mut tick) = (0.0, 0u64);
             let first = w.links.refs[lp[0]];
             let start = w.motion[first.patch].trajectories[first.index].points[0].t;
             for &i in lp {
@@ -118,20 +139,29 @@ pub(super) fn loop_paths(w: &World) -> Vec<LoopPath> {
                 let tr = &w.motion[r.patch].trajectories[r.index];
                 let origin = w.graph.world_from_patch(w.graph.patches[r.patch].cell);
                 let t0 = tr.points[0].t;
+                // The library's trajectory `i` holds the same points, quantised.
+                let held = lib.points_of(&lib.trajectories[i]);
+                let first = lib.trajectories[i].first_point as usize;
                 for (k, cp) in tr.points.iter().enumerate() {
-                    if k == 0 && !times.is_empty() {
+                    if k > 0 {
+                        walking.push(turn::piece_walks(lib, held[k - 1], held[k]));
+                    } else if !times.is_empty() {
                         continue; // the previous trajectory's exit, the same instant and place
                     }
                     times.push(offset + cp.t - t0);
                     points.push(origin + cp.pos);
+                    turn_times.push((tick + u64::from(held[k].t)) as f64 * TICK_S);
+                    headings.push(table[first + k]);
                 }
                 offset += tr.duration();
+                tick += u64::from(lib.duration_ticks(&lib.trajectories[i]));
             }
             let laps = (offset / w.period_s).round().max(1.0) as u32;
-            let xy: Vec<[f64; 2]> = points.iter().map(|p| [p.x, p.y]).collect();
             LoopPath {
-                headings: turn::loop_headings(&times, &xy, w.turn_rate_deg_s.to_radians()),
-                rate: w.turn_rate_deg_s.to_radians(),
+                headings,
+                walking,
+                turn_times,
+                rate: f64::from(lib.world.turn_rate_deg_s).to_radians(),
                 times,
                 points,
                 start,
@@ -168,9 +198,10 @@ pub(super) struct Keys {
 /// Rotation keys closer than this (seconds) are one: the later goes (the clip's end stays).
 /// Dropping a sample of a heading that turns at most `rate` leaves the keys turning at most
 /// `rate` (the turn between two kept keys is at most `rate` times the time between them).
-/// A quarter of a 60 fps frame: far above f32's step near a period's end (2 us), and turns
-/// between keys large enough that a reader's `acos` of their f32 quaternions' dot product
-/// measures them within 0.1 % (at 1 ms, 0.6 %).
+/// Far above f32's step near a period's end (2 us), and turns between keys large enough that
+/// a reader's `acos` of their f32 quaternions' dot product measures them within 0.1 % (at
+/// 1 ms, 0.6 %); a dropped key moves the heading by at most the rate times this, 1.44
+/// degrees, for a few milliseconds. (At 2 ms, bands' `world.glb` was 4.46 MB, not 3.60.)
 const TURN_KEY_S: f64 = 4e-3;
 /// Largest turn between two rotation keys, radians: a player interpolates the shorter way,
 /// which is the way turned only below half a turn.
@@ -335,6 +366,10 @@ mod tests {
         let xy: Vec<[f64; 2]> = points.iter().map(|p| [p.x, p.y]).collect();
         LoopPath {
             headings: turn::loop_headings(&times, &xy, RATE),
+            walking: (1..times.len())
+                .map(|k| turn::walks(points[k].distance(points[k - 1]), times[k] - times[k - 1]))
+                .collect(),
+            turn_times: times.clone(),
             rate: RATE,
             times,
             points,

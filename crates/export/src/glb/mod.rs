@@ -45,8 +45,9 @@ pub struct World<'a> {
     pub input_hash: String,
     /// Characters only while inside `(x0, y0, x1, y1)` (`region.rs`).
     pub region: Option<(f64, f64, f64, f64)>,
-    /// How fast characters turn, degrees a second (`crowd_runtime::turn`).
-    pub turn_rate_deg_s: f64,
+    /// The library made from the same keyframes: headings come from its points
+    /// (`crowd_runtime::turn::library_headings`), and its turn rate.
+    pub library: &'a crowd_runtime::Library,
 }
 
 /// The bytes of `world.glb`.
@@ -285,7 +286,7 @@ pub fn world_glb(w: &World) -> Vec<u8> {
                 w.seed,
                 w.input_hash,
                 w.graph.radius_m,
-                w.turn_rate_deg_s,
+                w.library.world.turn_rate_deg_s,
                 laps
             ))
             .expect("valid JSON"),

@@ -20,6 +20,10 @@ const CROSSINGS: [u8; 4] = *b"CROS";
 const TRAJECTORIES: [u8; 4] = *b"TRAJ";
 const POINTS: [u8; 4] = *b"PNTS";
 const CHARACTERS: [u8; 4] = *b"CHAR";
+/// Optional: how fast characters turn (one `f32`, degrees a second).
+const TURN: [u8; 4] = *b"TURN";
+/// The turn rates a library may ask for, degrees a second (`export.turn_rate_deg_s`'s range).
+pub const TURN_RATES_DEG_S: std::ops::RangeInclusive<f32> = 30.0..=3600.0;
 
 impl Library {
     /// The library's bytes.
@@ -95,6 +99,9 @@ impl Library {
             put_u32(&mut w, c.laps);
         }
         sections.push((CHARACTERS, w));
+        let mut w = Vec::with_capacity(4);
+        put_f32(&mut w, world.turn_rate_deg_s);
+        sections.push((TURN, w));
 
         let mut out = Vec::new();
         out.extend_from_slice(&MAGIC);
@@ -161,6 +168,7 @@ impl Library {
             rows: le_u32(&w[16..20]),
             seed: le_u64(&w[20..28]),
             input_hash: w[28..36].try_into().expect("8 bytes"),
+            turn_rate_deg_s: turn_rate(table, &section)?,
         };
         let finite_positive = |v: f32| v.is_finite() && v > 0.0;
         if !finite_positive(world.patch_side_m) || !finite_positive(world.radius_m) {
@@ -289,4 +297,25 @@ fn le_u64(b: &[u8]) -> u64 {
 
 fn le_f32(b: &[u8]) -> f32 {
     f32::from_bits(le_u32(b))
+}
+
+/// The `TURN` section's rate, or the default when the library has none (it is optional:
+/// libraries written before it play with the default).
+fn turn_rate<'a>(
+    table: &[u8],
+    section: &impl Fn([u8; 4], &'static str) -> Result<&'a [u8], LoadError>,
+) -> Result<f32, LoadError> {
+    if !table.chunks_exact(ENTRY_LEN).any(|e| e[..4] == TURN) {
+        return Ok(crate::turn::DEFAULT_TURN_RATE_DEG_S as f32);
+    }
+    let body = section(TURN, "TURN")?;
+    let rate = (body.len() == 4).then(|| le_f32(body));
+    match rate {
+        Some(r) if TURN_RATES_DEG_S.contains(&r) => Ok(r),
+        _ => Err(invalid(
+            "TURN",
+            0,
+            "4 bytes: a turn rate in degrees a second from 30 to 3600",
+        )),
+    }
 }

@@ -18,6 +18,9 @@ pub struct World {
     pub seed: u64,
     /// The first 8 bytes of the build's input hash, to tell builds apart.
     pub input_hash: [u8; 8],
+    /// How fast characters turn to face their walk, degrees a second (the `TURN` section;
+    /// [`crate::turn::DEFAULT_TURN_RATE_DEG_S`] for a library without one).
+    pub turn_rate_deg_s: f32,
 }
 
 /// A patch: its place in the grid (south-west corner at (col, row) x side) and its records.

@@ -1,18 +1,18 @@
 //! The common way on: a walker steps onto the next piece of its trajectory and that piece
 //! holds the frame's time. Such steps are gathered column by column, so that their motions
-//! (a division and an arctangent each) are computed in one tight loop the compiler vectorises.
+//! (a division each) are computed in one tight loop the compiler vectorises. Headings come
+//! from the loops' table afterwards (`Loops::face`).
 
 use super::BLOCK;
-use super::walker::{Scale, Walkers, heading, per_tick, step};
+use super::walker::{Scale, Walkers, per_tick, step};
 use crate::format::Library;
 
-/// A step taken: whose, where its new piece ends, and the heading it had.
+/// A step taken: whose, and where its new piece ends.
 #[derive(Debug, Clone, Copy, Default)]
 struct Taken {
     id: u32,
     x: f32,
     y: f32,
-    keep: u16,
 }
 
 /// A block's steps (at most one per walker), in fixed arrays: taking one is a few stores at
@@ -27,7 +27,6 @@ pub(super) struct Steps {
     ticks: Box<[f32; BLOCK]>,
     /// Computed by [`Steps::finish`].
     per_tick: Box<[f32; BLOCK]>,
-    heading: Box<[u16; BLOCK]>,
 }
 
 impl Default for Steps {
@@ -39,7 +38,6 @@ impl Default for Steps {
             dy: Box::new([0.0; BLOCK]),
             ticks: Box::new([0.0; BLOCK]),
             per_tick: Box::new([0.0; BLOCK]),
-            heading: Box::new([0; BLOCK]),
         }
     }
 }
@@ -75,8 +73,7 @@ impl Steps {
         }
         let [dx, dy, ticks] = step(a, b);
         let [x, y] = scale.world(f.col[l], f.row[l], b);
-        let keep = f.heading[l];
-        self.taken[n] = Taken { id, x, y, keep };
+        self.taken[n] = Taken { id, x, y };
         (self.dx[n], self.dy[n], self.ticks[n]) = (dx, dy, ticks);
         self.n = n + 1;
         f.at[l] += 1;
@@ -94,16 +91,11 @@ impl Steps {
         for (p, &t) in self.per_tick[..n].iter_mut().zip(ticks) {
             *p = per_tick(t, quantum);
         }
-        for (h, (&dy, &dx)) in self.heading[..n].iter_mut().zip(dy.iter().zip(dx)) {
-            *h = heading(dy, dx);
-        }
         for (i, t) in self.taken[..n].iter().enumerate() {
             let (f, l) = (&mut w.fours[t.id as usize / 4], t.id as usize % 4);
             let per = self.per_tick[i];
             (f.x[l], f.y[l]) = (t.x, t.y);
             (f.vx[l], f.vy[l]) = (dx[i] * per, dy[i] * per);
-            let moving = dx[i] != 0.0 || dy[i] != 0.0;
-            f.heading[l] = if moving { self.heading[i] } else { t.keep };
         }
     }
 }

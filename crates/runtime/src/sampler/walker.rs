@@ -1,7 +1,7 @@
 //! One walker's state and how it moves on: the rare paths (a new trajectory, a pause, several
 //! pieces in one frame, a search) one walker at a time; [`super::steps`] batches the common one.
 
-use crate::angle::atan2;
+use super::turning::Turn;
 use crate::format::{Library, Point, QUANT_STEPS};
 
 /// One walker's state for placing it and for stepping it onto the next piece of its
@@ -141,6 +141,12 @@ pub(super) struct Loops {
     /// Per trajectory, what a walker leaving it needs: one record, so that leaving is one
     /// fetch (which the sampler asks for a block ahead), not a chain of four.
     pub onward: Vec<Onward>,
+    /// Per point, the heading there ([`crate::turn::library_headings`]) in 65536ths of a turn
+    /// ([`turns`]), its lowest bit ([`WALKS`]) whether the piece from it walks: a step onto a
+    /// piece reads two of these, which the sampler asks for a block ahead.
+    pub headings: Vec<u16>,
+    /// The library's turn rate, radians per tick.
+    rate: f64,
 }
 
 /// Leaving a trajectory: how long it lasted, and its successor.
@@ -190,6 +196,8 @@ impl Loops {
                     next: Entry::of(lib, tr.next),
                 })
                 .collect(),
+            headings: Vec::new(),
+            rate: f64::from(lib.world.turn_rate_deg_s).to_radians() * crate::TICK_S,
         };
         let mut id = 0;
         for ch in &lib.characters {
@@ -206,9 +214,61 @@ impl Loops {
             }
         }
         loops.first.push(loops.trajectories.len());
+        let headings = crate::turn::library_headings(lib);
+        loops.headings = (0..lib.points.len())
+            .map(|p| {
+                let next = lib.points.get(p + 1).copied();
+                let walks = next.is_some_and(|b| crate::turn::piece_walks(lib, lib.points[p], b));
+                (turns(headings[p] as f32) & !WALKS) | if walks { WALKS } else { 0 }
+            })
+            .collect();
         loops
     }
+
+    /// Faces walker `id` (lane `l` of four `f`, just put on a piece that ends `f.end` ticks
+    /// after `epoch`): the heading it holds for most of the piece (walking: the one it turns
+    /// to; standing: the one it turns from), and the piece's turn when it is not over by
+    /// absolute tick `now`. Reads the two ends' entries of [`Loops::headings`] and, for a turn,
+    /// their ticks.
+    #[inline]
+    pub fn face(
+        &self,
+        lib: &Library,
+        (f, l): (&mut Four, usize),
+        id: u32,
+        now: f64,
+        epoch: i64,
+    ) -> Option<Turn> {
+        let at = f.at[l] as usize;
+        let (k0, k1) = (self.headings[at - 1], self.headings[at]);
+        let walks = k0 & WALKS != 0;
+        let (h0, h1) = (k0 & !WALKS, k1 & !WALKS);
+        f.heading[l] = if walks { h1 } else { h0 };
+        if h0 == h1 {
+            return None;
+        }
+        let turn = f64::from(h1.wrapping_sub(h0) as i16) * (std::f64::consts::TAU / 65536.0);
+        let t1 = (epoch + i64::from(f.end[l])) as f64;
+        let t0 = t1 - f64::from(lib.points[at].t.wrapping_sub(lib.points[at - 1].t));
+        let needs = (turn.abs() / self.rate).min(t1 - t0);
+        let (from, to) = if walks {
+            (t0, t0 + needs)
+        } else {
+            (t1 - needs, t1)
+        };
+        (to > now).then_some(Turn {
+            id,
+            from,
+            to,
+            h0: radians(h0),
+            turn: turn as f32,
+        })
+    }
 }
+
+/// The bit of a [`Loops::headings`] entry that says the piece from that point walks (the
+/// heading keeps 32768ths of a turn, 2e-4 rad).
+pub(super) const WALKS: u16 = 1;
 
 /// A heading in radians as 65536ths of a turn (within 5e-5 rad).
 #[inline(always)]
@@ -264,24 +324,18 @@ pub(super) fn step(a: Point, b: Point) -> [f32; 3] {
     ]
 }
 
-/// A piece's velocity (metres per tick) and heading from its [`step`]: one formula for every
-/// way to a piece, so that a piece is the same bits however the sampler came to it.
+/// A piece's velocity (metres per tick) from its [`step`]: one formula for every way to a
+/// piece, so that a piece is the same bits however the sampler came to it.
 #[inline(always)]
-pub(super) fn motion([dx, dy, ticks]: [f32; 3], quantum: f32) -> ([f32; 2], u16) {
+pub(super) fn motion([dx, dy, ticks]: [f32; 3], quantum: f32) -> [f32; 2] {
     let per = per_tick(ticks, quantum);
-    ([dx * per, dy * per], heading(dy, dx))
+    [dx * per, dy * per]
 }
 
 /// Metres per tick per position step of a piece lasting `ticks`.
 #[inline(always)]
 pub(super) fn per_tick(ticks: f32, quantum: f32) -> f32 {
     if ticks > 0.0 { quantum / ticks } else { 0.0 }
-}
-
-/// The heading of a step of (`dx`, `dy`).
-#[inline(always)]
-pub(super) fn heading(dy: f32, dx: f32) -> u16 {
-    turns(atan2(dy, dx))
 }
 
 /// Moves a walker on from its piece, piece by piece, to the one that holds absolute tick
@@ -296,13 +350,12 @@ pub(super) fn walk_on(
 ) {
     loop {
         if h.at < c.last {
-            let heading = h.heading;
-            piece(lib, c, h, epoch, Some(heading));
+            piece(lib, c, h, epoch);
         } else {
             let o = loops.onward[c.traj as usize];
             c.traj_start += i64::from(o.duration);
             enter(c, h, o.next, 0);
-            piece(lib, c, h, epoch, None);
+            piece(lib, c, h, epoch);
         }
         if now < end_tick(lib, c, h) as f64 {
             return;
@@ -358,7 +411,7 @@ pub(super) fn seek(
         Entry::of(lib, traj),
         (p.max(1) - 1).min(pts.len() - 2) as u32,
     );
-    piece(lib, c, h, epoch, None);
+    piece(lib, c, h, epoch);
     // A piece that ends at or before `now` (the trajectory's last, or rounding): walk on.
     if now >= end_tick(lib, c, h) as f64 {
         walk_on(lib, loops, c, h, now, epoch);
@@ -366,41 +419,17 @@ pub(super) fn seek(
 }
 
 /// Makes the piece from point `h.at` to the next the current one (`h.at` moves on to its end).
-/// `walked` is the heading of the piece before it in the same trajectory, if the sampler just
-/// walked it: a standing piece keeps it.
-fn piece(lib: &Library, c: &Cursor, h: &mut Hot, epoch: i64, walked: Option<u16>) {
+/// Its heading is the sampler's to set ([`Loops::face`]).
+fn piece(lib: &Library, c: &Cursor, h: &mut Hot, epoch: i64) {
     let (a, b) = (lib.points[h.at as usize], lib.points[h.at as usize + 1]);
     let scale = Scale::of(lib);
-    let ([vx, vy], heading) = motion(step(a, b), scale.quantum);
-    let heading = match ((a.x, a.y) != (b.x, b.y), walked) {
-        (true, _) => heading,
-        (false, Some(h)) => h,
-        (false, None) => standing_heading(lib, c, h.at),
-    };
+    let [vx, vy] = motion(step(a, b), scale.quantum);
     [h.x, h.y] = scale.world(h.col, h.row, b);
-    (h.vx, h.vy, h.heading) = (vx, vy, heading);
+    (h.vx, h.vy) = (vx, vy);
     h.at += 1;
     h.left = (c.last - h.at).min(u32::from(u16::MAX)) as u16;
     // Wraps only for a piece that ends before the epoch, which the caller walks on from.
     h.end = (end_tick(lib, c, h) - epoch) as u32;
-}
-
-/// Standing: the direction of the last piece walked before in the trajectory (else the next
-/// one), a pure function of the piece, whatever way time came to it.
-fn standing_heading(lib: &Library, c: &Cursor, at: u32) -> u16 {
-    let tr = &lib.trajectories[c.traj as usize];
-    let pts = lib.points_of(tr);
-    let k = (at - tr.first_point) as usize;
-    let q = Scale::of(lib).quantum;
-    let moving = |i: usize| {
-        let (a, b) = (pts[i], pts[i + 1]);
-        ((a.x, a.y) != (b.x, b.y)).then(|| motion(step(a, b), q).1)
-    };
-    (0..=k)
-        .rev()
-        .chain(k + 1..pts.len() - 1)
-        .find_map(moving)
-        .unwrap_or(0)
 }
 
 #[cfg(test)]
