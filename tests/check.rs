@@ -110,3 +110,41 @@ fn no_check_skips_the_check_and_an_unchanged_build_keeps_it() {
     assert!(said.contains("check: done in"), "{said}");
     assert_eq!(check_file(out), check_file(scene("bands")));
 }
+
+/// `crowd check` exits non-zero, naming each broken guarantee, when what ships breaks one:
+/// here, against a pipeline that asks for slower turns (90 degrees a second) and a lower speed
+/// limit than bands was built with. The same build checked against its own pipeline passes.
+#[test]
+fn crowd_check_fails_naming_every_broken_guarantee() {
+    let dir = copy_of("bands");
+    let out = dir.path();
+    crowd_ok(&[
+        "check",
+        "-q",
+        s(out),
+        "--pipeline",
+        s(&scene_pipeline("bands")),
+    ]);
+    let layer = shared_scenes().join("bands/density.png");
+    let settings = tempfile::tempdir().unwrap();
+    let strict = write_pipeline(
+        settings.path(),
+        &[("Density", &layer)],
+        "    match: (max_speed: 1.5),\n    export: (turn_rate_deg_s: 90.0),\n",
+    );
+    let err = crowd_err(&["check", "-q", s(out), "--pipeline", s(&strict)]);
+    for said in [
+        "4 guarantee(s) broken",
+        "faster than 1.58 m/s",
+        "degrees a second, above 90.9",
+    ] {
+        assert!(err.contains(said), "{said:?} not in: {err}");
+    }
+    assert!(
+        err.contains("library.crowd") && err.contains("world.glb"),
+        "{err}"
+    );
+    // What it found is written, for the report.
+    let report = check_file(out);
+    assert!(report.gltf.unwrap().turn_rate_limit_rad_s.unwrap() < 1.6);
+}

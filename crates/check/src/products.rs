@@ -47,6 +47,7 @@ impl ProductFigures {
             loops,
             open_loops: seams.open,
             max_turn_rate_rad_s: None,
+            turn_rate_limit_rad_s: None,
             sampled: None,
         }
     }
@@ -92,8 +93,12 @@ pub struct ProductFigures {
     /// should go on (glTF: from every node's clip start).
     pub loops: u64,
     pub open_loops: u64,
-    /// glTF: the fastest turn between two rotation keys, rad/s.
+    /// glTF: the fastest turn between two rotation keys; library: between two frames of its
+    /// sampler, rad/s.
     pub max_turn_rate_rad_s: Option<f64>,
+    /// `export.turn_rate_deg_s` in rad/s, plus the keys' rounding (1 %): no turn may be faster.
+    #[serde(default)]
+    pub turn_rate_limit_rad_s: Option<f64>,
     /// Library: the runtime's `Sampler` played frame after frame.
     pub sampled: Option<Sampled>,
 }

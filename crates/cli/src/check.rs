@@ -30,13 +30,21 @@ pub struct CheckOptions {
     pub stage: Option<&'static Stage>,
     /// `match.max_speed` of the build's pipeline, m/s (the shipped speed limit is 5 % above).
     pub max_speed: f64,
+    /// `export.turn_rate_deg_s` of the build's pipeline: no character may turn faster (plus
+    /// the keys' rounding, [`TURN_MARGIN`]).
+    pub turn_rate_deg_s: f64,
 }
+
+/// The shipped files' headings may turn this much faster than `export.turn_rate_deg_s`: f32
+/// key times and quaternions, the library's 65536ths of a turn (0.1 % on the shared scenes).
+pub const TURN_MARGIN: f64 = 1.01;
 
 impl Default for CheckOptions {
     fn default() -> Self {
         CheckOptions {
             stage: None,
             max_speed: crowd_core::config::MatchSettings::default().max_speed,
+            turn_rate_deg_s: crowd_core::config::ExportSettings::default().turn_rate_deg_s,
         }
     }
 }
@@ -64,19 +72,48 @@ pub fn command(
         ..Default::default()
     };
     if let Some(p) = pipeline {
-        options.max_speed = PipelineFile::load(p)?.pipeline.matching.max_speed;
+        let file = PipelineFile::load(p)?;
+        options.max_speed = file.pipeline.matching.max_speed;
+        options.turn_rate_deg_s = file.pipeline.export.turn_rate_deg_s;
     }
     let (report, _) = check(dir, &options)?;
     crate::report_md::write(dir, Default::default())?;
-    Ok(check_summary(&report))
+    let summary = check_summary(&report);
+    let findings = findings(&report);
+    if !findings.is_empty() {
+        print!("{summary}");
+        bail!(
+            "{}: {} guarantee(s) broken:\n  {}",
+            dir.display(),
+            findings.len(),
+            findings.join("\n  ")
+        );
+    }
+    Ok(summary)
+}
+
+/// The guarantees `report` finds broken in what ships, as `crate::warnings` says them
+/// (collisions, speed, loops, turns, the sampler's jumps). A stage file checked on its own
+/// (`--stage match`, before stage 5 has pushed anyone apart) is a figure, not a finding.
+pub fn findings(report: &CheckReport) -> Vec<String> {
+    crate::warnings::shipped(report)
+        .into_iter()
+        .map(|w| w.text)
+        .collect()
 }
 
 /// The check `crowd build` runs after stage 8: skipped when `check.ron` is up to date (unless
 /// `force`), else run, with its summary said.
-pub fn after_build(out: &Path, max_speed: f64, force: bool, ui: &Ui) -> Result<()> {
+pub fn after_build(
+    out: &Path,
+    (max_speed, turn_rate_deg_s): (f64, f64),
+    force: bool,
+    ui: &Ui,
+) -> Result<()> {
     let options = CheckOptions {
         stage: None,
         max_speed,
+        turn_rate_deg_s,
     };
     let path = out.join(CHECK_FILE);
     if !force && fresh(out, &options)? {
@@ -142,6 +179,7 @@ fn input_hash(dir: &Path, stage: &Stage, options: &CheckOptions) -> Result<Hash>
         h.value(file, &bytes.map(|b| Hash::of(&b)));
     }
     h.value("match.max_speed", &options.max_speed);
+    h.value("export.turn_rate_deg_s", &options.turn_rate_deg_s);
     h.value("sample_step_s", &SAMPLE_STEP_S);
     Ok(h.finish())
 }
@@ -167,6 +205,13 @@ fn measure(dir: &Path, options: &CheckOptions) -> Result<CheckReport> {
     let limit = options.max_speed * crowd_check::products::SPEED_MARGIN;
     report.library = library(dir, &walls, limit)?;
     report.gltf = gltf(dir, &graph, &walls, limit)?;
+    let turn_limit = options.turn_rate_deg_s.to_radians() * TURN_MARGIN;
+    for p in [&mut report.library, &mut report.gltf]
+        .into_iter()
+        .flatten()
+    {
+        p.turn_rate_limit_rad_s = Some(turn_limit);
+    }
     report.input_hash = Some(input_hash(dir, chosen, options)?);
     Ok(report)
 }

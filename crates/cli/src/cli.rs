@@ -261,8 +261,11 @@ pub fn run(cli: Cli) -> Result<()> {
             };
             driver::build(&pipeline, &options, &ui)?;
             if !no_check && stage::up_to(until).any(|s| *s == stages::EXPORT) {
-                let max_speed = file.pipeline.matching.max_speed;
-                crate::check::after_build(&out, max_speed, force, &ui)?;
+                let limits = (
+                    file.pipeline.matching.max_speed,
+                    file.pipeline.export.turn_rate_deg_s,
+                );
+                crate::check::after_build(&out, limits, force, &ui)?;
             }
             let scope = crate::report::Scope { last: until };
             let report = crate::report_md::write(&out, scope)?;

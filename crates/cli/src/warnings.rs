@@ -111,7 +111,7 @@ fn hurried(graph: &PatchGraph, summary: &CollisionSummary) -> Vec<Warning> {
 }
 
 /// Guarantees `crowd check` found broken in what ships.
-fn shipped(figures: &crowd_check::CheckReport) -> Vec<Warning> {
+pub(crate) fn shipped(figures: &crowd_check::CheckReport) -> Vec<Warning> {
     let mut out = Vec::new();
     for p in [&figures.library, &figures.gltf].into_iter().flatten() {
         let mut say = |text: String| {
@@ -139,6 +139,22 @@ fn shipped(figures: &crowd_check::CheckReport) -> Vec<Warning> {
             say(format!(
                 "{} of {} loops do not close (a character jumps at the loop seam)",
                 p.open_loops, p.loops
+            ));
+        }
+        if let (Some(turn), Some(limit)) = (p.max_turn_rate_rad_s, p.turn_rate_limit_rad_s)
+            && turn > limit
+        {
+            say(format!(
+                "characters turn at up to {:.1} degrees a second, above {:.1} \
+                 (`export.turn_rate_deg_s` and the keys' rounding)",
+                turn.to_degrees(),
+                limit.to_degrees()
+            ));
+        }
+        if let Some(s) = p.sampled.as_ref().filter(|s| s.jumps > 0) {
+            say(format!(
+                "played by crowd-runtime every {} s, characters jump {} times",
+                s.step_s, s.jumps
             ));
         }
     }
