@@ -153,9 +153,11 @@ pub fn sample(lib: &Library, step: f64, fastest: f64) -> Sampled {
     let runs: Vec<(u64, u64)> = (0..frames.div_ceil(FRAMES_PER_RUN))
         .map(|r| (r * FRAMES_PER_RUN, ((r + 1) * FRAMES_PER_RUN).min(frames)))
         .collect();
+    // One sampler made (its headings computed once), copied for each run.
+    let sampler = Sampler::new(lib);
     let (max_speed, jumps, max_turn) = runs
         .par_iter()
-        .map(|&(first, last)| play(lib, step, fastest, first..=last))
+        .map(|&(first, last)| play(sampler.clone(), step, fastest, first..=last))
         .reduce(
             || (0.0, 0, 0.0),
             |a, b| (a.0.max(b.0), a.1 + b.1, a.2.max(b.2)),
@@ -172,12 +174,11 @@ pub fn sample(lib: &Library, step: f64, fastest: f64) -> Sampled {
 /// [`sample`]'s frames `frames` (each compared with the one before it, the first only as
 /// that): the fastest step, the jumps and the fastest turn (rad/s).
 fn play(
-    lib: &Library,
+    mut sampler: Sampler,
     step: f64,
     fastest: f64,
     frames: std::ops::RangeInclusive<u64>,
 ) -> (f64, u64, f64) {
-    let mut sampler = Sampler::new(lib);
     let (mut before, mut now): (Vec<Sample>, Vec<Sample>) = (Vec::new(), Vec::new());
     sampler.sample(*frames.start() as f64 * step, EVERYWHERE, &mut before);
     let (mut max_speed, mut jumps, mut max_turn) = (0.0f64, 0u64, 0.0f64);
