@@ -247,7 +247,7 @@ fn c_gltf(r: &Report) -> Option<ProductFigures> {
 }
 
 /// A shipped file's figures in the report: JSON key (after `library_` or `gltf_`) and label.
-pub const PRODUCT_ROWS: [(&str, &str); 16] = [
+pub const PRODUCT_ROWS: [(&str, &str); 17] = [
     ("collisions", "collisions"),
     ("min_clearance_m", "smallest clearance (m)"),
     ("max_speed", "largest speed (m/s)"),
@@ -275,7 +275,11 @@ pub const PRODUCT_ROWS: [(&str, &str); 16] = [
     ("open_loops", "open loops (end 1 cm or more from any start)"),
     (
         "max_turn_rate_rad_s",
-        "fastest turn between rotation keys (rad/s)",
+        "fastest turn (rad/s; glTF: between rotation keys, library: its sampler's frames)",
+    ),
+    (
+        "turn_rate_limit_rad_s",
+        "turn limit (rad/s; `export.turn_rate_deg_s` + 1 %)",
     ),
     ("sampled_max_speed", "runtime's sampler: fastest step (m/s)"),
     (
@@ -312,6 +316,10 @@ fn product_json(p: &ProductFigures) -> Vec<(&'static str, Value)> {
         (
             "max_turn_rate_rad_s",
             p.max_turn_rate_rad_s.map(|x| json!(x)),
+        ),
+        (
+            "turn_rate_limit_rad_s",
+            p.turn_rate_limit_rad_s.map(|x| json!(x)),
         ),
         ("sampled_max_speed", sampled.map(|s| json!(s.max_speed_m_s))),
         ("sampler_jumps", sampled.map(|s| json!(s.jumps))),
