@@ -128,3 +128,73 @@ fn gallop(out: &[Sample], id: u32) -> usize {
     let hi = hi.min(out.len());
     lo + out[lo..hi].partition_point(|s| s.id < id)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sample(id: u32) -> Sample {
+        Sample {
+            id,
+            x: 0.0,
+            y: 0.0,
+            heading: 9.0,
+        }
+    }
+
+    /// Walker `id` turns from 1 rad by half a radian, from tick `from` to `to`.
+    fn turn(id: u32, from: f64, to: f64) -> Turn {
+        Turn {
+            id,
+            from,
+            to,
+            h0: 1.0,
+            turn: 0.5,
+        }
+    }
+
+    #[test]
+    fn a_turn_sets_its_walkers_heading_only_while_it_runs() {
+        let mut t = Turning::default();
+        // Walker 1 turns from tick 10 to 20 (met at 5: still to come); walker 3 from 0 to 8.
+        t.add(turn(1, 10.0, 20.0), 5.0);
+        t.add(turn(3, 0.0, 8.0), 5.0);
+        let mut out = vec![sample(0), sample(1), sample(3)];
+        t.apply(5.0, &mut out);
+        assert_eq!(out[1].heading, 9.0, "not started");
+        assert!((out[2].heading - (1.0 + 0.5 * 5.0 / 8.0)).abs() < 1e-6);
+        let mut out = vec![sample(1), sample(3)];
+        t.apply(15.0, &mut out);
+        assert!((out[0].heading - 1.25).abs() < 1e-6, "{}", out[0].heading);
+        assert_eq!(out[1].heading, 9.0, "over");
+        let mut out = vec![sample(1)];
+        t.apply(25.0, &mut out);
+        assert_eq!(out[0].heading, 9.0, "over");
+        assert!(t.under_way.is_empty() && t.later.is_empty());
+    }
+
+    #[test]
+    fn a_turn_past_half_a_turn_wraps_into_the_headings_range() {
+        let t = Turn {
+            h0: 3.0,
+            ..turn(0, 0.0, 10.0)
+        };
+        let h = t.at(5.0);
+        assert!((h - (3.25 - std::f32::consts::TAU)).abs() < 1e-6, "{h}");
+    }
+
+    #[test]
+    fn walkers_out_of_view_are_skipped() {
+        let mut t = Turning::default();
+        for id in [2, 5, 7, 40] {
+            t.add(turn(id, 0.0, 10.0), 1.0);
+        }
+        // Only 5 and 40 in view (samples in id order, not at their id's place).
+        let mut out = vec![sample(5), sample(40)];
+        t.apply(5.0, &mut out);
+        assert!(
+            out.iter().all(|s| (s.heading - 1.25).abs() < 1e-6),
+            "{out:?}"
+        );
+    }
+}
