@@ -171,19 +171,33 @@ pub fn loop_headings_walking(
 
 /// Whether the piece of `lib` from point `a` to the next, `b`, walks ([`walks`], on the
 /// quantised points as the library holds them).
-pub fn piece_walks(lib: &crate::Library, a: crate::Point, b: crate::Point) -> bool {
+fn piece_walks(lib: &crate::Library, a: crate::Point, b: crate::Point) -> bool {
     let steps = f64::from(i32::from(b.x) - i32::from(a.x))
         .hypot(f64::from(i32::from(b.y) - i32::from(a.y)));
     let metres = steps * f64::from(lib.world.patch_side_m) / crate::format::QUANT_STEPS;
     walks(metres, f64::from(b.t.wrapping_sub(a.t)) * crate::TICK_S)
 }
 
+/// What the heading model says of every point of a library ([`library_headings`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct PointHeadings {
+    /// The heading at each point, radians.
+    pub heading: Vec<f64>,
+    /// Whether the piece from each point to the next of its trajectory walks ([`walks`], on
+    /// the quantised points; false at a trajectory's last point).
+    pub walks: Vec<bool>,
+}
+
 /// Every point's heading in `lib` (radians), at the library's turn rate: [`loop_headings`]
-/// over each loop's points (a trajectory's first point is its predecessor's last). Stage 8
-/// takes `world.glb`'s headings from here, so the glTF and the runtime face the same way.
-pub fn library_headings(lib: &crate::Library) -> Vec<f64> {
+/// over each loop's points (a trajectory's first point is its predecessor's last), and
+/// whether the piece from it walks. Stage 8 takes `world.glb`'s headings from here and the
+/// runtime's sampler its own, so the glTF and the runtime face the same way.
+pub fn library_headings(lib: &crate::Library) -> PointHeadings {
     let rate = f64::from(lib.world.turn_rate_deg_s).to_radians();
-    let mut out = vec![0.0; lib.points.len()];
+    let mut out = PointHeadings {
+        heading: vec![0.0; lib.points.len()],
+        walks: vec![false; lib.points.len()],
+    };
     let (mut times, mut places, mut keys, mut walking) =
         (Vec::new(), Vec::new(), Vec::new(), Vec::new());
     for ch in &lib.characters {
@@ -202,7 +216,9 @@ pub fn library_headings(lib: &crate::Library) -> Vec<f64> {
                     places.push(lib.world_position(patch, *p));
                 }
                 if i > 0 {
-                    walking.push(piece_walks(lib, pts[i - 1], *p));
+                    let walks = piece_walks(lib, pts[i - 1], *p);
+                    out.walks[tr.first_point as usize + i - 1] = walks;
+                    walking.push(walks);
                 }
                 keys.push((tr.first_point as usize + i, times.len() - 1));
             }
@@ -211,7 +227,7 @@ pub fn library_headings(lib: &crate::Library) -> Vec<f64> {
         }
         let h = loop_headings_walking(&times, &places, &walking, rate);
         for &(point, key) in &keys {
-            out[point] = h[key];
+            out.heading[point] = h[key];
         }
     }
     out

@@ -144,14 +144,14 @@ pub(super) fn loop_paths(w: &World) -> Vec<LoopPath> {
                 let first = lib.trajectories[i].first_point as usize;
                 for (k, cp) in tr.points.iter().enumerate() {
                     if k > 0 {
-                        walking.push(turn::piece_walks(lib, held[k - 1], held[k]));
+                        walking.push(table.walks[first + k - 1]);
                     } else if !times.is_empty() {
                         continue; // the previous trajectory's exit, the same instant and place
                     }
                     times.push(offset + cp.t - t0);
                     points.push(origin + cp.pos);
                     turn_times.push((tick + u64::from(held[k].t)) as f64 * TICK_S);
-                    headings.push(table[first + k]);
+                    headings.push(table.heading[first + k]);
                 }
                 offset += tr.duration();
                 tick += u64::from(lib.duration_ticks(&lib.trajectories[i]));

@@ -214,13 +214,12 @@ impl Loops {
             }
         }
         loops.first.push(loops.trajectories.len());
-        let headings = crate::turn::library_headings(lib);
-        loops.headings = (0..lib.points.len())
-            .map(|p| {
-                let next = lib.points.get(p + 1).copied();
-                let walks = next.is_some_and(|b| crate::turn::piece_walks(lib, lib.points[p], b));
-                (turns(headings[p] as f32) & !WALKS) | if walks { WALKS } else { 0 }
-            })
+        let model = crate::turn::library_headings(lib);
+        loops.headings = model
+            .heading
+            .iter()
+            .zip(&model.walks)
+            .map(|(&h, &walks)| (turns(h as f32) & !WALKS) | if walks { WALKS } else { 0 })
             .collect();
         loops
     }
