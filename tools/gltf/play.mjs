@@ -86,7 +86,7 @@ for (let f = 0; f <= frames; f++) {
         fastestTurn = rate;
         fastestTurnAt = { node: walkers[i].name, t: f * dt };
       }
-      if (prevV && !((f - 1) * dt % period > (f * dt) % period)) {
+      if (prevV) {
         largestJump = Math.max(largestJump, Math.hypot(v[i].x - prevV[i].x, v[i].y - prevV[i].y));
       }
     }
