@@ -216,11 +216,15 @@ fn smooth_settings_refuse_what_smoothing_cannot_use() {
 }
 
 #[test]
-fn export_settings_refuse_an_empty_region_and_a_bad_distance() {
+fn export_settings_refuse_an_empty_region_a_bad_distance_and_a_bad_turn_rate() {
     let (mm, region) = ("a distance in millimetres", "with x0 < x1 and y0 < y1");
+    let turn = "a turning speed in degrees a second from 30 to 3600";
     all_refused(&[
         (BANDS, "export.simplify_mm", "NaN", mm),
         (BANDS, "export.simplify_mm", "-1.0", mm),
+        (BANDS, "export.turn_rate_deg_s", "0.0", turn),
+        (BANDS, "export.turn_rate_deg_s", "NaN", turn),
+        (BANDS, "export.turn_rate_deg_s", "1e30", turn),
         (
             BANDS,
             "export.gltf_region",
