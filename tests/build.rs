@@ -250,7 +250,7 @@ fn a_build_writes_a_report_with_every_stage_its_cost_its_outputs_and_pictures() 
         "| walkers | 1105 |",
         "| worst position error (m) |",
         "| **all stages** |",
-        "| `library.crowd` | 873.0 kB |",
+        "| `library.crowd` | 1.1 MB |",
         "| `world.glb` |",
     ] {
         assert!(md.contains(figure), "{figure} in\n{md}");

@@ -54,6 +54,7 @@ let fastestTurn = 0;
 let fastestTurnAt = null;
 let largestJump = 0;
 let seamJump = 0;
+let seamJumpAt = null;
 let seamTurn = 0;
 let seamGap = 0;
 const followed = [];
@@ -77,7 +78,11 @@ for (let f = 0; f <= frames; f++) {
         seamTurn = Math.max(seamTurn, Math.abs(turn(prev[i].h, s.h)) / dt);
         if (prevV) {
           const vs = { x: (s.x - prev[i].x) / dt, y: (s.y - prev[i].y) / dt };
-          seamJump = Math.max(seamJump, Math.hypot(vs.x - prevV[i].x, vs.y - prevV[i].y));
+          const jump = Math.hypot(vs.x - prevV[i].x, vs.y - prevV[i].y);
+          if (jump > seamJump) {
+            seamJump = jump;
+            seamJumpAt = { node: walkers[i].name, t: f * dt };
+          }
         }
         continue;
       }
@@ -114,6 +119,7 @@ const figures = {
   largest_velocity_change_per_frame_m_s: largestJump,
   seam_fastest_turn_deg_s: (seamTurn * 180) / Math.PI,
   seam_largest_velocity_change_m_s: seamJump,
+  seam_largest_velocity_change_at: seamJumpAt,
   seam_gap_beyond_a_walk_m: Math.max(0, seamGap),
   mixer_ms_per_frame: mixerMs,
 };

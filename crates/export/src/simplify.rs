@@ -48,7 +48,7 @@ pub fn keyframes(points: &[ControlPoint], tolerance_m: f64) -> Vec<ControlPoint>
         let mut b = a + 1;
         while b + 1 < points.len()
             && b - a < MAX_RUN
-            && !fixed(points[b].kind)
+            && !fixed(points, b)
             && spans(points, a, b + 1, tolerance_m)
         {
             b += 1;
@@ -59,11 +59,29 @@ pub fn keyframes(points: &[ControlPoint], tolerance_m: f64) -> Vec<ControlPoint>
     kept
 }
 
-/// Keyframes no export drops: where the patterns fix a character, and where a trajectory
-/// passes a whole period.
-fn fixed(kind: PointKind) -> bool {
-    matches!(kind, PointKind::Entry | PointKind::Exit | PointKind::Split)
+/// Keyframes no export drops: where the patterns fix a character, where a trajectory passes a
+/// whole period, and either side of that. There a character hands over from one `world.glb` node
+/// to the next: the pieces either side are stage 6's own (a velocity change of at most 0.1 m/s
+/// on a curve), not a longer piece whose velocity differs from its neighbour's by up to
+/// sqrt(8 x tolerance x acceleration) (0.3 m/s, as pieces through a corner of 10 m/s2 do).
+fn fixed(points: &[ControlPoint], k: usize) -> bool {
+    let kind = |k: usize| points.get(k).map(|p| p.kind);
+    let fixed = |kind| {
+        matches!(
+            kind,
+            Some(PointKind::Entry | PointKind::Exit | PointKind::Split)
+        )
+    };
+    // A neighbour a few milliseconds from the split is no piece to keep: rounded to glTF's f32
+    // times or the library's ticks, its velocity is anything.
+    let far = |j: usize| (points[j].t - points[k].t).abs() >= MIN_SEAM_PIECE_S;
+    fixed(kind(k))
+        || (kind(k + 1) == Some(PointKind::Split) && far(k + 1))
+        || (k > 0 && kind(k - 1) == Some(PointKind::Split) && far(k - 1))
 }
+
+/// The shortest piece either side of a period split kept for its own sake, s.
+const MIN_SEAM_PIECE_S: f64 = 5e-3;
 
 /// Whether the straight walk from keyframe `a` to keyframe `b` passes every keyframe between
 /// them within `tolerance_m`, at its time.
@@ -140,9 +158,26 @@ mod tests {
         }
 
         #[test]
-        fn entries_exits_and_period_splits_are_kept_and_nothing_is_invented(points in walk()) {
+        fn entries_exits_and_period_splits_with_their_neighbours_are_kept_and_nothing_is_invented(
+            points in walk()
+        ) {
             let kept = keyframes(&points, 7.5e-4);
-            let fixed: Vec<_> = points.iter().filter(|p| fixed(p.kind)).collect();
+            let split = |j: usize, k: usize| {
+                points.get(j).is_some_and(|p| {
+                    p.kind == PointKind::Split && (p.t - points[k].t).abs() >= MIN_SEAM_PIECE_S
+                })
+            };
+            let fixed: Vec<_> = points
+                .iter()
+                .enumerate()
+                .filter(|&(k, p)| {
+                    matches!(p.kind, PointKind::Entry | PointKind::Exit)
+                        || p.kind == PointKind::Split
+                        || split(k + 1, k)
+                        || (k > 0 && split(k - 1, k))
+                })
+                .map(|(_, p)| p)
+                .collect();
             prop_assert!(fixed.iter().all(|p| kept.contains(p)));
             prop_assert!(kept.iter().all(|p| points.contains(p)));
             prop_assert!(kept.windows(2).all(|w| w[0].t <= w[1].t));

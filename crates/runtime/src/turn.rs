@@ -25,6 +25,12 @@ pub fn walks(metres: f64, seconds: f64) -> bool {
     metres > 1e-9 && metres > WALKING_M_S * seconds
 }
 
+/// The most a heading turns over one piece, radians: a little short of half a turn, so that
+/// which way a piece turns is the same whoever reads its two ends, rounded to the library's
+/// 65536ths of a turn or not (a turn back of exactly half a turn went one way in the runtime's
+/// sampler and the other in `world.glb`). The rest of a turn back runs on the next piece.
+const MAX_PIECE_TURN: f64 = PI - 1e-3;
+
 /// `a - b` as the shorter turn, in (-pi, pi].
 pub fn turn_between(a: f64, b: f64) -> f64 {
     let mut d = a - b;
@@ -142,12 +148,13 @@ pub fn loop_headings_walking(
         for k in 0..n - 1 {
             let (t0, t1) = (times[k], times[k + 1]);
             h[k + 1] = match (directions[k], next_walk[k]) {
-                (Some(d), _) => towards(h[k], d, rate * (t1 - t0)),
+                (Some(d), _) => towards(h[k], d, (rate * (t1 - t0)).min(MAX_PIECE_TURN)),
                 // Standing: the run's one turn ends as it walks off; this piece turns only
                 // for the part of it that falls inside the piece.
                 (None, Some((d, walk_off))) => {
                     let starts = walk_off - turn_between(d, h[k]).abs() / rate;
-                    towards(h[k], d, rate * (t1 - starts.max(t0)).max(0.0))
+                    let step = (rate * (t1 - starts.max(t0)).max(0.0)).min(MAX_PIECE_TURN);
+                    towards(h[k], d, step)
                 }
                 (None, None) => h[k],
             };
@@ -343,6 +350,16 @@ mod tests {
         })
     }
 
+    #[test]
+    fn a_turn_back_on_one_long_piece_turns_the_same_way_rounded_or_not() {
+        // East for 2 s, then west for 3 s: half a turn at 2 rad/s fits in the piece. (The
+        // runtime's sampler reads a turn of exactly half a turn as -pi, the glTF as +pi.)
+        let times = [0.0, 2.0, 5.0, 7.0];
+        let points = [[0.0, 0.0], [2.0, 0.0], [-1.0, 0.0], [0.0, 0.0]];
+        let h = loop_headings(&times, &points, 2.0);
+        assert!(turn_between(h[2], h[1]).abs() < PI - 1e-4);
+    }
+
     proptest! {
         /// Sampled anywhere, the heading turns no faster than the rate, does not turn while
         /// standing but for the turn that ends as it walks off, and loops.
@@ -361,6 +378,15 @@ mod tests {
                 prop_assert!(turned <= RATE * (b - a) * (1.0 + 1e-9) + 1e-9, "{turned} in {}", b - a);
             }
             prop_assert!(turn_between(at(end), at(0.0)).abs() < 1e-9);
+            // Short of half a turn on any piece, so that which way it turns does not hang on
+            // rounding its ends to 65536ths of a turn.
+            let q = std::f64::consts::TAU / 65536.0;
+            let round = |h: f64| (h / q).round() * q;
+            for piece in &p {
+                prop_assert!(piece.turn().abs() <= MAX_PIECE_TURN + 1e-12);
+                let rounded = turn_between(round(piece.h1), round(piece.h0));
+                prop_assert!(rounded.signum() == piece.turn().signum() || piece.turn().abs() < q);
+            }
             for q in p.iter().filter(|q| !q.walks) {
                 let (start, stop) = q.turning(RATE);
                 prop_assert!((stop - q.t1).abs() < 1e-12);

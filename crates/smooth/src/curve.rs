@@ -53,7 +53,10 @@ pub fn smooth(
     let (entry_band, exit_band) = crowd_core::trajectories::band_ends(pts);
     let first = entry_band.unwrap_or(0);
     let last = exit_band.unwrap_or(pts.len() - 1);
-    let mut out = pts[..=first].to_vec();
+    // Room for the samples of a walk of tacks every second or so, refined where it bends.
+    let duration = pts[pts.len() - 1].t - pts[0].t;
+    let mut out = Vec::with_capacity(pts.len() + (duration / MIN_STEP_S) as usize / 4);
+    out.extend_from_slice(&pts[..=first]);
     let mut dropped = 0;
     let mut i = first;
     while i < last {
@@ -214,17 +217,26 @@ fn piece(
         } else {
             a.pos.lerp(b.pos, (s - a.t) / (b.t - a.t))
         };
-        out.insert(
-            k,
-            ControlPoint {
-                pos,
-                t: s,
-                kind: PointKind::Split,
-            },
-        );
+        let split = ControlPoint {
+            pos,
+            t: s,
+            kind: PointKind::Split,
+        };
+        // A sample a moment from the split goes: no piece of a few microseconds, whose
+        // velocity glTF's f32 times or the library's ticks would make anything.
+        if a.kind == PointKind::Sample && s - a.t < MIN_GAP_S {
+            out[k - 1] = split;
+        } else if b.kind == PointKind::Sample && b.t - s < MIN_GAP_S {
+            out[k] = split;
+        } else {
+            out.insert(k, split);
+        }
     }
     dropped
 }
+
+/// The shortest piece next to a split point, s.
+const MIN_GAP_S: f64 = 2e-3;
 
 /// A time on the curve with its position and velocity there.
 #[derive(Clone, Copy)]
