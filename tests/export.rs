@@ -379,15 +379,17 @@ fn export_region_puts_part_of_the_world_in_the_gltf() {
     }
 }
 
-/// `world.glb` played by three.js (`tools/gltf/play.mjs`: GLTFLoader, an AnimationMixer looping
-/// `crowd_loop`, two periods at 60 fps), as a game shows it: every node names its successor,
-/// no node turns faster than 360 degrees a second between frames, and following `crowd_next`
-/// at each wrap, a character goes on through the seam with no gap beyond a frame's walk, no
-/// faster turn, and no larger change of velocity from frame to frame than inside the nodes
-/// (the walks' own starts, stops and corners).
+/// `world.glb` of every shared scene played by three.js (`tools/gltf/play.mjs`: GLTFLoader, an
+/// AnimationMixer looping `crowd_loop`, two periods at 60 fps), as a game shows it: every node
+/// names its successor (painting's region: every node its character is still shown in at the
+/// seam), no node turns faster than 360 degrees a second between frames, and following
+/// `crowd_next` at each wrap, a character goes on through the seam with no gap beyond a
+/// frame's walk, no faster turn, and no larger change of velocity from frame to frame than
+/// inside the nodes (the walks' own corners, which stage 6 takes over a tenth of a second: at
+/// most 2.5 m/s a frame inside nodes, where a hurried walk cannot ease into its band).
 #[test]
 fn world_glb_played_by_three_js_turns_like_people_and_goes_on_through_the_seam() {
-    for name in ["bands", "city"] {
+    for name in ["bands", "center-flow", "lanes", "ring", "city", "painting"] {
         let glb = scene(name).join("world.glb");
         let out = node_tool("play.mjs", &[s(&glb)]);
         let text = String::from_utf8_lossy(&out.stdout);
@@ -401,7 +403,13 @@ fn world_glb_played_by_three_js_turns_like_people_and_goes_on_through_the_seam()
             f[k].as_f64()
                 .unwrap_or_else(|| panic!("{name}: {k} in {f}"))
         };
-        assert_eq!(num("named"), num("nodes"), "{name}: {f}");
+        if name != "painting" {
+            assert_eq!(num("named"), num("nodes"), "{name}: {f}");
+        }
+        assert!(
+            num("largest_velocity_change_per_frame_m_s") <= 2.5,
+            "{name}: {f}"
+        );
         assert!(num("fastest_turn_deg_s") <= 360.0 * 1.005, "{name}: {f}");
         assert!(
             num("seam_fastest_turn_deg_s") <= 360.0 * 1.005,

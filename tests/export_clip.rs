@@ -146,7 +146,7 @@ fn runtime_at(lib: &Library, t: f64) -> HashMap<String, (f64, f64)> {
 /// their first keys and reach their last ones at no more than the scene's fastest walk.
 /// Returns the change of velocity at each handover (the node's last piece against its
 /// successor's first), m/s, where both walk.
-fn hands_over(out: &Path, fastest: f64) -> Vec<Option<f64>> {
+fn hands_over(out: &Path, fastest: f64) -> Vec<f64> {
     let (period, tracks) = clip(&out.join("world.glb"));
     let lib = library(out);
     assert!((f64::from(period) - lib.period_s()).abs() < 1e-6);
@@ -194,38 +194,38 @@ fn hands_over(out: &Path, fastest: f64) -> Vec<Option<f64>> {
             off <= SAME_PLACE_M,
             "{name} -> {next}: {off} m off after the seam"
         );
-        // A walk that stops or starts at the seam (a pause that begins at the period's end:
-        // city's walker_3551 walks in at 1.18 m/s, walker_3550 stands for 12.6 s) changes
-        // velocity there as it would anywhere else; the handover is judged where both walk.
+        // Walking, stopping or starting: stage 6 takes a corner over a tenth of a second
+        // wherever it can (city's walker_3551 walked into a pause at the period's end at 1.18
+        // m/s, its corner at the seam, before it did).
         let (v_in, v_out) = (tr.velocity(n - 1), succ.velocity(1));
-        let walking = |v: (f64, f64)| v.0.hypot(v.1) > STANDING_M_S;
-        handovers.push((walking(v_in) && walking(v_out)).then(|| distance(v_in, v_out)));
+        handovers.push(distance(v_in, v_out));
     }
     handovers
 }
-
-/// Below this, a node stands, m/s.
-const STANDING_M_S: f64 = 0.05;
 
 /// Before: the key before a period's split point was up to 0.66 m away 0.05 s earlier
 /// (10.8 m/s on city), nodes named nobody, and stage 5 bent walks at their split points, so
 /// that 1 % of handovers changed velocity by 1.3-1.6 m/s. The pieces at the seam are the
 /// walk's own, at most `match.max_speed` + 5 % (1.89 m/s), and the velocity goes on: within
-/// 0.12 m/s at 99 % of handovers, within 0.5 m/s at all (where a band ends a moment from the
-/// period, its corner, which stage 4 draws, is at the seam). (The nodes play the library's
-/// points: a piece of a few milliseconds at the seam carries its 0.05 ms tick rounding, 0.107
-/// m/s at bands' 99th percentile against 0.1 with stage 6's times.)
+/// 0.15 m/s at 99 % of handovers (lanes 0.14), within 0.6 m/s at all, on every shared scene (where a corner
+/// is averaged across the seam, the pieces either side are a few milliseconds of its 0.1 s;
+/// where a band ends a moment from the period and its walk is too hurried to ease into it,
+/// its corner is at the seam). (The nodes play the library's points: a piece of a few
+/// milliseconds at the seam carries its 0.05 ms tick rounding.)
 #[test]
 fn every_world_glb_node_hands_over_to_the_successor_it_names_without_a_jump() {
-    for name in ["bands", "city"] {
+    for name in ["bands", "center-flow", "lanes", "ring", "city", "painting"] {
         let out = scene(name);
         let handovers = hands_over(out, 1.89);
-        assert_eq!(handovers.len() as u64, library(out).walkers(), "{name}");
-        let mut dv: Vec<f64> = handovers.into_iter().flatten().collect();
+        // Every character hands over (painting's glTF shows a region: those in it at the seam).
+        if name != "painting" {
+            assert_eq!(handovers.len() as u64, library(out).walkers(), "{name}");
+        }
+        let mut dv = handovers;
         dv.sort_by(f64::total_cmp);
         let (p99, max) = (dv[dv.len() * 99 / 100], dv[dv.len() - 1]);
         assert!(
-            p99 <= 0.12 && max <= 0.5,
+            p99 <= 0.15 && max <= 0.6,
             "{name}: velocity changes by {p99} m/s at the 99th percentile, {max} at most"
         );
     }
