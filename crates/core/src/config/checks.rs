@@ -43,17 +43,42 @@ pub fn require(ok: bool, field: &str, value: impl fmt::Display, expected: &str) 
 
 /// A finite number above zero (NaN and infinity are refused).
 pub fn positive(field: &str, value: f64, expected: &str) -> Check {
-    require(value.is_finite() && value > 0.0, field, value, expected)
+    require(
+        value.is_finite() && value > 0.0,
+        field,
+        Num(value),
+        expected,
+    )
 }
 
 /// A finite number of zero or more.
 pub fn not_negative(field: &str, value: f64, expected: &str) -> Check {
-    require(value.is_finite() && value >= 0.0, field, value, expected)
+    require(
+        value.is_finite() && value >= 0.0,
+        field,
+        Num(value),
+        expected,
+    )
 }
 
 /// A number in (0, 1]: a share (NaN is refused, as it compares with nothing).
 pub fn share(field: &str, value: f64, expected: &str) -> Check {
-    require(value > 0.0 && value <= 1.0, field, value, expected)
+    require(value > 0.0 && value <= 1.0, field, Num(value), expected)
+}
+
+/// A number as a person writes it: `20`, `0.3`, `1e300` (not three hundred digits), `1e-9`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Num(pub f64);
+
+impl fmt::Display for Num {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let v = self.0;
+        if v != 0.0 && v.is_finite() && !(1e-4..1e9).contains(&v.abs()) {
+            write!(f, "{v:e}")
+        } else {
+            write!(f, "{v}")
+        }
+    }
 }
 
 /// A count of at least one.

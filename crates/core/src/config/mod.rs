@@ -15,7 +15,7 @@ mod pipeline;
 mod ron_text;
 mod settings;
 
-pub use checks::{Check, Invalid};
+pub use checks::{Check, Invalid, Num};
 pub use pipeline::{LayerKind, LayerSpec, Pipeline, PipelineFile, Scene};
 pub use settings::{
     CollideSettings, ExportSettings, GraphSettings, MatchSettings, MergeSettings, OptimizeSettings,

@@ -2,7 +2,7 @@
 //! each stage's settings) and `PipelineFile`, which reads, parses and checks it and resolves
 //! its paths. `Pipeline::validate` checks the top level and calls each stage's `validate`.
 
-use super::checks::{Check, invalid, not_negative, positive};
+use super::checks::{Check, Num, invalid, not_negative, positive, require};
 use super::ron_text::{describe_ron_error, locate_field};
 use super::settings::{
     CollideSettings, ExportSettings, GraphSettings, MatchSettings, MergeSettings, OptimizeSettings,
@@ -165,9 +165,87 @@ impl Pipeline {
         self.matching.validate()?;
         self.collide.validate()?;
         self.smooth.validate()?;
-        self.export.validate()
+        self.export.validate()?;
+        self.validate_sizes()
     }
 }
+
+impl Pipeline {
+    /// The settings that size the work, checked against each other: a patch holds walkers
+    /// with room to pass, a period is a whole number of the library's ticks and no longer than
+    /// [`MAX_PERIOD_S`], tacks fit in a period, an opening fits in a patch. Without these a
+    /// build aborted allocating (`period_s: 1e300`, `tack_spacing_s: 1e-9`), ran for minutes
+    /// (`period_s: 1e5`), panicked (`patch_side_m: 1.0`) or built nobody (`radius_m: 2.0`).
+    fn validate_sizes(&self) -> Check {
+        let (side, r, period) = (self.patch_side_m, self.radius_m, self.period_s);
+        require(
+            side >= MIN_PATCH_RADII * r && side <= MAX_PATCH_SIDE_M,
+            "patch_side_m",
+            Num(side),
+            &format!(
+                "from {} to {MAX_PATCH_SIDE_M} m: at least {MIN_PATCH_RADII} character radii \
+                 (`radius_m` is {}), so that walkers cross a patch with room to pass",
+                Num(MIN_PATCH_RADII * r),
+                Num(r)
+            ),
+        )?;
+        let ticks = period / TICK_S;
+        require(
+            (MIN_PERIOD_S..=MAX_PERIOD_S).contains(&period) && (ticks - ticks.round()).abs() < 1e-6,
+            "period_s",
+            Num(period),
+            &format!(
+                "from {MIN_PERIOD_S} to {MAX_PERIOD_S} seconds, a whole number of 0.1 ms \
+                 (the library's ticks), e.g. 20.0"
+            ),
+        )?;
+        let tack = self.smooth.tack_spacing_s;
+        require(
+            tack >= MIN_TACK_SPACING_S && tack <= period,
+            "smooth.tack_spacing_s",
+            Num(tack),
+            &format!(
+                "from {MIN_TACK_SPACING_S} s to the period ({} s)",
+                Num(period)
+            ),
+        )?;
+        if let Some(w) = self.graph.min_opening_m {
+            require(
+                w <= side,
+                "graph.min_opening_m",
+                Num(w),
+                &format!("at most the patch side ({} m)", Num(side)),
+            )?;
+        }
+        for (i, layer) in self.scene.layers.iter().enumerate() {
+            require(
+                layer.weight <= MAX_LAYER_WEIGHT,
+                &format!("scene.layers[{i}].weight"),
+                Num(layer.weight),
+                &format!(
+                    "from 0 to {} (weights are relative: 1 is the layer's paint as painted)",
+                    Num(MAX_LAYER_WEIGHT)
+                ),
+            )?;
+        }
+        Ok(())
+    }
+}
+
+/// The smallest patch side, in character radii: a border holds a walker crossing each way with
+/// its clearance, and the border bands (a radius deep) leave room inside.
+pub const MIN_PATCH_RADII: f64 = 8.0;
+/// The largest patch side, m: positions are kept to 1/65535 of it (1.5 mm at 100 m).
+pub const MAX_PATCH_SIDE_M: f64 = 100.0;
+/// The shortest and longest period, s: every stage's work grows with it.
+pub const MIN_PERIOD_S: f64 = 1.0;
+pub const MAX_PERIOD_S: f64 = 600.0;
+/// The library's time step, s (FORMAT.md).
+const TICK_S: f64 = 1e-4;
+/// The closest tacks, s (stage 6 samples a chord no shorter than this).
+pub const MIN_TACK_SPACING_S: f64 = 0.05;
+/// The heaviest layer weight.
+pub const MAX_LAYER_WEIGHT: f64 = 1e6;
 
 impl Scene {
     pub fn validate(&self) -> Check {

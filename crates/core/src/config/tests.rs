@@ -228,3 +228,78 @@ fn a_layer_weight_of_nan_is_refused() {
     let err = parse(&text).unwrap_err().to_string();
     assert!(err.contains("`scene.layers[1].weight` is NaN"), "{err}");
 }
+
+/// Settings that parse, each legal alone, that size the work beyond what a build can do: the
+/// issue's hostile table (an abort allocating, minutes of work, a panic, an empty crowd), each
+/// refused before any stage runs, naming the setting, its value as written and its range.
+#[test]
+fn settings_that_size_the_work_are_checked_against_each_other() {
+    for (from, to, field, expected) in [
+        (
+            "period_s: 20.0",
+            "period_s: 1e300",
+            "period_s",
+            "is 1e300; expected from 1 to 600",
+        ),
+        (
+            "period_s: 20.0",
+            "period_s: 1e5",
+            "period_s",
+            "is 100000; expected from 1 to 600",
+        ),
+        ("period_s: 20.0", "period_s: 1e-9", "period_s", "is 1e-9;"),
+        ("period_s: 20.0", "period_s: 20.00005", "period_s", "0.1 ms"),
+        (
+            "patch_side_m: 8.0",
+            "patch_side_m: 1.0",
+            "patch_side_m",
+            "from 2.4 to 100 m",
+        ),
+        (
+            "patch_side_m: 8.0",
+            "patch_side_m: 200.0",
+            "patch_side_m",
+            "from 2.4 to 100 m",
+        ),
+        (
+            "radius_m: 0.3",
+            "radius_m: 2.0",
+            "patch_side_m",
+            "from 16 to 100 m",
+        ),
+        (
+            "weight: 0.5",
+            "weight: 1e39",
+            "scene.layers[1].weight",
+            "is 1e39;",
+        ),
+    ] {
+        let text = GOOD.replace(from, to);
+        assert_ne!(text, GOOD, "{from}");
+        let err = parse(&text).unwrap_err().to_string();
+        assert!(err.contains(&format!("`{field}` ")), "{to}: {err}");
+        assert!(err.contains(expected), "{to}: {err}");
+    }
+    for (section, field, expected) in [
+        (
+            "smooth: (tack_spacing_s: 1e-9)",
+            "smooth.tack_spacing_s",
+            "from 0.05 s to the period",
+        ),
+        (
+            "smooth: (tack_spacing_s: 30.0)",
+            "smooth.tack_spacing_s",
+            "from 0.05 s to the period",
+        ),
+        (
+            "graph: (min_opening_m: Some(1e300))",
+            "graph.min_opening_m",
+            "at most the patch side",
+        ),
+    ] {
+        let err = parse(&with_section(section)).unwrap_err().to_string();
+        assert!(err.starts_with("p.ron:15:"), "{section}: {err}");
+        assert!(err.contains(&format!("`{field}` is ")), "{section}: {err}");
+        assert!(err.contains(expected), "{section}: {err}");
+    }
+}
