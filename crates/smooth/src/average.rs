@@ -405,15 +405,8 @@ fn drop_straight(points: Vec<ControlPoint>) -> Vec<ControlPoint> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::testing::cp;
     use proptest::prelude::*;
-
-    fn cp(x: f64, y: f64, t: f64, kind: PointKind) -> ControlPoint {
-        ControlPoint {
-            pos: DVec2::new(x, y),
-            t,
-            kind,
-        }
-    }
 
     /// A walk as stage 5 leaves one: an entry band eastwards at 1.3 m/s, then random pieces of
     /// 0.1-1.5 s at up to 1.8 m/s (pushes, pauses, turns back), then an exit band.

@@ -277,14 +277,7 @@ fn refine(s: &Spline, a: Knot, b: Knot, tolerance: f64, depth: u32, out: &mut Ve
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    fn cp(x: f64, y: f64, t: f64, kind: PointKind) -> ControlPoint {
-        ControlPoint {
-            pos: DVec2::new(x, y),
-            t,
-            kind,
-        }
-    }
+    use crate::testing::cp;
 
     /// A walk across the patch with one bend in the middle, between its border bands.
     fn bend() -> Trajectory {

@@ -14,6 +14,21 @@ pub mod average;
 pub mod curve;
 pub mod spline;
 
+/// What the stage's unit tests build their walks from.
+#[cfg(test)]
+mod testing {
+    use crowd_core::trajectories::{ControlPoint, PointKind};
+
+    /// A point of a walk at (`x`, `y`) m and `t` s.
+    pub fn cp(x: f64, y: f64, t: f64, kind: PointKind) -> ControlPoint {
+        ControlPoint {
+            pos: glam::DVec2::new(x, y),
+            t,
+            kind,
+        }
+    }
+}
+
 use crowd_core::config::SmoothSettings;
 use crowd_core::patterns::Crossing;
 use crowd_core::trajectories::{ControlPoint, PatchMotion, SmoothingSummary, Trajectory};
