@@ -87,6 +87,20 @@ fn continuations(a: &Ends, b: &Ends, period: f64) -> [Option<i64>; 2] {
 
 /// A pair's closest approach: distance, time, place, and whether in different patches.
 type Near = (f64, f64, DVec2, bool);
+/// A piece in a cell's time sweep: start and end (modulo the period when walkers repeat), its
+/// index, and its path's box.
+type Span = (f64, f64, u32, DVec2, DVec2);
+
+/// `x`'s bits as an integer in `f64::total_cmp`'s order.
+fn ordered_bits(x: f64) -> u64 {
+    let bits = x.to_bits();
+    if bits >> 63 == 1 {
+        !bits
+    } else {
+        bits | 1 << 63
+    }
+}
+
 /// A walker's closest approach to something standing still: clearance margin, time, place.
 type Margin = (f64, f64, DVec2);
 /// Pairs that collide, each at its closest, and the nearest approach of any pair.
@@ -119,49 +133,63 @@ impl Scene {
             .min_by(|x, y| x.0.total_cmp(&y.0))
     }
 
-    /// The pairs of pieces `ids` (ascending) whose times overlap, modulo the period when
-    /// walkers repeat: `(lower, higher)` indices, each once, ascending. A piece's time span is
-    /// swept against the others' starts (sorted), so a cell's pieces are not all compared with
-    /// all: they are spread over the whole period. Spans are widened by a nanosecond so that
-    /// rounding in the modulo never drops a pair that [`Scene::pair`] would compare.
-    fn coexisting(&self, ids: &[u32]) -> Vec<(u32, u32)> {
+    /// Every piece's time span (its start modulo the period when walkers repeat, widened by
+    /// a nanosecond so that rounding in the modulo never drops a pair that [`Scene::pair`]
+    /// would compare) and path box, by piece: computed once, not in every cell a piece is in.
+    fn spans(&self) -> Vec<Span> {
         const WIDEN: f64 = 1e-9;
-        let (period, periodic) = match self.repeat {
+        let (period, periodic) = self.periodicity();
+        let span = |(i, p): (usize, &Piece)| {
+            let s = &p.seg;
+            let start = if periodic {
+                s.t0.rem_euclid(period)
+            } else {
+                s.t0
+            };
+            let (lo, hi) = (s.p0.min(s.p1), s.p0.max(s.p1));
+            (start, start + (s.t1 - s.t0) + WIDEN, i as u32, lo, hi)
+        };
+        self.pieces.par_iter().enumerate().map(span).collect()
+    }
+
+    fn periodicity(&self) -> (f64, bool) {
+        match self.repeat {
             Repeat::Periodic(p) => (p, true),
             Repeat::Clip(p) => (p, false),
-        };
-        let mut spans: Vec<(f64, f64, u32)> = ids
-            .iter()
-            .map(|&i| {
-                let s = &self.pieces[i as usize].seg;
-                let start = if periodic {
-                    s.t0.rem_euclid(period)
-                } else {
-                    s.t0
-                };
-                (start, start + (s.t1 - s.t0) + WIDEN, i)
-            })
-            .collect();
-        spans.sort_by(|x, y| x.0.total_cmp(&y.0).then(x.2.cmp(&y.2)));
-        let mut out = Vec::new();
-        for (x, &(start, end, i)) in spans.iter().enumerate() {
-            let pair = |j: u32| (i.min(j), i.max(j));
+        }
+    }
+
+    /// Calls `visit` with the pairs of pieces `ids` whose times overlap, modulo the period
+    /// when walkers repeat (`spans` from [`Scene::spans`]). A piece's span is swept against
+    /// the others' starts (sorted, as integers: a comparison of floats made the sort a tenth
+    /// of the check), so a cell's pieces are not all compared with all: they are spread over
+    /// the whole period. Pairs whose paths are `reach` or farther apart along an axis are left
+    /// out. A pair may come twice (a span that wraps past the period meets one both ways),
+    /// which the callers' keyed minima do not mind: sorting a dense cell's pairs to drop the
+    /// few twins cost more than measuring them (a quarter of the check).
+    fn coexisting(&self, spans: &[Span], ids: &[u32], reach: f64, mut visit: impl FnMut(u32, u32)) {
+        let (period, periodic) = self.periodicity();
+        let mut cell: Vec<Span> = ids.iter().map(|&i| spans[i as usize]).collect();
+        cell.sort_unstable_by_key(|s| (ordered_bits(s.0), s.2));
+        for (x, &(start, end, i, lo, hi)) in cell.iter().enumerate() {
+            let mut pair = |o: &Span| {
+                if (o.3 - hi).max(lo - o.4).max_element() < reach {
+                    visit(i, o.2);
+                }
+            };
             if periodic && end - start >= period {
-                out.extend(spans.iter().filter(|o| o.2 != i).map(|o| pair(o.2)));
+                cell.iter().filter(|o| o.2 != i).for_each(&mut pair);
                 continue;
             }
             // Those starting during this one: after it in order, and from the period's start
             // again when it runs past the period's end.
-            let later = spans[x + 1..].iter().take_while(|o| o.0 <= end);
-            out.extend(later.map(|o| pair(o.2)));
+            let later = cell[x + 1..].iter().take_while(|o| o.0 <= end);
+            later.for_each(&mut pair);
             if periodic && end > period {
-                let wrapped = spans[..x].iter().take_while(|o| o.0 <= end - period);
-                out.extend(wrapped.map(|o| pair(o.2)));
+                let wrapped = cell[..x].iter().take_while(|o| o.0 <= end - period);
+                wrapped.for_each(&mut pair);
             }
         }
-        out.sort_unstable();
-        out.dedup();
-        out
     }
 
     /// Every walker pair closer than the clearance, at its closest, in pair order; and the
@@ -169,6 +197,7 @@ impl Scene {
     /// kept: a painting's pairs within reach ran to gigabytes.
     fn walker_pairs(&self) -> Found<(u32, u32), Near> {
         let r = self.radius;
+        let spans = self.spans();
         let grid = PieceGrid::new(self.pieces.iter().map(|p| &p.seg), 4.0, 2.0 * r);
         let reach = 2.0 * r + 1.0;
         // Found once each: in the cell holding the lower corner of their overlap.
@@ -178,16 +207,15 @@ impl Scene {
             .map(|(k, ids)| {
                 let mut out = Vec::new();
                 let mut nearest: Option<Near> = None;
-                for (i, j) in self.coexisting(ids) {
-                    let (a, b) = (&self.pieces[i as usize], &self.pieces[j as usize]);
-                    // Paths farther apart along an axis than the reach are farther apart.
-                    let (la, ha) = (a.seg.p0.min(a.seg.p1), a.seg.p0.max(a.seg.p1));
-                    let (lb, hb) = (b.seg.p0.min(b.seg.p1), b.seg.p0.max(b.seg.p1));
-                    if (lb - ha).max(la - hb).max_element() >= reach
-                        || !grid.owns(*k, &a.seg, &b.seg)
-                    {
-                        continue;
+                self.coexisting(&spans, ids, reach, |i, j| {
+                    if !grid.owns(*k, i, j) {
+                        return;
                     }
+                    // In index order, as the pair's closest place is the lower one's.
+                    let (a, b) = (
+                        &self.pieces[i.min(j) as usize],
+                        &self.pieces[i.max(j) as usize],
+                    );
                     if let Some((d, t, at)) = self.pair(a, b)
                         && d < reach
                     {
@@ -198,7 +226,7 @@ impl Scene {
                             out.push((key, near));
                         }
                     }
-                }
+                });
                 (out, nearest)
             })
             .reduce(|| (Vec::new(), None), merge);
@@ -210,8 +238,8 @@ impl Scene {
     /// near: clearance margin, time, place; and the smallest margin of any within reach.
     fn fixed_pairs(&self) -> Found<(u32, Fixed), Margin> {
         let r = self.radius;
-        let standers = BoxGrid::new(self.standers.iter().map(|&q| (q, q)), 2.0 * r + 1.0);
-        let walls = BoxGrid::new(self.walls.iter().copied(), r + 1.0);
+        let standers = BoxGrid::new(self.standers.iter().map(|&q| (q, q)), 4.0, 2.0 * r + 1.0);
+        let walls = BoxGrid::new(self.walls.iter().copied(), 4.0, r + 1.0);
         let found = self
             .pieces
             .par_iter()
@@ -219,27 +247,38 @@ impl Scene {
                 let s = &piece.seg;
                 let (lo, hi) = (s.p0.min(s.p1), s.p0.max(s.p1));
                 let mut out = Vec::new();
-                for i in standers.near(lo, hi) {
+                // The smallest margin found so far for this piece.
+                let mut best = f64::INFINITY;
+                standers.near(lo, hi, |i| {
                     let q = self.standers[i as usize];
                     if (q - hi).max(lo - q).max_element() >= 2.0 * r + 1.0 {
-                        continue;
+                        return;
                     }
                     if let Some((d, t)) = geometry::closest(s, &Segment::standing(q, s.t0, s.t1))
                         && d < 2.0 * r + 1.0
                     {
+                        best = best.min(d - 2.0 * r);
                         out.push(((piece.walker, Fixed::Stander(i)), (d - 2.0 * r, t, s.at(t))));
                     }
-                }
-                for i in walls.near(lo, hi) {
+                });
+                walls.near(lo, hi, |i| {
                     let (min, max) = self.walls[i as usize];
                     if (min - hi).max(lo - max).max_element() > r + 1.0 {
-                        continue; // farther apart along an axis than the reach
+                        return; // farther apart along an axis than the reach
+                    }
+                    // `to_rect`'s search never finds less than the exact distance: a wall
+                    // beyond the nearest so far and clear of the body changes no figure, and
+                    // its search was a twentieth of the check.
+                    let exact = geometry::distance_to_rect(s, min, max) - r;
+                    if exact >= 1.0 || (exact > best && exact >= -COLLISION_M) {
+                        return;
                     }
                     let (d, t, _) = geometry::to_rect(s, min, max);
                     if d < r + 1.0 {
+                        best = best.min(d - r);
                         out.push(((piece.walker, Fixed::Wall(i)), (d - r, t, s.at(t))));
                     }
-                }
+                });
                 let nearest = out.iter().map(|e| Some(e.1)).fold(None, nearer);
                 out.retain(|e| e.1.0 < -COLLISION_M);
                 (out, nearest)
@@ -380,6 +419,12 @@ mod tests {
     }
 
     proptest! {
+        /// The sweep's integer sort orders starts as `f64::total_cmp` does.
+        #[test]
+        fn ordered_bits_order_as_floats(a in any::<f64>(), b in any::<f64>()) {
+            prop_assert_eq!(ordered_bits(a).cmp(&ordered_bits(b)), a.total_cmp(&b));
+        }
+
         /// The time sweep keeps every pair of pieces that exist at a common time (modulo the
         /// period, when walkers repeat): every pair `Scene::pair` would find a copy of.
         #[test]
@@ -390,8 +435,10 @@ mod tests {
             let repeat = if periodic { Repeat::Periodic(20.0) } else { Repeat::Clip(20.0) };
             let s = scene(&spans, repeat);
             let ids: Vec<u32> = (0..spans.len() as u32).collect();
-            let kept = s.coexisting(&ids);
-            prop_assert!(kept.windows(2).all(|w| w[0] < w[1]));
+            let mut kept = std::collections::HashSet::new();
+            s.coexisting(&s.spans(), &ids, f64::INFINITY, |i, j| {
+                kept.insert((i.min(j), i.max(j)));
+            });
             for i in 0..spans.len() {
                 for j in i + 1..spans.len() {
                     let (a, b) = (&s.pieces[i].seg, &s.pieces[j].seg);

@@ -4,7 +4,9 @@
 
 use crate::segment::Segment;
 use glam::DVec2;
-use std::collections::HashMap;
+/// Cell maps hashed with foldhash's fixed state: keys are small integer pairs, SipHash was a
+/// fifth of the world check, and a fixed state keeps runs alike.
+type CellMap<V> = std::collections::HashMap<Key, V, foldhash::fast::FixedState>;
 
 /// A cell's place: column and row of `cell`-wide squares from the origin.
 pub type Key = (i64, i64);
@@ -16,6 +18,8 @@ pub struct PieceGrid {
     reach: f64,
     /// Every cell that holds a piece, in key order, with its pieces' indices in order.
     cells: Vec<(Key, Vec<u32>)>,
+    /// Each piece's lowest cell (its grown box's lower corner), kept for [`PieceGrid::owns`].
+    lows: Vec<Key>,
 }
 
 impl PieceGrid {
@@ -26,10 +30,12 @@ impl PieceGrid {
             cell,
             reach,
             cells: Vec::new(),
+            lows: Vec::new(),
         };
-        let mut cells: HashMap<Key, Vec<u32>> = HashMap::new();
+        let mut cells: CellMap<Vec<u32>> = CellMap::default();
         for (i, s) in segs.into_iter().enumerate() {
             let (a, b) = (grid.key(grid.lowest(s)), grid.key(s.p0.max(s.p1) + reach));
+            grid.lows.push(a);
             for x in a.0..=b.0 {
                 for y in a.1..=b.1 {
                     cells.entry((x, y)).or_default().push(i as u32);
@@ -46,11 +52,11 @@ impl PieceGrid {
         &self.cells
     }
 
-    /// Whether cell `k` is the one that compares pieces `a` and `b`: each piece fills a
-    /// rectangle of cells, and the lowest corner of the two rectangles' overlap compares the
-    /// pair, so that it is compared once.
-    pub fn owns(&self, k: Key, a: &Segment, b: &Segment) -> bool {
-        let (la, lb) = (self.key(self.lowest(a)), self.key(self.lowest(b)));
+    /// Whether cell `k` is the one that compares pieces `a` and `b` (indices as filed): each
+    /// piece fills a rectangle of cells, and the lowest corner of the two rectangles' overlap
+    /// compares the pair, so that it is compared once.
+    pub fn owns(&self, k: Key, a: u32, b: u32) -> bool {
+        let (la, lb) = (self.lows[a as usize], self.lows[b as usize]);
         (la.0.max(lb.0), la.1.max(lb.1)) == k
     }
 
@@ -59,58 +65,69 @@ impl PieceGrid {
     }
 
     fn key(&self, p: DVec2) -> Key {
-        (
-            (p.x / self.cell).floor() as i64,
-            (p.y / self.cell).floor() as i64,
-        )
+        (floor(p.x / self.cell), floor(p.y / self.cell))
     }
+}
+
+/// `x.floor() as i64`, without the call to libm's `floor` that x86-64's baseline makes of
+/// it (a twentieth of the world check).
+fn floor(x: f64) -> i64 {
+    let t = x as i64;
+    if (t as f64) > x { t - 1 } else { t }
 }
 
 /// Boxes (standers as points, obstacles) by the 4 m cells they touch grown by their reach, so
 /// that a piece is compared only with those that can come within reach of it.
 #[derive(Debug, Clone)]
 pub struct BoxGrid {
-    cells: HashMap<(i64, i64), Vec<u32>>,
+    cell: f64,
+    /// Each cell's boxes, with each box's lowest cell (for [`BoxGrid::near`]'s once-only rule).
+    cells: CellMap<Vec<(u32, Key)>>,
 }
 
 impl BoxGrid {
-    const CELL: f64 = 4.0;
-
-    fn key(p: DVec2) -> (i64, i64) {
-        (
-            (p.x / Self::CELL).floor() as i64,
-            (p.y / Self::CELL).floor() as i64,
-        )
+    fn key(&self, p: DVec2) -> Key {
+        (floor(p.x / self.cell), floor(p.y / self.cell))
     }
 
-    pub fn new(boxes: impl Iterator<Item = (DVec2, DVec2)>, reach: f64) -> BoxGrid {
-        let mut cells: HashMap<(i64, i64), Vec<u32>> = HashMap::new();
+    /// Files `boxes` in `cell`-wide squares, each in every square its box grown by `reach`
+    /// touches (on city's walls, 1, 2, 4 and 8 m squares cost the world check alike).
+    pub fn new(boxes: impl Iterator<Item = (DVec2, DVec2)>, cell: f64, reach: f64) -> BoxGrid {
+        let mut grid = BoxGrid {
+            cell,
+            cells: CellMap::default(),
+        };
         for (i, (lo, hi)) in boxes.enumerate() {
-            let (a, b) = (Self::key(lo - reach), Self::key(hi + reach));
+            let (a, b) = (grid.key(lo - reach), grid.key(hi + reach));
             for x in a.0..=b.0 {
                 for y in a.1..=b.1 {
-                    cells.entry((x, y)).or_default().push(i as u32);
+                    grid.cells.entry((x, y)).or_default().push((i as u32, a));
                 }
             }
         }
-        BoxGrid { cells }
+        grid
     }
 
-    /// The boxes whose grown box shares a cell with [lo, hi], ascending, each once.
-    pub fn near(&self, lo: DVec2, hi: DVec2) -> Vec<u32> {
+    /// Calls `visit` once with each box whose grown box shares a cell with [lo, hi] (in no
+    /// particular order): from the lowest corner of the two rectangles of cells' overlap, so
+    /// that nothing is gathered, sorted or deduplicated per query.
+    pub fn near(&self, lo: DVec2, hi: DVec2, mut visit: impl FnMut(u32)) {
         if self.cells.is_empty() {
-            return Vec::new();
+            return;
         }
-        let (a, b) = (Self::key(lo), Self::key(hi));
-        let mut out: Vec<u32> = (a.0..=b.0)
-            .flat_map(|x| (a.1..=b.1).map(move |y| (x, y)))
-            .filter_map(|k| self.cells.get(&k))
-            .flatten()
-            .copied()
-            .collect();
-        out.sort_unstable();
-        out.dedup();
-        out
+        let (a, b) = (self.key(lo), self.key(hi));
+        for x in a.0..=b.0 {
+            for y in a.1..=b.1 {
+                let Some(boxes) = self.cells.get(&(x, y)) else {
+                    continue;
+                };
+                for &(i, low) in boxes {
+                    if (a.0.max(low.0), a.1.max(low.1)) == (x, y) {
+                        visit(i);
+                    }
+                }
+            }
+        }
     }
 }
 
@@ -143,7 +160,7 @@ mod tests {
                 prop_assert!(ids.windows(2).all(|w| w[0] < w[1]));
                 for (x, &i) in ids.iter().enumerate() {
                     for &j in &ids[x + 1..] {
-                        if grid.owns(*k, &pieces[i as usize], &pieces[j as usize]) {
+                        if grid.owns(*k, i, j) {
                             compared[i as usize * pieces.len() + j as usize] += 1;
                         }
                     }
@@ -163,16 +180,54 @@ mod tests {
         }
     }
 
+    fn near(grid: &BoxGrid, lo: DVec2, hi: DVec2) -> Vec<u32> {
+        let mut out = Vec::new();
+        grid.near(lo, hi, |i| out.push(i));
+        out.sort_unstable();
+        out
+    }
+
     #[test]
     fn a_piece_is_compared_with_the_boxes_within_reach_only() {
-        let grid = BoxGrid::new([(DVec2::ZERO, DVec2::ONE)].into_iter(), 1.0);
+        let grid = BoxGrid::new([(DVec2::ZERO, DVec2::ONE)].into_iter(), 4.0, 1.0);
         assert_eq!(
-            grid.near(DVec2::new(1.5, 1.5), DVec2::new(2.0, 2.0)),
+            near(&grid, DVec2::new(1.5, 1.5), DVec2::new(2.0, 2.0)),
             vec![0]
         );
-        assert!(
-            grid.near(DVec2::new(9.0, 9.0), DVec2::new(10.0, 10.0))
-                .is_empty()
-        );
+        assert!(near(&grid, DVec2::new(9.0, 9.0), DVec2::new(10.0, 10.0)).is_empty());
+    }
+
+    proptest! {
+        #[test]
+        fn floor_is_the_floor(x in -1e12f64..1e12) {
+            prop_assert_eq!(floor(x), x.floor() as i64);
+        }
+    }
+
+    fn any_box() -> impl Strategy<Value = (DVec2, DVec2)> {
+        (-20.0f64..20.0, -20.0f64..20.0, 0.0f64..9.0, 0.0f64..9.0)
+            .prop_map(|(x, y, w, h)| (DVec2::new(x, y), DVec2::new(x + w, y + h)))
+    }
+
+    proptest! {
+        /// A query meets every box whose grown box overlaps it, each exactly once.
+        #[test]
+        fn every_box_within_reach_is_met_once(
+            boxes in proptest::collection::vec(any_box(), 1..30),
+            (lo, hi) in any_box(),
+            cell in 0.5f64..6.0,
+        ) {
+            let reach = 0.7;
+            let grid = BoxGrid::new(boxes.iter().copied(), cell, reach);
+            let mut met = vec![0u32; boxes.len()];
+            grid.near(lo, hi, |i| met[i as usize] += 1);
+            for (i, &(blo, bhi)) in boxes.iter().enumerate() {
+                prop_assert!(met[i] <= 1, "box {} met {} times", i, met[i]);
+                let apart = (blo - reach - hi).max(lo - (bhi + reach)).max_element();
+                if apart < 0.0 {
+                    prop_assert_eq!(met[i], 1, "box {} within reach never met", i);
+                }
+            }
+        }
     }
 }
