@@ -141,3 +141,73 @@ fn a_patch_no_try_clears_is_an_error_that_names_it_and_nothing_is_written() {
         assert!(!out.join(file).exists(), "{file} was written");
     }
 }
+
+/// A 32 x 32 m painting of uniform walkers, asking for `walkers` of them.
+fn uniform(dir: &std::path::Path, walkers: u32) -> std::path::PathBuf {
+    let density = dir.join("density.png");
+    GrayImage::from_pixel(32, 32, Luma([120]))
+        .save(&density)
+        .unwrap();
+    let pipeline = write_pipeline(dir, &[("Density", &density)], "");
+    let text = std::fs::read_to_string(&pipeline).unwrap();
+    let text = text.replace("walkers: 1000", &format!("walkers: {walkers}"));
+    std::fs::write(&pipeline, text).unwrap();
+    pipeline
+}
+
+#[test]
+fn a_painting_too_sparse_for_one_walker_is_an_error_and_nothing_is_written() {
+    // Two walkers over 1024 m2 ask 0.002 per m2: one walker crossing a patch makes 0.005.
+    let dir = tempfile::tempdir().unwrap();
+    let pipeline = uniform(dir.path(), 2);
+    let stderr = crowd_err(&["build", "-q", "--pipeline", s(&pipeline)]);
+    assert!(stderr.contains("placed no walker"), "{stderr}");
+    assert!(stderr.contains("`walkers`"), "{stderr}");
+    assert!(stderr.contains("scene.meters_per_pixel"), "{stderr}");
+    assert!(!dir.path().join("out").join("graph.ron").exists());
+}
+
+#[test]
+fn walkers_painted_only_in_a_walled_in_pocket_are_an_error_that_says_so() {
+    let dir = tempfile::tempdir().unwrap();
+    let pipeline = walled_in_pocket(dir.path());
+    // Walkers painted inside the pocket only (x 9-15 m, y 9-15 m: rows 17-22).
+    let mut density = GrayImage::new(32, 32);
+    for x in 9..15 {
+        for y in 17..23 {
+            density.put_pixel(x, y, Luma([200]));
+        }
+    }
+    density.save(dir.path().join("density.png")).unwrap();
+    let text = std::fs::read_to_string(&pipeline).unwrap();
+    std::fs::write(&pipeline, text.replace("walkers: 60", "walkers: 10")).unwrap();
+    let stderr = crowd_err(&["build", "-q", "--pipeline", s(&pipeline)]);
+    assert!(stderr.contains("placed no walker"), "{stderr}");
+    assert!(stderr.contains("walled in on every side"), "{stderr}");
+}
+
+#[test]
+fn a_sparse_painting_that_places_fewer_walkers_than_asked_is_a_warning() {
+    // 60 walkers over bands' 160 x 80 m: most patches ask less than one crossing walker makes.
+    let dir = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string(root().join("assets/pipelines/bands.ron")).unwrap();
+    let density = crate::util::shared_scenes().join("bands/density.png");
+    let text = text
+        .replace("walkers: 1100", "walkers: 60")
+        .replace("../../../shared/scenes/bands/density.png", s(&density))
+        .replace("../../build/bands", "out");
+    let pipeline = dir.path().join("pipeline.ron");
+    std::fs::write(&pipeline, text).unwrap();
+    let build = crowd(&["build", "-q", "--pipeline", s(&pipeline)]);
+    let stderr = String::from_utf8_lossy(&build.stderr);
+    assert!(build.status.success(), "{stderr}");
+    let warning = stderr
+        .lines()
+        .find(|l| l.contains("walkers placed of 60 asked"))
+        .unwrap_or_else(|| panic!("a shortfall warning:\n{stderr}"));
+    assert!(warning.contains("`walkers`"), "{warning}");
+    let md = std::fs::read_to_string(dir.path().join("out/report.md")).unwrap();
+    assert!(md.contains("walkers placed of 60 asked"), "{md}");
+    let stderr = crowd_err(&["build", "-q", "--deny-warnings", "--pipeline", s(&pipeline)]);
+    assert!(stderr.contains("--deny-warnings"), "{stderr}");
+}

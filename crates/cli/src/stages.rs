@@ -253,6 +253,9 @@ fn optimize(a: &mut Artifacts, out: &Path, hash: Hash, ui: &Ui) -> Result<Ran> {
     let s = crowd_optimize::inputs(a.pipeline);
     let outcome =
         crowd_optimize::optimize(&graph, &s.settings, &s.matching, s.period_s, s.seed, &bar);
+    if outcome.crossings.is_empty() {
+        crate::warnings::no_walker(&graph, a.pipeline)?;
+    }
     let (patterns, writes) = crowd_optimize::encode(out, &outcome, &s, hash);
     let note = format!("E = {:.4}", outcome.error.e);
     a.made_patterns((patterns, outcome.crossings));

@@ -8,9 +8,10 @@
 
 use crate::check::CHECK_FILE;
 use crate::stages::{COLLIDED_FILE, GRAPH_FILE};
-use anyhow::Result;
+use anyhow::{Result, bail};
 use crowd_core::PatchGraph;
-use crowd_core::trajectories::CollisionSummary;
+use crowd_core::config::PipelineFile;
+use crowd_core::trajectories::{CollisionSummary, MotionSummary};
 use std::path::Path;
 
 /// One thing the build could not meet.
@@ -32,6 +33,7 @@ pub fn gather(dir: &Path) -> Result<Vec<Warning>> {
     if collided.exists() {
         let file: crowd_core::trajectories::TrajectoriesFile =
             crowd_core::files::read_ron(&collided)?;
+        out.extend(shortfall(&graph, &file.summary));
         if let Some(summary) = &file.collisions {
             out.extend(hurried(&graph, summary));
         }
@@ -58,12 +60,7 @@ pub(crate) fn place(graph: &PatchGraph, p: u32) -> String {
 
 /// Painted walkers in a walled-in pocket: no open border, so no one can walk in or out.
 fn pockets(graph: &PatchGraph) -> Vec<Warning> {
-    let mut open = vec![false; graph.components.len()];
-    for b in graph.borders.iter().filter(|b| !b.open.is_empty()) {
-        for p in [b.a, b.b] {
-            open[graph.patches[p.0 as usize].component as usize] = true;
-        }
-    }
+    let open = open_components(graph);
     graph
         .components
         .iter()
@@ -87,6 +84,115 @@ fn pockets(graph: &PatchGraph) -> Vec<Warning> {
             }
         })
         .collect()
+}
+
+/// Walkers painted in components with an open border: those someone can walk in and out of.
+fn reachable_walkers(graph: &PatchGraph) -> f64 {
+    let open = open_components(graph);
+    (graph.components.iter())
+        .filter(|c| open[c.id as usize])
+        .map(|c| c.walkers)
+        .sum()
+}
+
+/// Which components have an open border.
+fn open_components(graph: &PatchGraph) -> Vec<bool> {
+    let mut open = vec![false; graph.components.len()];
+    for b in graph.borders.iter().filter(|b| !b.open.is_empty()) {
+        for p in [b.a, b.b] {
+            open[graph.patches[p.0 as usize].component as usize] = true;
+        }
+    }
+    open
+}
+
+/// A build placing fewer walkers or standers than asked, by more than rounding (a tenth, and at
+/// least one character): what was asked, what was placed, and the likely cause.
+fn shortfall(graph: &PatchGraph, summary: &MotionSummary) -> Vec<Warning> {
+    let short = |asked: f64, placed: f64| asked - placed > (0.1 * asked).max(1.0);
+    let mut out = Vec::new();
+    let asked = graph.walkers_requested as f64;
+    if short(asked, summary.walkers_measured) {
+        let walled = asked - reachable_walkers(graph);
+        let why = if walled > (0.1 * asked).max(1.0) {
+            format!(
+                "{walled:.0} of them are painted where no border is open (see the walled-in warnings)"
+            )
+        } else {
+            format!(
+                "the paint is so sparse ({}) that stage 3's whole walkers, each crossing a \
+                 patch in seconds, come out fewer than asked; raise `walkers`, paint them into \
+                 a smaller area or lower `scene.meters_per_pixel`",
+                density_figures(graph)
+            )
+        };
+        out.push(Warning {
+            patches: Vec::new(),
+            text: format!(
+                "{:.0} walkers placed of {asked:.0} asked (`walkers`): {why}",
+                summary.walkers_measured
+            ),
+        });
+    }
+    let asked = graph.standers_requested as f64;
+    if short(asked, summary.standers as f64) {
+        out.push(Warning {
+            patches: Vec::new(),
+            text: format!(
+                "{} standers placed of {asked:.0} asked (`standers`): their patches have no \
+                 room for more with clearance (rho_max caps each patch), or the stander layer \
+                 is painted where walls stand",
+                summary.standers
+            ),
+        });
+    }
+    out
+}
+
+/// The painted walker density, mean and largest, per m2.
+fn density_figures(graph: &PatchGraph) -> String {
+    let n = graph.patches.len().max(1) as f64;
+    let mean = graph.patches.iter().map(|p| p.walker_density).sum::<f64>() / n;
+    let max = (graph.patches.iter())
+        .map(|p| p.walker_density)
+        .fold(0.0, f64::max);
+    format!("{mean:.4} walkers per m2 on average, {max:.4} at most")
+}
+
+/// The error of a build whose stage 3 placed no walker although walkers were asked for: an
+/// empty crowd is never written. Says why: every painted walker walled in, or paint so sparse
+/// that one walker crossing a patch is already far more than it asks.
+pub fn no_walker(graph: &PatchGraph, pipeline: &PipelineFile) -> Result<()> {
+    let asked = graph.walkers_requested;
+    if asked == 0 {
+        return Ok(());
+    }
+    let p = &pipeline.pipeline;
+    if reachable_walkers(graph) < 0.5 {
+        bail!(
+            "{}: stage 3 placed no walker: the {asked} walkers asked (`walkers`) are all painted \
+             in parts walled in on every side, which no one can walk in or out of; open a gap \
+             of at least a walker's width, or paint them as standing; no file was written",
+            pipeline.path.display()
+        );
+    }
+    // A walker crossing a patch at comfort speed stays side / speed seconds of the period.
+    let side = graph.world.patch_side_m;
+    let one = 1.0 / (p.matching.comfort_speed * p.period_s * side);
+    let size = graph.world.size_m;
+    bail!(
+        "{}: stage 3 placed no walker: {asked} walkers (`walkers`) over {} patches of {side} m \
+         ({}) is sparser than one walker crossing a patch once a period makes it (about {one:.4} \
+         per m2 over the {} s period), so the nearest crowd is an empty one; raise `walkers`, \
+         paint them into a smaller area, or lower `scene.meters_per_pixel` (the maps cover \
+         {:.0} x {:.0} m); no file was written",
+        pipeline.path.display(),
+        graph.patches.len(),
+        density_figures(graph),
+        p.period_s,
+        size.x,
+        size.y
+    )
 }
 
 /// Patches that stage 5 cleared only by letting a walker hurry past `match.max_speed`.
