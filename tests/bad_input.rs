@@ -377,3 +377,38 @@ fn a_stage_file_of_another_version_is_refused_by_inspect_and_render() {
         assert!(!png.exists(), "{file}: rendered anyway");
     }
 }
+
+/// Runs `crowd` with its stdout a pipe closed before it writes (`crowd report | head -0`).
+fn into_closed_pipe(args: &[&str]) -> std::process::Output {
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_crowd"))
+        .args(args)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("crowd runs");
+    drop(child.stdout.take());
+    child.wait_with_output().expect("crowd ends")
+}
+
+#[test]
+fn every_command_takes_a_closed_stdout_as_the_end_of_its_output() {
+    let copy = copy_of("bands");
+    let dir = copy.path();
+    let graph = dir.join("graph.ron");
+    for args in [
+        vec!["report", s(dir), "--json"],
+        vec!["report", s(dir)],
+        vec!["report", "--table", s(dir)],
+        vec!["inspect", s(&graph)],
+        vec!["check", s(dir)],
+    ] {
+        let out = into_closed_pipe(&args);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            out.status.success(),
+            "crowd {args:?}: {:?}\n{stderr}",
+            out.status
+        );
+        assert!(!stderr.contains("panicked"), "crowd {args:?}: {stderr}");
+    }
+}

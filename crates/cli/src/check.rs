@@ -81,7 +81,7 @@ pub fn command(
     let summary = check_summary(&report);
     let findings = findings(&report);
     if !findings.is_empty() {
-        print!("{summary}");
+        crate::ui::out(&summary)?;
         bail!(
             "{}: {} guarantee(s) broken:\n  {}",
             dir.display(),

@@ -3,7 +3,7 @@
 use crate::driver::{self, BuildOptions};
 use crate::stage::{self, Stage};
 use crate::stages::{self, STAGES};
-use crate::ui::Ui;
+use crate::ui::{Ui, out};
 use anyhow::{Context, Result};
 use clap::{Arg, ArgMatches, FromArgMatches, Parser, Subcommand};
 use crowd_core::config::PipelineFile;
@@ -303,15 +303,12 @@ pub fn run(cli: Cli) -> Result<()> {
             }
             driver::run_stage(stage, &p, input, output, &ui)?;
         }
-        Command::Inspect { file } => print!("{}", crate::inspect::inspect(&file)?),
+        Command::Inspect { file } => out(crate::inspect::inspect(&file)?)?,
         Command::Check {
             dir,
             stage,
             pipeline,
-        } => print!(
-            "{}",
-            crate::check::command(&dir, stage, pipeline.as_deref())?
-        ),
+        } => out(crate::check::command(&dir, stage, pipeline.as_deref())?)?,
         Command::Render {
             file,
             output,
@@ -327,9 +324,10 @@ pub fn run(cli: Cli) -> Result<()> {
             markdown,
         } => {
             if table {
-                println!("{}", crate::report::TABLE_HEADER);
+                out(format!("{}\n", crate::report::TABLE_HEADER))?;
                 for dir in &dirs {
-                    println!("{}", crate::report::Report::gather(dir)?.table_row(dir));
+                    let row = crate::report::Report::gather(dir)?.table_row(dir);
+                    out(format!("{row}\n"))?;
                 }
                 return Ok(());
             }
@@ -337,17 +335,18 @@ pub fn run(cli: Cli) -> Result<()> {
                 anyhow::bail!("give one build folder, or `--table` for several");
             };
             if markdown {
-                println!(
-                    "{}",
-                    crate::report_md::write(dir, Default::default())?.display()
-                );
+                let written = crate::report_md::write(dir, Default::default())?;
+                out(format!("{}\n", written.display()))?;
                 return Ok(());
             }
             let report = crate::report::Report::gather(dir)?;
             if json {
-                println!("{}", serde_json::to_string_pretty(&report.to_json())?);
+                out(format!(
+                    "{}\n",
+                    serde_json::to_string_pretty(&report.to_json())?
+                ))?;
             } else {
-                print!("{}", report.to_text());
+                out(report.to_text())?;
             }
         }
     }

@@ -56,3 +56,18 @@ impl Drop for StageBar {
         self.0.finish_and_clear();
     }
 }
+
+/// Writes a command's results to stdout. A reader that stopped reading (`crowd report --json |
+/// head`) ends the output, as for any Unix tool: the rest is dropped and the command succeeds,
+/// instead of panicking on the closed pipe as `print!` does.
+pub fn out(text: impl AsRef<str>) -> std::io::Result<()> {
+    use std::io::Write;
+    let mut stdout = std::io::stdout().lock();
+    match stdout
+        .write_all(text.as_ref().as_bytes())
+        .and_then(|()| stdout.flush())
+    {
+        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(()),
+        other => other,
+    }
+}
