@@ -412,3 +412,25 @@ fn every_command_takes_a_closed_stdout_as_the_end_of_its_output() {
         assert!(!stderr.contains("panicked"), "crowd {args:?}: {stderr}");
     }
 }
+
+#[test]
+fn a_layer_too_large_to_decode_is_refused_from_its_header() {
+    // City's density with its header saying 20,000 x 20,000 pixels (1.6 GB decoded as one
+    // channel of f32): refused before a byte of it is decoded.
+    let dir = tempfile::tempdir().unwrap();
+    let pipeline = good_pipeline(dir.path());
+    let layer = dir.path().join("density.png");
+    let mut bytes = std::fs::read(&layer).unwrap();
+    assert_eq!(&bytes[12..16], b"IHDR");
+    bytes[16..20].copy_from_slice(&20_000u32.to_be_bytes());
+    bytes[20..24].copy_from_slice(&20_000u32.to_be_bytes());
+    std::fs::write(&layer, bytes).unwrap();
+    let stderr = crowd_err(&["build", "-q", "--pipeline", s(&pipeline)]);
+    assert!(stderr.contains(s(&layer)), "{stderr}");
+    assert!(
+        stderr.contains("20000 x 20000 pixels (read from its header"),
+        "{stderr}"
+    );
+    assert!(stderr.contains("scene.meters_per_pixel"), "{stderr}");
+    assert!(!dir.path().join("out").exists());
+}

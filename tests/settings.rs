@@ -216,6 +216,32 @@ fn smooth_settings_refuse_what_smoothing_cannot_use() {
 }
 
 #[test]
+fn a_region_off_the_painted_maps_is_refused_before_any_stage() {
+    // bands' maps are 160 x 80 m.
+    let inside = "inside (0, 0, 160, 80)";
+    all_refused(&[
+        (
+            BANDS,
+            "export.gltf_region",
+            "Some((200.0, 0.0, 240.0, 80.0))",
+            inside,
+        ),
+        (
+            BANDS,
+            "export.gltf_region",
+            "Some((-40.0, 0.0, 40.0, 80.0))",
+            inside,
+        ),
+        (
+            BANDS,
+            "export.gltf_region",
+            "Some((0.0, 0.0, 40.0, 1e9))",
+            inside,
+        ),
+    ]);
+}
+
+#[test]
 fn export_settings_refuse_an_empty_region_a_bad_distance_and_a_bad_turn_rate() {
     let (mm, region) = ("a distance in millimetres", "with x0 < x1 and y0 < y1");
     let turn = "a turning speed in degrees a second from 30 to 3600";

@@ -51,9 +51,12 @@ pub fn build(pipeline_path: &Path, options: &BuildOptions, ui: &Ui) -> Result<Ve
         .output
         .clone()
         .unwrap_or_else(|| pipeline.output_dir());
+    let mut artifacts = Artifacts::new(&pipeline, &out);
+    // The layers are read (headers checked, the region held to the maps) before the folder
+    // is made: a refused painting leaves no trace.
+    artifacts.layers()?;
     files::ensure_writable_dir(&out)?;
     let mut timings = read_timings(&out);
-    let mut artifacts = Artifacts::new(&pipeline, &out);
     let mut pending = Writes::new();
     let mut outcomes = Vec::new();
     for stage in stage::up_to(options.until) {

@@ -316,6 +316,8 @@ fn smooth(a: &mut Artifacts, out: &Path, hash: Hash, ui: &Ui) -> Result<Ran> {
 
 fn export(a: &mut Artifacts, out: &Path, hash: Hash, _: &Ui) -> Result<Ran> {
     let (graph, patterns) = (a.graph()?, a.patterns()?);
+    a.pipeline
+        .check_region((graph.world.size_m.x, graph.world.size_m.y))?;
     let smoothed = a.take_motion(&SMOOTH)?;
     let inputs = crowd_export::inputs(a.pipeline);
     let export = crowd_export::export(&graph, &patterns.1, &smoothed.1, &inputs, hash)

@@ -15,8 +15,55 @@ pub struct LayerBytes {
     pub hash: Hash,
 }
 
-/// Reads every layer named in the pipeline. A missing file names the pipeline line of its path.
+/// The widest or tallest layer stage 1 decodes, in pixels.
+pub const MAX_LAYER_SIDE: u32 = 16_384;
+/// The largest layer in pixels in all: 8,192 x 8,192 (decoded as 4 bytes a channel, 1 GiB as
+/// RGBA).
+pub const MAX_LAYER_PIXELS: u64 = 8_192 * 8_192;
+
+/// Reads every layer named in the pipeline. A missing file names the pipeline line of its path;
+/// a PNG larger than [`MAX_LAYER_SIDE`] or [`MAX_LAYER_PIXELS`] is refused from its header,
+/// before anything is decoded, and so is an `export.gltf_region` off the first layer's map.
 pub fn read_layers(pipeline: &PipelineFile) -> Result<Vec<LayerBytes>> {
+    let layers = read_files(pipeline)?;
+    let mut map = None;
+    for layer in &layers {
+        let Some((w, h)) = header_size(&layer.bytes) else {
+            continue; // not a PNG: `decode` says what is wrong with it
+        };
+        if w > MAX_LAYER_SIDE
+            || h > MAX_LAYER_SIDE
+            || u64::from(w) * u64::from(h) > MAX_LAYER_PIXELS
+        {
+            return Err(Error::Image {
+                path: layer.path.clone(),
+                message: format!(
+                    "is {w} x {h} pixels (read from its header; nothing was decoded); a layer \
+                     may have at most {MAX_LAYER_SIDE} pixels a side and {MAX_LAYER_PIXELS} in \
+                     all: paint at a coarser scale and raise `scene.meters_per_pixel`"
+                ),
+            });
+        }
+        map.get_or_insert((w, h));
+    }
+    if let Some((w, h)) = map {
+        let mpp = pipeline.pipeline.scene.meters_per_pixel;
+        pipeline.check_region((f64::from(w) * mpp, f64::from(h) * mpp))?;
+    }
+    Ok(layers)
+}
+
+/// A PNG's width and height from its header (`IHDR`, the chunk the format puts first), if it
+/// has one.
+fn header_size(bytes: &[u8]) -> Option<(u32, u32)> {
+    let ihdr = bytes.strip_prefix(PNG_SIGNATURE)?.get(4..16)?;
+    let (kind, size) = ihdr.split_at(4);
+    let word = |b: &[u8]| u32::from_be_bytes(b.try_into().expect("4 bytes"));
+    (kind == b"IHDR").then(|| (word(&size[..4]), word(&size[4..])))
+}
+
+/// Reads every layer's file.
+fn read_files(pipeline: &PipelineFile) -> Result<Vec<LayerBytes>> {
     pipeline
         .pipeline
         .scene

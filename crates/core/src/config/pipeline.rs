@@ -355,6 +355,26 @@ impl PipelineFile {
         }
     }
 
+    /// Refuses an `export.gltf_region` that is not on the painted maps, `size_m` metres wide
+    /// and high from the origin: a clip of a region off the map has no one in it.
+    pub fn check_region(&self, (width, height): (f64, f64)) -> Result<()> {
+        let Some((x0, y0, x1, y1)) = self.pipeline.export.gltf_region else {
+            return Ok(());
+        };
+        const SLACK: f64 = 1e-6;
+        let inside = |lo: f64, hi: f64, size: f64| lo >= -SLACK && hi <= size + SLACK;
+        if inside(x0, x1, width) && inside(y0, y1, height) {
+            return Ok(());
+        }
+        Err(self.field_error(
+            "export.gltf_region",
+            format!(
+                "is ({x0}, {y0}, {x1}, {y1}), not on the painted maps; expected a rectangle \
+                 inside (0, 0, {width}, {height}), the maps' size in world metres"
+            ),
+        ))
+    }
+
     /// Refuses a setting its stage cannot use, at the line of the setting.
     fn check(&self) -> Result<()> {
         self.pipeline
