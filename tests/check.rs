@@ -132,7 +132,7 @@ fn crowd_check_fails_naming_every_broken_guarantee() {
         &[("Density", &layer)],
         "    match: (max_speed: 1.5),\n    export: (turn_rate_deg_s: 90.0),\n",
     );
-    let err = crowd_err(&["check", "-q", s(out), "--pipeline", s(&strict)]);
+    let err = crowd_broken(&["check", "-q", s(out), "--pipeline", s(&strict)]);
     for said in [
         "4 guarantee(s) broken",
         "faster than 1.58 m/s",

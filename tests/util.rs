@@ -138,11 +138,22 @@ pub fn crowd_ok(args: &[&str]) -> Output {
 
 /// Runs `crowd` and insists that it fails; returns its stderr.
 pub fn crowd_err(args: &[&str]) -> String {
+    crowd_exits(args, 1)
+}
+
+/// Runs `crowd` and insists that it ends with exit code 3 (it ran to the end and found
+/// guarantees broken, `crowd::cli::EXIT_CODES`); returns its stderr.
+pub fn crowd_broken(args: &[&str]) -> String {
+    crowd_exits(args, 3)
+}
+
+fn crowd_exits(args: &[&str], code: i32) -> String {
     let out = crowd(args);
     let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
-    assert!(
-        !out.status.success(),
-        "crowd {args:?} should fail; stderr:\n{stderr}"
+    assert_eq!(
+        out.status.code(),
+        Some(code),
+        "crowd {args:?} should exit with {code}; stderr:\n{stderr}"
     );
     assert!(stderr.lines().any(|l| l.starts_with("error: ")), "{stderr}");
     assert!(!stderr.contains("panicked"), "{stderr}");

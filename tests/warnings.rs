@@ -2,7 +2,7 @@
 //! `--deny-warnings` for build systems, and an error naming the patch for a defect the pipeline
 //! cannot clear. Each caused by a real painting.
 
-use crate::util::{copy_of, crowd, crowd_err, root, s, write_pipeline};
+use crate::util::{copy_of, crowd, crowd_broken, crowd_err, root, s, write_pipeline};
 use image::{GrayImage, Luma};
 
 /// A 32 x 32 m painting (4 x 4 patches of 8 m) with walkers everywhere and the patch at
@@ -58,7 +58,7 @@ fn a_walled_in_pocket_is_a_warning_on_stderr_and_in_the_report_with_a_picture() 
     );
 
     // Built again with --deny-warnings: the same files, and a failure a build system sees.
-    let stderr = crowd_err(&["build", "-q", "--deny-warnings", "--pipeline", s(&pipeline)]);
+    let stderr = crowd_broken(&["build", "-q", "--deny-warnings", "--pipeline", s(&pipeline)]);
     assert!(stderr.contains("--deny-warnings"), "{stderr}");
     assert!(stderr.contains("walled in"), "{stderr}");
 }
@@ -208,6 +208,6 @@ fn a_sparse_painting_that_places_fewer_walkers_than_asked_is_a_warning() {
     assert!(warning.contains("`walkers`"), "{warning}");
     let md = std::fs::read_to_string(dir.path().join("out/report.md")).unwrap();
     assert!(md.contains("walkers placed of 60 asked"), "{md}");
-    let stderr = crowd_err(&["build", "-q", "--deny-warnings", "--pipeline", s(&pipeline)]);
+    let stderr = crowd_broken(&["build", "-q", "--deny-warnings", "--pipeline", s(&pipeline)]);
     assert!(stderr.contains("--deny-warnings"), "{stderr}");
 }

@@ -82,12 +82,13 @@ pub fn command(
     let findings = findings(&report);
     if !findings.is_empty() {
         crate::ui::out(&summary)?;
-        bail!(
+        return Err(crate::cli::Broken(format!(
             "{}: {} guarantee(s) broken:\n  {}",
             dir.display(),
             findings.len(),
             findings.join("\n  ")
-        );
+        ))
+        .into());
     }
     Ok(summary)
 }

@@ -9,11 +9,33 @@ use clap::{Arg, ArgMatches, FromArgMatches, Parser, Subcommand};
 use crowd_core::config::PipelineFile;
 use std::path::PathBuf;
 
+/// What the exit codes mean, for build systems (`--help`, README.md).
+pub const EXIT_CODES: &str = "Exit codes:
+  0  done: every guarantee held (or, for other commands, the command did its job)
+  1  error: a file, setting or painting refused, or a stage that could not finish; the message
+     names the file, the place and what was expected, and no output was changed
+  2  the command line itself is wrong (an unknown flag, a missing argument)
+  3  done, but guarantees broken: `crowd check` found collisions, speeds over the limit, jumps
+     or open loops in what ships, or `crowd build --deny-warnings` had warnings";
+
+/// A build or check that ran to the end and found guarantees broken: exit code 3.
+#[derive(Debug)]
+pub struct Broken(pub String);
+
+impl std::fmt::Display for Broken {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for Broken {}
+
 #[derive(Debug, Parser)]
 #[command(
     name = "crowd",
     version,
-    about = "The crowd-patches asset compiler: painted layers in, endless collision-free crowds out."
+    about = "The crowd-patches asset compiler: painted layers in, endless collision-free crowds out.",
+    after_help = EXIT_CODES
 )]
 pub struct Cli {
     /// Print nothing but results and errors; no progress bars.
@@ -283,11 +305,12 @@ pub fn run(cli: Cli) -> Result<()> {
                 eprintln!("warning: {}", w.text);
             }
             if deny_warnings && !warnings.is_empty() {
-                anyhow::bail!(
+                return Err(Broken(format!(
                     "{} warning(s), and --deny-warnings was given (see {})",
                     warnings.len(),
                     report.display()
-                );
+                ))
+                .into());
             }
         }
         Command::Stage(StageCommand {

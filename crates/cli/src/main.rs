@@ -12,7 +12,12 @@ fn main() -> ExitCode {
             for cause in err.chain().skip(1) {
                 eprintln!("  caused by: {cause}");
             }
-            ExitCode::FAILURE
+            // What the codes mean: `crowd::cli::EXIT_CODES`.
+            if err.downcast_ref::<crowd::cli::Broken>().is_some() {
+                ExitCode::from(3)
+            } else {
+                ExitCode::FAILURE
+            }
         }
     }
 }
