@@ -369,3 +369,38 @@ fn stages_run_one_at_a_time_write_the_same_files_as_a_build() {
         assert!(x.1 == y.1, "{} differs", x.0);
     }
 }
+
+#[test]
+fn a_second_build_into_a_locked_folder_waits_for_the_first_and_clears_its_leftovers() {
+    let dir = copy_of("bands");
+    let out = dir.path();
+    let pipeline = root().join("assets/pipelines/bands.ron");
+    // What a build killed while writing leaves: a temporary file.
+    let stale = out.join(".graph.ron.tmp4194304");
+    std::fs::write(&stale, b"half a graph").unwrap();
+    // Another build holds the folder (this test, through the same kind of lock).
+    let held = std::fs::File::create(out.join(".crowd.lock")).unwrap();
+    held.lock().unwrap();
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_crowd"))
+        .args(["build", "--pipeline", s(&pipeline), "--output", s(out)])
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut stderr = std::io::BufReader::new(child.stderr.take().unwrap());
+    let mut first = String::new();
+    std::io::BufRead::read_line(&mut stderr, &mut first).unwrap();
+    assert!(
+        first.starts_with("waiting: ") && first.contains(s(out)),
+        "{first}"
+    );
+    assert!(
+        stale.exists(),
+        "nothing is touched while the other holds the folder"
+    );
+    held.unlock().unwrap();
+    let status = child.wait().unwrap();
+    let mut rest = String::new();
+    std::io::Read::read_to_string(&mut stderr, &mut rest).unwrap();
+    assert!(status.success(), "{rest}");
+    assert!(!stale.exists(), "the stale temporary file is removed");
+}

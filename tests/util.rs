@@ -165,13 +165,14 @@ pub fn s(p: &Path) -> &str {
 }
 
 /// Every file of a folder and its bytes, sorted by name, without `timings.ron` and
-/// `report.md` (which hold the build's times).
+/// `report.md` (which hold the build's times) and the folder's lock file (empty, not an output).
 pub fn snapshot(dir: &Path) -> Vec<(String, Vec<u8>)> {
     let mut files: Vec<(String, Vec<u8>)> = std::fs::read_dir(dir)
         .unwrap()
         .map(|e| e.unwrap().path())
         .filter(|p| {
-            !["timings.ron", "report.md"].contains(&p.file_name().unwrap().to_str().unwrap())
+            !["timings.ron", "report.md", ".crowd.lock"]
+                .contains(&p.file_name().unwrap().to_str().unwrap())
         })
         .map(|p| {
             (

@@ -67,6 +67,12 @@ pub fn command(
     stage: Option<&'static Stage>,
     pipeline: Option<&Path>,
 ) -> Result<String> {
+    let _lock = files::FolderLock::acquire(dir, || {
+        eprintln!(
+            "waiting: another build or check is writing in {}",
+            dir.display()
+        )
+    })?;
     let mut options = CheckOptions {
         stage,
         ..Default::default()

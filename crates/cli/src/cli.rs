@@ -289,7 +289,7 @@ pub fn run(cli: Cli) -> Result<()> {
                 output,
                 until,
             };
-            driver::build(&pipeline, &options, &ui)?;
+            let (_, _lock) = driver::build(&pipeline, &options, &ui)?;
             if !no_check && stage::up_to(until).any(|s| *s == stages::EXPORT) {
                 let limits = (
                     file.pipeline.matching.max_speed,

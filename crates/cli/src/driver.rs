@@ -44,8 +44,14 @@ pub struct StageOutcome {
     pub seconds: Option<f64>,
 }
 
-/// Runs every stage of the pipeline at `pipeline_path` (up to `options.until`).
-pub fn build(pipeline_path: &Path, options: &BuildOptions, ui: &Ui) -> Result<Vec<StageOutcome>> {
+/// Runs every stage of the pipeline at `pipeline_path` (up to `options.until`), holding the
+/// output folder's lock, which it returns so that the caller's check and report are written
+/// under it too.
+pub fn build(
+    pipeline_path: &Path,
+    options: &BuildOptions,
+    ui: &Ui,
+) -> Result<(Vec<StageOutcome>, files::FolderLock)> {
     let pipeline = PipelineFile::load(pipeline_path)?;
     let out = options
         .output
@@ -56,6 +62,7 @@ pub fn build(pipeline_path: &Path, options: &BuildOptions, ui: &Ui) -> Result<Ve
     // is made: a refused painting leaves no trace.
     artifacts.layers()?;
     files::ensure_writable_dir(&out)?;
+    let lock = lock(&out, ui)?;
     let mut timings = read_timings(&out);
     let mut pending = Writes::new();
     let mut outcomes = Vec::new();
@@ -97,7 +104,18 @@ pub fn build(pipeline_path: &Path, options: &BuildOptions, ui: &Ui) -> Result<Ve
     }
     files::write_all(&pending)?;
     files::write_atomic(&out.join(TIMINGS_FILE), files::to_ron(&timings).as_bytes())?;
-    Ok(outcomes)
+    Ok((outcomes, lock))
+}
+
+/// Takes the build folder `dir`'s lock, saying so when another build or check holds it.
+pub fn lock(dir: &Path, ui: &Ui) -> Result<files::FolderLock> {
+    Ok(files::FolderLock::acquire(dir, || {
+        ui.say(format!(
+            "waiting: another build or check is writing in {} (its lock: {})",
+            dir.display(),
+            files::FolderLock::FILE
+        ))
+    })?)
 }
 
 /// Runs one stage alone (`crowd merge`, `crowd graph`, ...): reads `input` (default: the

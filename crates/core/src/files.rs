@@ -114,6 +114,71 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     Ok(())
 }
 
+/// An exclusive lock on a build folder, held while a build or a check writes in it, so that the
+/// folder always holds one build's files. Released when dropped (or when the process dies: the
+/// operating system's file lock, not a marker file a kill would leave behind).
+#[derive(Debug)]
+pub struct FolderLock {
+    _file: std::fs::File,
+}
+
+impl FolderLock {
+    /// The lock file, in the folder.
+    pub const FILE: &'static str = ".crowd.lock";
+
+    /// Locks `dir` (which exists), calling `waiting` first if another process holds it, then
+    /// removes the temporary files a killed build left there: whoever holds the lock is the
+    /// only writer, so any temporary file is stale.
+    pub fn acquire(dir: &Path, waiting: impl FnOnce()) -> Result<FolderLock> {
+        let path = dir.join(Self::FILE);
+        let file = std::fs::OpenOptions::new()
+            .create(true)
+            .truncate(false)
+            .write(true)
+            .open(&path)
+            // A read-only folder with the lock file in it can still be locked.
+            .or_else(|_| std::fs::File::open(&path))
+            .map_err(|e| Error::io(&path, "open the build folder's lock", e))?;
+        match file.try_lock() {
+            Ok(()) => {}
+            Err(std::fs::TryLockError::WouldBlock) => {
+                waiting();
+                file.lock()
+                    .map_err(|e| Error::io(&path, "lock the build folder", e))?;
+            }
+            Err(std::fs::TryLockError::Error(e)) => {
+                return Err(Error::io(&path, "lock the build folder", e));
+            }
+        }
+        remove_stale_temporaries(dir);
+        Ok(FolderLock { _file: file })
+    }
+}
+
+/// Whether `name` is one of [`write_atomic`]'s or [`ensure_writable_dir`]'s temporary files.
+pub fn is_temporary(name: &str) -> bool {
+    let Some(rest) = name.strip_prefix('.') else {
+        return false;
+    };
+    let pid_after = |marker: &str| {
+        rest.rsplit_once(marker)
+            .is_some_and(|(_, pid)| !pid.is_empty() && pid.bytes().all(|b| b.is_ascii_digit()))
+    };
+    pid_after(".tmp") || rest.starts_with("write-probe") && pid_after("write-probe")
+}
+
+/// Removes the temporary files in `dir` (best effort: one that cannot be removed is left).
+fn remove_stale_temporaries(dir: &Path) {
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return;
+    };
+    for entry in entries.flatten() {
+        if entry.file_name().to_str().is_some_and(is_temporary) {
+            let _ = std::fs::remove_file(entry.path());
+        }
+    }
+}
+
 /// Creates `dir` if needed and proves that files can be written in it, before any work is done.
 pub fn ensure_writable_dir(dir: &Path) -> Result<()> {
     std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, "create the output folder", e))?;
@@ -227,6 +292,49 @@ mod tests {
         assert_eq!(read_ron::<Demo>(&path).unwrap(), demo);
         let leftovers: Vec<_> = std::fs::read_dir(dir.path()).unwrap().collect();
         assert_eq!(leftovers.len(), 1, "no temporary file is left behind");
+    }
+
+    #[test]
+    fn temporary_files_are_told_from_outputs() {
+        for name in [".graph.ron.tmp4242", ".world.glb.tmp1", ".write-probe77"] {
+            assert!(is_temporary(name), "{name}");
+        }
+        for name in [
+            "graph.ron",
+            ".crowd.lock",
+            ".tmpx",
+            ".graph.ron.tmp",
+            "a.tmp12",
+        ] {
+            assert!(!is_temporary(name), "{name}");
+        }
+    }
+
+    #[test]
+    fn the_lock_holder_clears_stale_temporaries_and_a_second_waits() {
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::write(dir.path().join(".graph.ron.tmp999999"), b"cut").unwrap();
+        std::fs::write(dir.path().join("graph.ron"), b"kept").unwrap();
+        let lock = FolderLock::acquire(dir.path(), || panic!("no one holds it")).unwrap();
+        let names: Vec<_> = (std::fs::read_dir(dir.path()).unwrap())
+            .map(|e| e.unwrap().file_name().into_string().unwrap())
+            .collect();
+        assert!(names.contains(&"graph.ron".to_string()), "{names:?}");
+        assert!(!names.iter().any(|n| is_temporary(n)), "{names:?}");
+        // A second holder (another open file, as another process would have) waits.
+        let waited = std::sync::atomic::AtomicBool::new(false);
+        std::thread::scope(|scope| {
+            let second = scope.spawn(|| {
+                FolderLock::acquire(dir.path(), || {
+                    waited.store(true, std::sync::atomic::Ordering::SeqCst)
+                })
+            });
+            while !waited.load(std::sync::atomic::Ordering::SeqCst) {
+                std::thread::sleep(std::time::Duration::from_millis(5));
+            }
+            drop(lock);
+            second.join().unwrap().unwrap();
+        });
     }
 
     #[test]
