@@ -404,3 +404,34 @@ fn a_second_build_into_a_locked_folder_waits_for_the_first_and_clears_its_leftov
     assert!(status.success(), "{rest}");
     assert!(!stale.exists(), "the stale temporary file is removed");
 }
+
+#[test]
+fn a_stage_file_cut_short_or_edited_by_hand_is_said_and_rebuilt() {
+    let dir = copy_of("bands");
+    let out = dir.path();
+    let pipeline = root().join("assets/pipelines/bands.ron");
+    let graph = out.join("graph.ron");
+    let written = std::fs::read(&graph).unwrap();
+    let text = String::from_utf8(written.clone()).unwrap();
+    // Cut after its header (which still matches), and edited (one patch's density).
+    let cut = &text[..text.find("  patches:").unwrap()];
+    let at = text.find("walker_density: ").unwrap() + "walker_density: ".len();
+    let edited = format!("{}9{}", &text[..at], &text[at + 1..]);
+    for (what, body) in [("cut", cut.to_string()), ("edited", edited)] {
+        std::fs::write(&graph, &body).unwrap();
+        let build = crowd(&["build", "--pipeline", s(&pipeline), "--output", s(out)]);
+        let stderr = String::from_utf8_lossy(&build.stderr);
+        assert!(build.status.success(), "{what}: {stderr}");
+        assert!(
+            stderr.contains("graph.ron is not as stage graph wrote it"),
+            "{what}: {stderr}"
+        );
+        assert!(stderr.contains("graph: built"), "{what}: {stderr}");
+        assert_eq!(
+            std::fs::read(&graph).unwrap(),
+            written,
+            "{what}: rebuilt as it was"
+        );
+        assert!(stderr.contains("optimize: up to date"), "{what}: {stderr}");
+    }
+}

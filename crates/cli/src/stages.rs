@@ -194,8 +194,28 @@ pub static EXPORT: Stage = Stage {
 };
 
 /// Whether the file at `path` was built by this version of `stage` from exactly `hash`.
+/// A file whose header matches but whose body is not as written (cut short, damaged, edited
+/// by hand) is said and rebuilt: no later stage builds on it.
 fn header_matches(stage: &Stage, path: &Path, hash: Hash) -> bool {
-    files::read_header(path).is_ok_and(|h| h == Header::new(stage.kind, stage.version, hash))
+    let header = files::read_header(path);
+    if !header.is_ok_and(|h| h == Header::new(stage.kind, stage.version, hash)) {
+        return false;
+    }
+    sealed(stage.name, path)
+}
+
+/// Whether `path` is as stage `name` wrote it, saying so on stderr when it is not.
+fn sealed(name: &str, path: &Path) -> bool {
+    let holds = files::seal_holds(path);
+    if !holds {
+        eprintln!(
+            "note: {} is not as stage {name} wrote it (cut short, damaged or edited by hand); \
+             rebuilding it: hand edits of stage files are not kept, edit pipeline.ron or the \
+             layers instead",
+            path.display()
+        );
+    }
+    holds
 }
 
 /// Stages 4-6: up to date when the header matches and the file reads whole (side file
@@ -221,6 +241,7 @@ fn export_current(path: &Path, hash: Hash) -> bool {
         std::fs::read(path.with_file_name(name)).is_ok_and(|b| Hash::of(&b) == named)
     };
     file.header == Header::new(crowd_export::STAGE, crowd_export::VERSION, hash)
+        && sealed(EXPORT.name, path)
         && named(&file.library, file.library_hash)
         && named(&file.gltf, file.gltf_hash)
 }
@@ -242,7 +263,7 @@ fn graph(a: &mut Artifacts, out: &Path, _: Hash, ui: &Ui) -> Result<Ran> {
     let maps = a.take_maps()?;
     let merge_path = a.path(MERGE.output);
     let graph = crowd_graph::build(a.pipeline, &merge_path, &merge_bytes, &maps, &bar)?;
-    let bytes = files::to_ron(&graph).into_bytes();
+    let bytes = files::to_stage_ron(&graph).into_bytes();
     a.made_graph(graph);
     Ok(Ran::files(vec![(out.to_path_buf(), bytes)]))
 }

@@ -188,6 +188,34 @@ pub fn ensure_writable_dir(dir: &Path) -> Result<()> {
         .map_err(|e| Error::io(dir, "write in the output folder", e))
 }
 
+/// The last line of a stage file: the hash of every byte before it.
+const SEAL: &str = "// sealed: ";
+
+/// A stage file's RON text ([`to_ron`]) sealed with the hash of its body as written, so that a
+/// file cut short or edited by hand is told from the one its stage wrote ([`seal_holds`]).
+pub fn to_stage_ron<T: Serialize>(value: &T) -> String {
+    let text = to_ron(value);
+    let seal = Hash::of(text.as_bytes());
+    format!("{text}{SEAL}{seal}\n")
+}
+
+/// Whether the stage file at `path` is exactly as its stage wrote it: its last line holds the
+/// hash of every byte before it. A file cut short loses the line; an edit breaks the hash.
+pub fn seal_holds(path: &Path) -> bool {
+    let Ok(bytes) = std::fs::read(path) else {
+        return false;
+    };
+    let Some(body) = bytes.strip_suffix(b"\n") else {
+        return false;
+    };
+    let start = body.iter().rposition(|&b| b == b'\n').map_or(0, |i| i + 1);
+    let (text, last) = body.split_at(start);
+    std::str::from_utf8(last)
+        .ok()
+        .and_then(|l| l.strip_prefix(SEAL))
+        .is_some_and(|hash| hash == Hash::of(text).to_string())
+}
+
 /// RON text of a stage file: one item of a list per line, so files stay readable and diffable.
 pub fn to_ron<T: Serialize>(value: &T) -> String {
     let config = ron::ser::PrettyConfig::new()

@@ -344,7 +344,7 @@ pub fn encode_file(
         smoothing,
         motion: record,
     };
-    let ron = crate::files::to_ron(&file).into_bytes();
+    let ron = crate::files::to_stage_ron(&file).into_bytes();
     (file, vec![(side, bytes), (out.to_path_buf(), ron)])
 }
 

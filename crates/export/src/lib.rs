@@ -161,7 +161,7 @@ pub fn writes(out: &std::path::Path, export: Export) -> crowd_core::files::Write
         (dir.join(GLB_FILE), export.glb),
         (
             out.to_path_buf(),
-            crowd_core::files::to_ron(&export.file).into_bytes(),
+            crowd_core::files::to_stage_ron(&export.file).into_bytes(),
         ),
     ]
 }

@@ -97,7 +97,7 @@ pub fn encode(
         summary: summarize(maps),
         grids: record,
     };
-    let ron = files::to_ron(&file).into_bytes();
+    let ron = files::to_stage_ron(&file).into_bytes();
     Encoded {
         file,
         writes: vec![(side, bytes), (out.to_path_buf(), ron)],

@@ -503,7 +503,7 @@ pub fn encode(
             f.iteration, f.e_rho, f.e_d, f.e, f.crossings
         );
     }
-    let ron = crowd_core::files::to_ron(&patterns).into_bytes();
+    let ron = crowd_core::files::to_stage_ron(&patterns).into_bytes();
     let writes = vec![
         (side, bytes),
         (out.with_file_name("optimize.csv"), csv.into_bytes()),
