@@ -47,6 +47,11 @@ const KEEP_LEFT: usize = 8;
 /// Exits kept in order per entry when its best is taken (see [`ScoreCache::shortlist`]).
 const SHORTLIST: usize = 8;
 
+thread_local! {
+    /// The matching's shortlists, one buffer per thread rather than per patch.
+    static SHORTLISTS: std::cell::Cell<Vec<u128>> = const { std::cell::Cell::new(Vec::new()) };
+}
+
 /// Endpoint sets a [`ScoreCache`] remembers the figures of, at most; it forgets them all
 /// when full (a patch measured many times over keeps the recent ones).
 pub const MEMO_SIZE: usize = 64;
@@ -137,13 +142,15 @@ impl Slots {
     }
 
     /// The slot that held `key` before it left (maybe just now), taken back: the latest to
-    /// leave first.
+    /// leave first, among the last few (a set that changed whole, as after re-timing, would
+    /// otherwise compare n^2 keys for nothing).
     fn back(&mut self, key: &PointKey) -> Option<u32> {
-        let k = self
-            .left
-            .iter()
-            .rposition(|&s| self.key[s as usize] == *key)?;
-        Some(self.left.remove(k))
+        let from = self.left.len().saturating_sub(2 * KEEP_LEFT);
+        let k = self.left[from..].iter().rposition(|&s| {
+            let other = &self.key[s as usize];
+            other[2] == key[2] && other == key
+        })?;
+        Some(self.left.remove(from + k))
     }
 
     /// A slot for a point it never held.
@@ -244,7 +251,7 @@ impl ScoreCache {
     fn make_room(&mut self) {
         let (rows, cols) = (self.entries.key.len(), self.exits.key.len());
         if cols > self.width {
-            let width = cols.max(self.width * 3 / 2).max(8);
+            let width = cols + 4;
             let mut scores = vec![0; rows * width];
             for (r, row) in self.scores.chunks_exact(self.width.max(1)).enumerate() {
                 scores[r * width..r * width + self.width].copy_from_slice(row);
@@ -390,7 +397,12 @@ impl ScoreCache {
         let mut taken = vec![false; n];
         let mut bars = self.bars();
         let mut exit_of = vec![0usize; n];
-        let mut short = vec![0u128; n * SHORTLIST];
+        // Room kept by the thread between matchings: only the first `len` of each shortlist
+        // are read.
+        let mut short = SHORTLISTS.take();
+        if short.len() < n * SHORTLIST {
+            short.resize(n * SHORTLIST, 0);
+        }
         let (mut len, mut next) = (vec![0usize; n], vec![0usize; n]);
         let pair = |score: u64, i: usize, o: u32| {
             Reverse((u128::from(score) << 64) | ((i as u128) << 32) | u128::from(o))
@@ -421,6 +433,7 @@ impl ScoreCache {
             let found = list[next[i]];
             heap.push(pair((found >> 32) as u64, i, found as u32));
         }
+        SHORTLISTS.set(short);
         exit_of
     }
 
