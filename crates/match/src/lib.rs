@@ -9,6 +9,7 @@
 //!
 //! Stage 3 uses [`measure_patch`] to measure density and direction from the same matching.
 
+mod cache;
 pub mod plan;
 pub mod random;
 pub mod score;
@@ -19,6 +20,8 @@ pub mod way;
 // The shortest way past a patch's walls is shared geometry (stage 5 routes pushed pieces
 // with it too); `plan` reaches it as `crate::route`.
 pub use crowd_geometry::route;
+
+pub use cache::{MEMO_SIZE, ScoreCache, match_points_cached, measure_patch_cached};
 
 use crowd_core::config::MatchSettings;
 use crowd_core::patterns::{Crossing, Measured, Side};
@@ -138,187 +141,6 @@ pub fn match_points(entries: &[Endpoint], exits: &[Endpoint], ctx: &PatchContext
         }
     }
     stable::gale_shapley(n, &scores)
-}
-
-/// What a pair's score and duration depend on at one end: where, when, on which side and how
-/// fast (the patch's context being fixed).
-type PointKey = ([u64; 5], Side);
-
-fn point_key(e: &Endpoint) -> PointKey {
-    let bits = [e.pos.x, e.pos.y, e.t, e.velocity.x, e.velocity.y].map(f64::to_bits);
-    (bits, e.side)
-}
-
-/// A patch's pair scores and matched pairs from its last measurement. Stage 3 measures a patch
-/// again after adding, removing or turning a crossing or two, so most pairs are the same: they
-/// are looked up and only the new ones scored (the n^2 scores, `atan` in each, were four fifths
-/// of stage 3), and a pair matched last time keeps its duration. The figures are exactly those
-/// [`measure_patch`] computes.
-///
-/// It also remembers the figures of the patch's recent endpoint sets ([`MEMO_SIZE`] at most):
-/// stage 3's polish tries many changes along cycles that share a border with the patch, and a
-/// third of ring's measurements were of a set measured before (the same crossing removed or
-/// turned by another cycle).
-#[derive(Debug, Clone, Default)]
-pub struct ScoreCache {
-    memo: foldhash::HashMap<u128, Measured>,
-    entries: Vec<PointKey>,
-    exits: Vec<PointKey>,
-    scores: Vec<f64>,
-    /// Per entry of the last measurement, its exit and the pair's duration.
-    matched: Vec<(usize, f64)>,
-    /// The score matrix before the last, its room reused.
-    spare: Vec<f64>,
-}
-
-/// Where each of `new` was in `old`, if it was. The lists come from the same borders in the
-/// same order, so a key is first looked for where the last one was found; a hash map is built
-/// only when that fails.
-fn old_places(old: &[PointKey], new: &[PointKey]) -> Vec<Option<usize>> {
-    let mut index: Option<foldhash::HashMap<&PointKey, usize>> = None;
-    let mut shift = 0isize;
-    new.iter()
-        .enumerate()
-        .map(|(i, key)| {
-            let guess = i as isize + shift;
-            let near = [guess, guess + 1, guess - 1]
-                .into_iter()
-                .filter_map(|g| usize::try_from(g).ok())
-                .find(|&g| old.get(g) == Some(key));
-            let found = near.or_else(|| {
-                index
-                    .get_or_insert_with(|| old.iter().enumerate().map(|(i, k)| (k, i)).collect())
-                    .get(key)
-                    .copied()
-            });
-            if let Some(g) = found {
-                shift = g as isize - i as isize;
-            }
-            found
-        })
-        .collect()
-}
-
-/// Endpoint sets a [`ScoreCache`] remembers the figures of, at most; it forgets them all
-/// when full (a patch measured many times over keeps the recent ones).
-pub const MEMO_SIZE: usize = 64;
-
-/// A set of endpoints, as a 128-bit hash of every figure a measurement reads (two 64-bit
-/// hashes with fixed seeds, of the points and the standers: the same on every machine and run, and a collision within one
-/// patch's [`MEMO_SIZE`] sets is out of reach).
-fn set_key(entries: &[Endpoint], exits: &[Endpoint], standers: u32) -> u128 {
-    use std::hash::{BuildHasher, Hash, Hasher};
-    let half = |seed: u64| {
-        let mut h = foldhash::quality::FixedState::with_seed(seed).build_hasher();
-        (entries.len(), standers).hash(&mut h);
-        for e in entries.iter().chain(exits) {
-            point_key(e).hash(&mut h);
-        }
-        h.finish()
-    };
-    (u128::from(half(0x243f_6a88_85a3_08d3)) << 64) | u128::from(half(0x1319_8a2e_0370_7344))
-}
-
-impl ScoreCache {
-    /// Takes in this measurement's endpoints: scores their pairs (row-major) reusing the last
-    /// measurement's, and returns where each entry was last time (for [`Self::matched`]).
-    fn update(
-        &mut self,
-        entries: &[Endpoint],
-        exits: &[Endpoint],
-        ctx: &PatchContext,
-    ) -> (Vec<Option<usize>>, Vec<Option<usize>>) {
-        let entry_keys: Vec<PointKey> = entries.iter().map(point_key).collect();
-        let exit_keys: Vec<PointKey> = exits.iter().map(point_key).collect();
-        if entry_keys == self.entries && exit_keys == self.exits {
-            let same = |n: usize| (0..n).map(Some).collect();
-            return (same(entries.len()), same(exits.len()));
-        }
-        let old_entry = old_places(&self.entries, &entry_keys);
-        let old_exit = old_places(&self.exits, &exit_keys);
-        let old_width = self.exits.len();
-        let mut scores = std::mem::take(&mut self.spare);
-        scores.clear();
-        scores.reserve(entries.len() * exits.len());
-        for (e, old_e) in entries.iter().zip(&old_entry) {
-            for (x, old_x) in exits.iter().zip(&old_exit) {
-                scores.push(match (old_e, old_x) {
-                    (Some(i), Some(o)) => self.scores[i * old_width + o],
-                    _ => score::score(e, x, ctx),
-                });
-            }
-        }
-        self.entries = entry_keys;
-        self.exits = exit_keys;
-        self.spare = std::mem::replace(&mut self.scores, scores);
-        (old_entry, old_exit)
-    }
-}
-
-/// [`match_points`] with the patch's scores kept in `cache` (see [`measure_patch_cached`]).
-pub fn match_points_cached(
-    entries: &[Endpoint],
-    exits: &[Endpoint],
-    ctx: &PatchContext,
-    cache: &mut ScoreCache,
-) -> Vec<usize> {
-    assert_eq!(
-        entries.len(),
-        exits.len(),
-        "parity: as many entries as exits"
-    );
-    cache.update(entries, exits, ctx);
-    // The matched pairs' durations are indexed by the last measurement's entries.
-    cache.matched.clear();
-    stable::gale_shapley(entries.len(), &cache.scores)
-}
-
-/// [`measure_patch`] with the patch's scores kept in `cache` between calls: the same figures,
-/// with only the pairs that changed since the last call scored.
-pub fn measure_patch_cached(
-    entries: &[Endpoint],
-    exits: &[Endpoint],
-    standers: u32,
-    ctx: &PatchContext,
-    cache: &mut ScoreCache,
-) -> Measured {
-    assert_eq!(
-        entries.len(),
-        exits.len(),
-        "parity: as many entries as exits"
-    );
-    let key = set_key(entries, exits, standers);
-    if let Some(m) = cache.memo.get(&key) {
-        return *m;
-    }
-    let (old_entry, old_exit) = cache.update(entries, exits, ctx);
-    let pairs = stable::gale_shapley(entries.len(), &cache.scores);
-    let area = ctx.side_m * ctx.side_m;
-    let mut time = 0.0;
-    let mut direction = DVec2::ZERO;
-    let mut matched = Vec::with_capacity(pairs.len());
-    for ((e, &o), old_e) in entries.iter().zip(&pairs).zip(&old_entry) {
-        let x = &exits[o];
-        let last = old_e.and_then(|a| cache.matched.get(a).copied());
-        let duration = match (last, old_exit[o]) {
-            (Some((b, d)), Some(b2)) if b == b2 => d,
-            _ => plan::duration(e, x, ctx),
-        };
-        matched.push((o, duration));
-        time += duration;
-        direction += duration * (x.pos - e.pos).normalize_or_zero();
-    }
-    cache.matched = matched;
-    let measured = Measured {
-        density: standers as f64 / area + time / (area * ctx.period_s),
-        direction: direction.try_normalize(),
-        standers,
-    };
-    if cache.memo.len() >= MEMO_SIZE {
-        cache.memo.clear();
-    }
-    cache.memo.insert(key, measured);
-    measured
 }
 
 /// Trajectories of a patch from its endpoints.

@@ -64,3 +64,59 @@ proptest! {
         }
     }
 }
+
+/// A point on a coarse grid of places and times, so that many pairs score the same.
+fn grid_point(entry: bool) -> impl Strategy<Value = Endpoint> {
+    (0usize..4, 1u32..4, 0u32..5).prop_map(move |(s, a, t)| {
+        let side = [Side::West, Side::East, Side::South, Side::North][s];
+        point(side, a as f64 / 4.0, t as f64 * 4.0, 0, entry)
+    })
+}
+
+/// The sets a patch goes through: the points of a pool that each step keeps (in the pool's
+/// order, or reversed now and then), as many entries as exits.
+fn subsets(pool: usize) -> impl Strategy<Value = Vec<(Vec<bool>, Vec<bool>, bool)>> {
+    let mask = proptest::collection::vec(any::<bool>(), pool);
+    proptest::collection::vec((mask.clone(), mask, proptest::bool::weighted(0.1)), 1..30)
+}
+
+fn pick(pool: &[Endpoint], mask: &[bool], n: usize, reversed: bool) -> Vec<Endpoint> {
+    let mut set: Vec<Endpoint> = pool
+        .iter()
+        .zip(mask)
+        .filter(|(_, m)| **m)
+        .map(|(p, _)| *p)
+        .chain(pool.iter().copied())
+        .take(n)
+        .collect();
+    if reversed {
+        set.reverse();
+    }
+    set
+}
+
+proptest! {
+    /// Sets with points coming, going and coming back, ties among scores and now and then an
+    /// order turned around: the cached matching is Gale-Shapley's, the figures the plain ones.
+    #[test]
+    fn cached_matching_is_gale_shapleys(
+        entries in proptest::collection::vec(grid_point(true), 14),
+        exits in proptest::collection::vec(grid_point(false), 14),
+        steps in subsets(14),
+    ) {
+        let settings = MatchSettings::default();
+        let ctx = context(&settings);
+        let mut cache = ScoreCache::default();
+        for (entry_mask, exit_mask, reversed) in steps {
+            let n = entry_mask.iter().filter(|m| **m).count().max(1);
+            let e = pick(&entries, &entry_mask, n, reversed);
+            let x = pick(&exits, &exit_mask, n, false);
+            prop_assert_eq!(
+                match_points_cached(&e, &x, &ctx, &mut cache),
+                match_points(&e, &x, &ctx)
+            );
+            let cached = measure_patch_cached(&e, &x, 1, &ctx, &mut cache);
+            prop_assert_eq!(cached, measure_patch(&e, &x, 1, &ctx));
+        }
+    }
+}
