@@ -15,6 +15,7 @@ pub struct Segment {
 }
 
 impl Segment {
+    #[inline]
     pub fn velocity(&self) -> DVec2 {
         if self.t1 > self.t0 {
             (self.p1 - self.p0) / (self.t1 - self.t0)
@@ -23,11 +24,13 @@ impl Segment {
         }
     }
 
+    #[inline]
     pub fn at(&self, t: f64) -> DVec2 {
         self.p0 + self.velocity() * (t - self.t0)
     }
 
     /// The same segment `dt` later.
+    #[inline]
     pub fn shifted(&self, dt: f64) -> Segment {
         Segment {
             t0: self.t0 + dt,
