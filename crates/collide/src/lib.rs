@@ -296,10 +296,11 @@ pub fn collide(
         ..
     } = *inputs;
     progress.begin("collide", motion.len() as u64);
-    motion
-        .par_iter()
-        .enumerate()
-        .map(|(p, m)| {
+    let mut done: Vec<(usize, (PatchMotion, PatchReport))> = costly_first(motion)
+        .into_iter()
+        .par_bridge()
+        .map(|p| {
+            let m = &motion[p];
             let obstacles = obstacles_near(graph, p);
             let patch = repair::Patch {
                 side_m: graph.world.patch_side_m,
@@ -328,9 +329,21 @@ pub fn collide(
                 standers: m.standers.clone(),
                 trajectories: paths.iter().map(Path::to_trajectory).collect(),
             };
-            (motion, report)
+            (p, (motion, report))
         })
-        .unzip()
+        .collect();
+    done.sort_unstable_by_key(|d| d.0);
+    done.into_iter().map(|d| d.1).unzip()
+}
+
+/// The patches in the order they are started: most walkers first (ties in patch order), so
+/// that a long patch does not start last and leave the other cores idle (painting's patch
+/// 10807, 71 walkers and a seventh of stage 5's work, came near the end of 10,906). Each
+/// patch's result depends on it alone, so the order changes no output.
+fn costly_first(motion: &[PatchMotion]) -> Vec<usize> {
+    let mut order: Vec<usize> = (0..motion.len()).collect();
+    order.sort_by_key(|&p| std::cmp::Reverse(motion[p].trajectories.len()));
+    order
 }
 
 /// The stage name in `collided.ron`'s header.

@@ -6,7 +6,7 @@
 //! ghosts: the same straight walk before the entry and after the exit), so that the encounters
 //! of this patch include everyone near its borders.
 
-use crowd_geometry::{Segment, at_time, ghosts};
+use crowd_geometry::{Segment, at_time, entry_ghost, exit_ghost};
 
 // Where stage 5's callers found it before it moved to the shared geometry.
 use crowd_core::trajectories::{ControlPoint, PointKind, Trajectory};
@@ -132,18 +132,52 @@ impl Path {
     /// neighbouring patches before its entry and after its exit (see
     /// [`crowd_geometry::ghosts`]).
     pub fn segments(&self) -> Vec<Segment> {
+        let mut out = Vec::new();
+        self.segments_into(&mut out);
+        out
+    }
+
+    /// [`Path::segments`] written into `out` (cleared first), the same pieces as
+    /// [`crowd_geometry::ghosts`] makes of the path's points, without a list of points:
+    /// positions and speeds are asked for several times a push.
+    pub fn segments_into(&self, out: &mut Vec<Segment>) {
         let at = |a: &Anchor| (a.pos, a.t);
-        let mut points = Vec::with_capacity(self.free.len() + 6);
-        points.push(at(&self.entry));
-        points.extend(self.entry_band.iter().map(|(a, _)| at(a)));
-        points.extend(self.free.iter().map(|f| (f.pos, f.t)));
-        points.extend(self.exit_band.iter().map(|(a, _)| at(a)));
-        points.push(at(&self.exit));
-        ghosts(
-            &points,
-            self.entry_band.last().map(|(a, _)| at(a)),
-            self.exit_band.first().map(|(a, _)| at(a)),
-        )
+        let points = std::iter::once(at(&self.entry))
+            .chain(self.entry_band.iter().map(|(a, _)| at(a)))
+            .chain(self.free.iter().map(|f| (f.pos, f.t)))
+            .chain(self.exit_band.iter().map(|(a, _)| at(a)))
+            .chain(std::iter::once(at(&self.exit)));
+        out.clear();
+        out.reserve(self.entry_band.len() + self.free.len() + self.exit_band.len() + 3);
+        let entry_band = self.entry_band.last().map(|(a, _)| at(a));
+        let exit_band = self.exit_band.first().map(|(a, _)| at(a));
+        if let Some(band) = entry_band {
+            out.push(entry_ghost(at(&self.entry), band));
+        }
+        let mut last: Option<(DVec2, f64)> = None;
+        for (p1, t1) in points {
+            if let Some((p0, t0)) = last {
+                out.push(Segment { p0, t0, p1, t1 });
+            }
+            last = Some((p1, t1));
+        }
+        if let Some(band) = exit_band {
+            out.push(exit_ghost(at(&self.exit), band));
+        }
+    }
+
+    /// Runs `f` on the path's [`Path::segments`], kept in a buffer of the thread.
+    fn with_segments<R>(&self, f: impl FnOnce(&[Segment]) -> R) -> R {
+        thread_local! {
+            static SCRATCH: std::cell::RefCell<Vec<Segment>> = const { std::cell::RefCell::new(Vec::new()) };
+        }
+        SCRATCH.with(|cell| {
+            let mut segs = cell.take();
+            self.segments_into(&mut segs);
+            let r = f(&segs);
+            cell.replace(segs);
+            r
+        })
     }
 
     /// The part of the path that may change: between the band ends (or the anchors, for a path
@@ -162,15 +196,16 @@ impl Path {
     }
 
     pub fn position(&self, t: f64) -> DVec2 {
-        at_time(&self.segments(), t).unwrap_or(self.entry.pos)
+        self.with_segments(|segs| at_time(segs, t).unwrap_or(self.entry.pos))
     }
 
     /// Speed around time `t`.
     pub fn speed(&self, t: f64) -> f64 {
-        self.segments()
-            .iter()
-            .find(|s| t <= s.t1)
-            .map_or(0.0, |s| s.velocity().length())
+        self.with_segments(|segs| {
+            segs.iter()
+                .find(|s| t <= s.t1)
+                .map_or(0.0, |s| s.velocity().length())
+        })
     }
 
     /// The pause the walker is in at time `t`, as the indices of its two pause points (with
@@ -407,7 +442,8 @@ impl Path {
         // already was): [`Path::limit_speed`] then spreads the walk's time so that no piece is
         // faster. A bend needs no hurried piece where the walk has time to spare elsewhere.
         let run = self.run_around(i);
-        let need = |p: DVec2| run.least_time(p, max_speed);
+        let cost = run.cost(max_speed);
+        let need = |p: DVec2| cost.least_time(p);
         let budget = run.time().max(need(pos));
         let walkable = |p: DVec2| need(p) <= budget + 1e-9;
         // A push towards the border slides along it instead; a push into an obstacle stops at
@@ -467,6 +503,31 @@ impl Path {
         shape
     }
 
+    /// Whether a piece of [`Path::shape`] is faster than `max_speed` or runs back in time, as
+    /// [`Path::limit_speed`] tests it: most walks need no re-timing, and this needs no list.
+    fn any_too_fast(&self, max_speed: f64) -> bool {
+        let (start, end) = self.fixed_ends();
+        let shape = std::iter::once((start.pos, start.t))
+            .chain(
+                self.free
+                    .iter()
+                    .filter(|f| f.kind != PointKind::Split)
+                    .map(|f| (f.pos, f.t)),
+            )
+            .chain(std::iter::once((end.pos, end.t)));
+        let mut last: Option<(DVec2, f64)> = None;
+        for (p, t) in shape {
+            if let Some((q, s)) = last {
+                let (l, d) = (q.distance(p), t - s);
+                if l > max_speed * d + 1e-9 || d < 0.0 {
+                    return true;
+                }
+            }
+            last = Some((p, t));
+        }
+        false
+    }
+
     /// The stretch of walk around free point `i` between the nearest points whose times are
     /// fixed.
     fn run_around(&self, i: usize) -> Run {
@@ -497,6 +558,9 @@ impl Path {
     /// has some to spare. Where a stretch is too long for its time at `max_speed`, the walker
     /// walks it at one speed, the least there is. Returns whether every stretch fits.
     pub fn limit_speed(&mut self, max_speed: f64) -> bool {
+        if !self.any_too_fast(max_speed) {
+            return true;
+        }
         let mut shape = self.shape();
         let mut fits = true;
         let mut changed = false;
@@ -661,12 +725,48 @@ impl Run {
         self.t1 - self.t0
     }
 
-    /// The least time the stretch takes at `max_speed` with its point moved to `p`.
-    fn least_time(&self, p: DVec2, max_speed: f64) -> f64 {
-        let at = |j: usize| if j == self.at { p } else { self.points[j] };
-        (1..self.points.len())
-            .map(|j| (at(j - 1).distance(at(j)) / max_speed).max(MIN_PIECE_S))
-            .sum()
+    /// What [`RunCost::least_time`] needs: the pieces that do not touch the moving point
+    /// measured once (a push tries up to 320 places for it).
+    fn cost(&self, max_speed: f64) -> RunCost {
+        let n = self.points.len();
+        let piece = |j: usize| piece_time(self.points[j - 1], self.points[j], max_speed);
+        RunCost {
+            before: (1..self.at.min(n)).map(piece).sum(),
+            after: (self.at + 2..n).map(piece).collect(),
+            prev: self.at.checked_sub(1).map(|j| self.points[j]),
+            next: self.points.get(self.at + 1).copied(),
+            max_speed,
+        }
+    }
+}
+
+/// The least time of a piece from `a` to `b` at `max_speed` (and [`MIN_PIECE_S`]).
+fn piece_time(a: DVec2, b: DVec2, max_speed: f64) -> f64 {
+    (a.distance(b) / max_speed).max(MIN_PIECE_S)
+}
+
+/// A [`Run`] measured for [`RunCost::least_time`]: the sum of the pieces before the moving
+/// point, and the pieces after it, added in the same order as a sum over the whole stretch
+/// (so the same bits).
+struct RunCost {
+    before: f64,
+    after: Vec<f64>,
+    prev: Option<DVec2>,
+    next: Option<DVec2>,
+    max_speed: f64,
+}
+
+impl RunCost {
+    /// The least time the stretch takes with its point moved to `p`.
+    fn least_time(&self, p: DVec2) -> f64 {
+        let mut sum = self.before;
+        if let Some(a) = self.prev {
+            sum += piece_time(a, p, self.max_speed);
+        }
+        if let Some(b) = self.next {
+            sum += piece_time(p, b, self.max_speed);
+        }
+        self.after.iter().fold(sum, |s, x| s + x)
     }
 }
 
@@ -735,14 +835,39 @@ fn nearest_allowed(
     if allowed(target) {
         return Some(target);
     }
+    static AROUND: std::sync::LazyLock<[DVec2; 16]> = std::sync::LazyLock::new(|| {
+        std::array::from_fn(|k| DVec2::from_angle(k as f64 * std::f64::consts::TAU / 16.0))
+    });
     (1..=20).find_map(|ring| {
         let radius = 0.1 * ring as f64;
-        (0..16)
-            .map(|k| {
-                keep_inside(
-                    target + DVec2::from_angle(k as f64 * std::f64::consts::TAU / 16.0) * radius,
-                )
-            })
+        AROUND
+            .iter()
+            .map(|&d| keep_inside(target + d * radius))
             .find(|&p| allowed(p))
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        /// The least time measured once for all places of the moving point is the sum over
+        /// the whole stretch, to the bit.
+        #[test]
+        fn a_runs_cost_is_its_whole_sum(
+            xs in proptest::collection::vec((0.0f64..8.0, 0.0f64..8.0), 2..12),
+            at in 0usize..12,
+            (px, py) in (0.0f64..8.0, 0.0f64..8.0),
+        ) {
+            let points: Vec<DVec2> = xs.iter().map(|&(x, y)| DVec2::new(x, y)).collect();
+            let at = at % points.len();
+            let run = Run { points: points.clone(), at, t0: 0.0, t1: 10.0 };
+            let p = DVec2::new(px, py);
+            let moved = |j: usize| if j == at { p } else { points[j] };
+            let whole: f64 = (1..points.len()).map(|j| piece_time(moved(j - 1), moved(j), 1.85)).sum();
+            prop_assert_eq!(run.cost(1.85).least_time(p).to_bits(), whole.to_bits());
+        }
+    }
 }

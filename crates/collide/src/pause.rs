@@ -57,14 +57,22 @@ pub(crate) fn relocate_pause(
         |q: DVec2| times(q).is_some() && clear_walk(before.0, q) && clear_walk(q, after.0);
     let margin = r + 0.3;
     let n = 9;
-    let best = (0..n * n)
-        .map(|k| {
-            let f = |i: usize| margin + (patch.side_m - 2.0 * margin) * i as f64 / (n - 1) as f64;
-            DVec2::new(f(k % n), f(k / n))
-        })
-        .filter(|&q| reachable(q))
-        .map(|q| (clearance(q), q))
-        .max_by(|a, b| a.0.total_cmp(&b.0));
+    // The clearest reachable spot (the last of equals); a spot found less clear than the best
+    // so far part-way through its others is given up.
+    let mut best: Option<(f64, DVec2)> = None;
+    for k in 0..n * n {
+        let f = |i: usize| margin + (patch.side_m - 2.0 * margin) * i as f64 / (n - 1) as f64;
+        let q = DVec2::new(f(k % n), f(k / n));
+        if !reachable(q) {
+            continue;
+        }
+        let floor = best.map(|b| b.0);
+        if let Some(c) = clearance_above(q, &others, patch, floor)
+            && floor.is_none_or(|b| c.total_cmp(&b).is_ge())
+        {
+            best = Some((c, q));
+        }
+    }
     let Some(best) = best else { return false };
     if best.0 <= clearance(here) + 1e-9 {
         return false;
@@ -122,6 +130,14 @@ fn others_during(
 /// a radius (as if the wall were a walker's centre a radius away from it); a spot inside or
 /// within a radius of a wall is never chosen.
 fn clearance(q: DVec2, others: &[DVec2], patch: &Patch) -> f64 {
+    clearance_above(q, others, patch, None).expect("no floor")
+}
+
+/// [`clearance`], or `None` as soon as it is sure to be below `floor`: the nearest of `others`
+/// is found by squared distances (the root of the least is the least of the roots, to the
+/// bit), and given up once one is surely nearer than `floor` (a pause's spot is chosen among
+/// 81, against hundreds of others each).
+fn clearance_above(q: DVec2, others: &[DVec2], patch: &Patch, floor: Option<f64>) -> Option<f64> {
     let r = patch.radius_m;
     let walls = patch
         .obstacles
@@ -135,5 +151,24 @@ fn clearance(q: DVec2, others: &[DVec2], patch: &Patch) -> f64 {
             }
         })
         .fold(f64::INFINITY, f64::min);
-    others.iter().map(|o| o.distance(q)).fold(walls, f64::min)
+    // Squared distances below `below` have a root surely below `floor`.
+    let below = floor.map_or(f64::NEG_INFINITY, |f| {
+        if f > 0.0 {
+            f * f * (1.0 - 1e-9)
+        } else {
+            f64::NEG_INFINITY
+        }
+    });
+    if floor.is_some_and(|f| walls < f) {
+        return None;
+    }
+    let mut least = f64::INFINITY;
+    for o in others {
+        let d2 = o.distance_squared(q);
+        if d2 < below {
+            return None;
+        }
+        least = least.min(d2);
+    }
+    Some(walls.min(least.sqrt()))
 }

@@ -116,8 +116,8 @@ pub fn remove_collisions(
     let worst = |rows: &[Vec<Encounter>]| {
         rows.iter()
             .flatten()
-            .copied()
             .min_by(|x, y| x.margin.total_cmp(&y.margin))
+            .copied()
     };
     let mut iterations = 0;
     loop {
@@ -141,7 +141,9 @@ pub fn remove_collisions(
         {
             pair.push(b);
         }
-        let saved: Vec<(usize, Path)> = pair.iter().map(|&p| (p, paths[p].clone())).collect();
+        // A push changes only free points (anchors and bands have no setter).
+        let saved: Vec<(usize, Vec<crate::path::Free>)> =
+            pair.iter().map(|&p| (p, paths[p].free.clone())).collect();
         let touched = push_apart(paths, &tracks, patch, speeds, &w, rng);
         for &p in &touched {
             paths[p].reroute(&walls, patch.radius_m, patch.side_m);
@@ -149,7 +151,7 @@ pub fn remove_collisions(
             paths[p].settle_splits();
             if !now && fits[p] {
                 if let Some((_, old)) = saved.iter().find(|(q, _)| *q == p) {
-                    paths[p] = old.clone();
+                    paths[p].free.clone_from(old);
                 }
             } else {
                 fits[p] = now;

@@ -12,6 +12,7 @@ use glam::DVec2;
 /// with `w` their offset at the start and `dv` their relative velocity, the distance
 /// |w + dv t| is smallest at t = -w.dv / |dv|^2, clamped to `[0, duration]` (eq. 10).
 /// Returns that distance and t. Points at the same velocity are closest at the start.
+#[inline]
 pub fn approach(w: DVec2, dv: DVec2, duration: f64) -> (f64, f64) {
     let speed2 = dv.length_squared();
     let t = if speed2 > 1e-18 {
@@ -25,6 +26,7 @@ pub fn approach(w: DVec2, dv: DVec2, duration: f64) -> (f64, f64) {
 /// The smallest distance between walkers on `a` and `b` during the time both exist, and when
 /// it happens; `None` when they never coexist. Analytic ([`approach`] over the common
 /// interval).
+#[inline]
 pub fn closest(a: &Segment, b: &Segment) -> Option<(f64, f64)> {
     let (ts, te) = (a.t0.max(b.t0), a.t1.min(b.t1));
     if ts > te {

@@ -29,4 +29,4 @@ pub use patch::{Patch, obstacles_near};
 pub use rows::{refresh, rows};
 pub use segment::{Segment, at_time, copies, pieces};
 pub use tracks::Tracks;
-pub use trajectory::{ghosts, trajectory_segments};
+pub use trajectory::{entry_ghost, exit_ghost, ghosts, trajectory_segments};

@@ -15,6 +15,7 @@ pub struct Segment {
 }
 
 impl Segment {
+    #[inline]
     pub fn velocity(&self) -> DVec2 {
         if self.t1 > self.t0 {
             (self.p1 - self.p0) / (self.t1 - self.t0)
@@ -23,11 +24,13 @@ impl Segment {
         }
     }
 
+    #[inline]
     pub fn at(&self, t: f64) -> DVec2 {
         self.p0 + self.velocity() * (t - self.t0)
     }
 
     /// The same segment `dt` later.
+    #[inline]
     pub fn shifted(&self, dt: f64) -> Segment {
         Segment {
             t0: self.t0 + dt,
@@ -73,9 +76,29 @@ pub fn at_time(segs: &[Segment], t: f64) -> Option<DVec2> {
 /// The whole numbers of periods k for which something existing during `b`, shifted k periods
 /// later, exists during `a` too.
 pub fn copies(a: (f64, f64), b: (f64, f64), period: f64) -> std::ops::RangeInclusive<i64> {
-    let kmin = ((a.0 - b.1) / period).ceil() as i64;
-    let kmax = ((a.1 - b.0) / period).floor() as i64;
+    let kmin = ceil_i64((a.0 - b.1) / period);
+    let kmax = floor_i64((a.1 - b.0) / period);
     kmin..=kmax
+}
+
+/// `x.ceil() as i64`, without the library call (most of `copies`, asked for every pair).
+fn ceil_i64(x: f64) -> i64 {
+    let t = x as i64;
+    if (t as f64) < x {
+        t.saturating_add(1)
+    } else {
+        t
+    }
+}
+
+/// `x.floor() as i64`, likewise.
+fn floor_i64(x: f64) -> i64 {
+    let t = x as i64;
+    if (t as f64) > x {
+        t.saturating_sub(1)
+    } else {
+        t
+    }
 }
 
 #[cfg(test)]
@@ -98,7 +121,27 @@ mod tests {
         assert_eq!(at_time(&[], 1.0), None);
     }
 
+    #[test]
+    fn whole_numbers_round_as_the_library_does() {
+        let edges = [
+            0.0, -0.0, 0.5, -0.5, 2.0, -2.0, 2.5, -2.5, 1e300, -1e300, 9.3e18, -9.3e18,
+        ];
+        for x in edges
+            .into_iter()
+            .chain([f64::NAN, f64::INFINITY, f64::NEG_INFINITY])
+        {
+            assert_eq!(ceil_i64(x), x.ceil() as i64, "{x}");
+            assert_eq!(floor_i64(x), x.floor() as i64, "{x}");
+        }
+    }
+
     proptest! {
+        #[test]
+        fn rounding_to_whole_numbers_matches_the_library(x in -1e20f64..1e20) {
+            prop_assert_eq!(ceil_i64(x), x.ceil() as i64);
+            prop_assert_eq!(floor_i64(x), x.floor() as i64);
+        }
+
         /// `copies` names exactly the whole numbers of periods by which `b`, shifted, overlaps
         /// `a` in time.
         #[test]

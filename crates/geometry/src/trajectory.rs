@@ -15,24 +15,34 @@ pub fn ghosts(
     exit_band: Option<(DVec2, f64)>,
 ) -> Vec<Segment> {
     let mut out = Vec::with_capacity(points.len() + 1);
-    if let (Some(&(p0, t0)), Some((p1, t1))) = (points.first(), entry_band) {
-        out.push(Segment {
-            p0: p0 - (p1 - p0),
-            t0: t0 - (t1 - t0),
-            p1: p0,
-            t1: t0,
-        });
+    if let (Some(&first), Some(band)) = (points.first(), entry_band) {
+        out.push(entry_ghost(first, band));
     }
     out.extend(pieces(points.iter().copied()));
-    if let (Some(&(p1, t1)), Some((p0, t0))) = (points.last(), exit_band) {
-        out.push(Segment {
-            p0: p1,
-            t0: t1,
-            p1: p1 + (p1 - p0),
-            t1: t1 + (t1 - t0),
-        });
+    if let (Some(&last), Some(band)) = (points.last(), exit_band) {
+        out.push(exit_ghost(last, band));
     }
     out
+}
+
+/// The ghost before an entry at `(p0, t0)` whose band ends at `(p1, t1)` (see [`ghosts`]).
+pub fn entry_ghost((p0, t0): (DVec2, f64), (p1, t1): (DVec2, f64)) -> Segment {
+    Segment {
+        p0: p0 - (p1 - p0),
+        t0: t0 - (t1 - t0),
+        p1: p0,
+        t1: t0,
+    }
+}
+
+/// The ghost after an exit at `(p1, t1)` whose band starts at `(p0, t0)` (see [`ghosts`]).
+pub fn exit_ghost((p1, t1): (DVec2, f64), (p0, t0): (DVec2, f64)) -> Segment {
+    Segment {
+        p0: p1,
+        t0: t1,
+        p1: p1 + (p1 - p0),
+        t1: t1 + (t1 - t0),
+    }
 }
 
 /// The straight pieces of a trajectory with its ghosts (see [`ghosts`]).
