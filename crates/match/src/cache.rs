@@ -287,6 +287,21 @@ impl ScoreCache {
         &self.scores[base..base + self.width]
     }
 
+    /// Scores entry `i` with exit `o` in their slots, unless the score kept there still holds.
+    fn rescore(
+        &mut self,
+        i: usize,
+        o: usize,
+        (entries, exits): (&[Endpoint], &[Endpoint]),
+        ctx: &PatchContext,
+    ) {
+        let (r, c) = (self.entries.at[i], self.exits.at[o]);
+        if !self.kept(r, c) {
+            let s = score::score(&entries[i], &exits[o], ctx);
+            self.scores[r as usize * self.width + c as usize] = order_key(s);
+        }
+    }
+
     /// An entry that came: its scores with every exit where not kept, and its best.
     fn score_row(
         &mut self,
@@ -297,12 +312,8 @@ impl ScoreCache {
         bars: &[u64],
     ) {
         let r = self.entries.at[i];
-        let base = r as usize * self.width;
-        for (o, &c) in self.exits.at.iter().enumerate() {
-            if !self.kept(r, c) {
-                let s = score::score(&entries[i], &exits[o], ctx);
-                self.scores[base + c as usize] = order_key(s);
-            }
+        for o in 0..self.exits.at.len() {
+            self.rescore(i, o, (entries, exits), ctx);
         }
         let (_, o) = self.best_free(r, bars);
         self.best[r as usize] = self.exits.at[o as usize];
@@ -320,13 +331,8 @@ impl ScoreCache {
         bars: &[u64],
     ) {
         let r = self.entries.at[i];
-        let base = r as usize * self.width;
         for &o in came_exits {
-            let c = self.exits.at[o];
-            if !self.kept(r, c) {
-                let s = score::score(&entries[i], &exits[o], ctx);
-                self.scores[base + c as usize] = order_key(s);
-            }
+            self.rescore(i, o, (entries, exits), ctx);
         }
         let b = self.best[r as usize];
         let stays = self.exits.pos[b as usize] != GONE && self.exits.since[b as usize] < self.epoch;
