@@ -133,23 +133,21 @@ impl Scene {
             .min_by(|x, y| x.0.total_cmp(&y.0))
     }
 
-    /// Every piece's time span (its start modulo the period when walkers repeat, widened by
-    /// a nanosecond so that rounding in the modulo never drops a pair that [`Scene::pair`]
-    /// would compare) and path box, by piece: computed once, not in every cell a piece is in.
-    fn spans(&self) -> Vec<Span> {
+    /// Piece `i`'s time span (its start modulo the period when walkers repeat, widened by a
+    /// nanosecond so that rounding in the modulo never drops a pair that [`Scene::pair`] would
+    /// compare) and path box. Made cell by cell: kept for the whole world, painting's 9 M
+    /// pieces held half a gigabyte more at the check's peak.
+    fn span(&self, i: u32) -> Span {
         const WIDEN: f64 = 1e-9;
         let (period, periodic) = self.periodicity();
-        let span = |(i, p): (usize, &Piece)| {
-            let s = &p.seg;
-            let start = if periodic {
-                s.t0.rem_euclid(period)
-            } else {
-                s.t0
-            };
-            let (lo, hi) = (s.p0.min(s.p1), s.p0.max(s.p1));
-            (start, start + (s.t1 - s.t0) + WIDEN, i as u32, lo, hi)
+        let s = &self.pieces[i as usize].seg;
+        let start = if periodic {
+            s.t0.rem_euclid(period)
+        } else {
+            s.t0
         };
-        self.pieces.par_iter().enumerate().map(span).collect()
+        let (lo, hi) = (s.p0.min(s.p1), s.p0.max(s.p1));
+        (start, start + (s.t1 - s.t0) + WIDEN, i, lo, hi)
     }
 
     fn periodicity(&self) -> (f64, bool) {
@@ -160,16 +158,16 @@ impl Scene {
     }
 
     /// Calls `visit` with the pairs of pieces `ids` whose times overlap, modulo the period
-    /// when walkers repeat (`spans` from [`Scene::spans`]). A piece's span is swept against
+    /// when walkers repeat ([`Scene::span`]). A piece's span is swept against
     /// the others' starts (sorted, as integers: a comparison of floats made the sort a tenth
     /// of the check), so a cell's pieces are not all compared with all: they are spread over
     /// the whole period. Pairs whose paths are `reach` or farther apart along an axis are left
     /// out. A pair may come twice (a span that wraps past the period meets one both ways),
     /// which the callers' keyed minima do not mind: sorting a dense cell's pairs to drop the
     /// few twins cost more than measuring them (a quarter of the check).
-    fn coexisting(&self, spans: &[Span], ids: &[u32], reach: f64, mut visit: impl FnMut(u32, u32)) {
+    fn coexisting(&self, ids: &[u32], reach: f64, mut visit: impl FnMut(u32, u32)) {
         let (period, periodic) = self.periodicity();
-        let mut cell: Vec<Span> = ids.iter().map(|&i| spans[i as usize]).collect();
+        let mut cell: Vec<Span> = ids.iter().map(|&i| self.span(i)).collect();
         cell.sort_unstable_by_key(|s| (ordered_bits(s.0), s.2));
         for (x, &(start, end, i, lo, hi)) in cell.iter().enumerate() {
             let mut pair = |o: &Span| {
@@ -197,7 +195,6 @@ impl Scene {
     /// kept: a painting's pairs within reach ran to gigabytes.
     fn walker_pairs(&self) -> Found<(u32, u32), Near> {
         let r = self.radius;
-        let spans = self.spans();
         let grid = PieceGrid::new(self.pieces.iter().map(|p| &p.seg), 4.0, 2.0 * r);
         let reach = 2.0 * r + 1.0;
         // Found once each: in the cell holding the lower corner of their overlap.
@@ -207,7 +204,7 @@ impl Scene {
             .map(|(k, ids)| {
                 let mut out = Vec::new();
                 let mut nearest: Option<Near> = None;
-                self.coexisting(&spans, ids, reach, |i, j| {
+                self.coexisting(ids, reach, |i, j| {
                     if !grid.owns(*k, i, j) {
                         return;
                     }
@@ -436,7 +433,7 @@ mod tests {
             let s = scene(&spans, repeat);
             let ids: Vec<u32> = (0..spans.len() as u32).collect();
             let mut kept = std::collections::HashSet::new();
-            s.coexisting(&s.spans(), &ids, f64::INFINITY, |i, j| {
+            s.coexisting(&ids, f64::INFINITY, |i, j| {
                 kept.insert((i.min(j), i.max(j)));
             });
             for i in 0..spans.len() {
