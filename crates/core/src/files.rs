@@ -184,7 +184,11 @@ pub fn ensure_writable_dir(dir: &Path) -> Result<()> {
     std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, "create the output folder", e))?;
     let probe = dir.join(format!(".write-probe{}", std::process::id()));
     std::fs::write(&probe, b"")
-        .and_then(|_| std::fs::remove_file(&probe))
+        .and_then(|_| match std::fs::remove_file(&probe) {
+            // The folder's lock holder clears temporaries: it may have taken this one.
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(()),
+            other => other,
+        })
         .map_err(|e| Error::io(dir, "write in the output folder", e))
 }
 
