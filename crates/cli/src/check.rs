@@ -67,6 +67,9 @@ pub fn command(
     stage: Option<&'static Stage>,
     pipeline: Option<&Path>,
 ) -> Result<String> {
+    if !dir.is_dir() {
+        bail!("{}: no such build folder", dir.display());
+    }
     let _lock = files::FolderLock::acquire(dir, || {
         eprintln!(
             "waiting: another build or check is writing in {}",
