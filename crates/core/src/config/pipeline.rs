@@ -125,7 +125,8 @@ impl Pipeline {
                 "radius_m",
                 format!(
                     "is {} m; expected less than half the patch side ({} m)",
-                    self.radius_m, self.patch_side_m
+                    Num(self.radius_m),
+                    Num(self.patch_side_m)
                 ),
             ));
         }
@@ -136,7 +137,8 @@ impl Pipeline {
                 format!(
                     "is {} m, which is {pixels} pixels at {} m per pixel; expected a whole \
                      number of pixels so that patches follow the painted pixels",
-                    self.patch_side_m, self.scene.meters_per_pixel
+                    Num(self.patch_side_m),
+                    Num(self.scene.meters_per_pixel)
                 ),
             ));
         }
