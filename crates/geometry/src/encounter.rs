@@ -72,23 +72,25 @@ pub(crate) fn pair_in(
         if lo > hi {
             continue;
         }
-        let mut i = sa.partition_point(|s| s.t1 < lo);
-        let mut j = sb.partition_point(|s| s.t1 + shift < lo);
-        while i < sa.len() && j < sb.len() && sa[i].t0 <= hi && sb[j].t0 + shift <= hi {
-            let x = sb[j].shifted(shift);
-            // Two pieces whose boxes are farther apart than the closest so far (or than reach)
-            // cannot bring it down: most pairs end here, without the exact approach.
+        // Runs of pieces first: only where two runs come within reach (or within the
+        // closest so far) are their pieces swept, over the time both runs exist.
+        let (ca, cb) = (&tracks.chunks[a], &tracks.chunks[b]);
+        let mut i = ca.partition_point(|c| c.t1 < lo);
+        let mut j = cb.partition_point(|c| c.t1 + shift < lo);
+        while i < ca.len() && j < cb.len() && ca[i].t0 <= hi && cb[j].t0 + shift <= hi {
+            let (x, y) = (&ca[i], &cb[j]);
             let limit = best.map_or(reach, |(bd, _, _)| bd.min(reach));
-            let (lo_a, hi_a) = (sa[i].p0.min(sa[i].p1), sa[i].p0.max(sa[i].p1));
-            let (lo_b, hi_b) = (x.p0.min(x.p1), x.p0.max(x.p1));
-            let gap = (lo_b - hi_a).max(lo_a - hi_b).max(DVec2::ZERO);
-            if gap.length_squared() <= limit * limit
-                && let Some((d, t)) = closest(&sa[i], &x)
-                && best.is_none_or(|(bd, _, _)| d < bd)
-            {
-                best = Some((d, t, shift));
+            let gap = (y.lo - x.hi).max(x.lo - y.hi).max(DVec2::ZERO);
+            if gap.length_squared() <= limit * limit {
+                let from = lo.max(x.t0).max(y.t0 + shift);
+                let to = hi.min(x.t1).min(y.t1 + shift);
+                let (pa, pb) = (
+                    &sa[x.start as usize..x.end as usize],
+                    &sb[y.start as usize..y.end as usize],
+                );
+                sweep(pa, pb, shift, (from, to), reach, &mut best);
             }
-            if sa[i].t1 <= x.t1 {
+            if x.t1 <= y.t1 + shift {
                 i += 1;
             } else {
                 j += 1;
@@ -106,49 +108,178 @@ pub(crate) fn pair_in(
         })
 }
 
+/// The closest approach of the pieces `sa` and `sb` (shifted by `shift` seconds) over
+/// `lo..=hi`, where it beats `best`: one sweep visits every pair of pieces that overlap in
+/// time, since both runs go forward in time.
+fn sweep(
+    sa: &[Segment],
+    sb: &[Segment],
+    shift: f64,
+    (lo, hi): Span,
+    reach: f64,
+    best: &mut Option<(f64, f64, f64)>,
+) {
+    let mut i = sa.partition_point(|s| s.t1 < lo);
+    let mut j = sb.partition_point(|s| s.t1 + shift < lo);
+    while i < sa.len() && j < sb.len() && sa[i].t0 <= hi && sb[j].t0 + shift <= hi {
+        let x = sb[j].shifted(shift);
+        // Two pieces whose boxes are farther apart than the closest so far (or than reach)
+        // cannot bring it down: most pairs end here, without the exact approach.
+        let limit = best.map_or(reach, |(bd, _, _)| bd.min(reach));
+        let (lo_a, hi_a) = (sa[i].p0.min(sa[i].p1), sa[i].p0.max(sa[i].p1));
+        let (lo_b, hi_b) = (x.p0.min(x.p1), x.p0.max(x.p1));
+        let gap = (lo_b - hi_a).max(lo_a - hi_b).max(DVec2::ZERO);
+        if gap.length_squared() <= limit * limit
+            && let Some((d, t)) = closest(&sa[i], &x)
+            && best.is_none_or(|(bd, _, _)| d < bd)
+        {
+            *best = Some((d, t, shift));
+        }
+        if sa[i].t1 <= x.t1 {
+            i += 1;
+        } else {
+            j += 1;
+        }
+    }
+}
+
 /// Every encounter of walker `a` with the standers and the obstacles.
 pub(crate) fn fixed_row(tracks: &Tracks, a: usize, patch: &Patch) -> Vec<Encounter> {
-    let r = patch.radius_m;
-    let mut out = Vec::new();
-    for (s, &q) in patch.standers.iter().enumerate() {
-        let best = tracks
-            .get(a)
-            .iter()
-            .filter_map(|sa| closest(sa, &Segment::standing(q, sa.t0, sa.t1)))
-            .min_by(|x, y| x.0.total_cmp(&y.0));
-        if let Some((d, t)) = best {
-            out.push(Encounter {
-                margin: d - 2.0 * r,
-                distance: d,
-                t,
-                a,
-                other: Other::Stander(s),
-            });
+    let standers = (0..patch.standers.len()).filter_map(|s| with_stander(tracks, a, s, patch));
+    let obstacles = (0..patch.obstacles.len()).filter_map(|o| with_obstacle(tracks, a, o, patch));
+    standers.chain(obstacles).collect()
+}
+
+/// Walker `a`'s encounter with `other` (for a walker, over every period shift), as
+/// [`crate::rows`] holds it: `None` where the rows hold no entry.
+pub fn encounter_with(tracks: &Tracks, a: usize, other: Other, patch: &Patch) -> Option<Encounter> {
+    match other {
+        Other::Walker { b, .. } => pair(tracks, a.min(b), a.max(b), patch),
+        Other::Stander(s) => with_stander(tracks, a, s, patch),
+        Other::Obstacle(o) => with_obstacle(tracks, a, o, patch),
+    }
+}
+
+/// Walker `a`'s closest approach to stander `s`.
+fn with_stander(tracks: &Tracks, a: usize, s: usize, patch: &Patch) -> Option<Encounter> {
+    let q = patch.standers[s];
+    let (d, t) = tracks
+        .get(a)
+        .iter()
+        .filter_map(|sa| closest(sa, &Segment::standing(q, sa.t0, sa.t1)))
+        .min_by(|x, y| x.0.total_cmp(&y.0))?;
+    Some(Encounter {
+        margin: d - 2.0 * patch.radius_m,
+        distance: d,
+        t,
+        a,
+        other: Other::Stander(s),
+    })
+}
+
+/// Walker `a`'s closest approach to obstacle `o`.
+fn with_obstacle(tracks: &Tracks, a: usize, o: usize, patch: &Patch) -> Option<Encounter> {
+    let rect = &patch.obstacles[o];
+    // The searched approach of the nearest piece (the first on a tie). A piece whose exact
+    // distance is already farther than the nearest so far cannot be it: the search is only
+    // run on the others (it was 90 % of a thin-walled painting's build).
+    let mut best: Option<(f64, f64, DVec2)> = None;
+    for sa in tracks.get(a) {
+        if best.is_some_and(|b| distance_to_rect(sa, rect.min, rect.max) > b.0) {
+            continue;
+        }
+        let found = to_rect(sa, rect.min, rect.max);
+        if best.is_none_or(|b| found.0 < b.0) {
+            best = Some(found);
         }
     }
-    for (o, rect) in patch.obstacles.iter().enumerate() {
-        // The searched approach of the nearest piece (the first on a tie). A piece whose exact
-        // distance is already farther than the nearest so far cannot be it: the search is only
-        // run on the others (it was 90 % of a thin-walled painting's build).
-        let mut best: Option<(f64, f64, DVec2)> = None;
-        for sa in tracks.get(a) {
-            if best.is_some_and(|b| distance_to_rect(sa, rect.min, rect.max) > b.0) {
+    let (d, t, _) = best?;
+    Some(Encounter {
+        margin: d - patch.radius_m,
+        distance: d,
+        t,
+        a,
+        other: Other::Obstacle(o),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::segment::pieces;
+    use proptest::prelude::*;
+
+    /// A walk of `steps` pieces from `start` s, each `dt` long, moving by `moves`.
+    fn walk(start: f64, from: (f64, f64), steps: &[(f64, f64, f64)]) -> Vec<Segment> {
+        let mut at = (DVec2::new(from.0, from.1), start);
+        let mut points = vec![at];
+        for &(dx, dy, dt) in steps {
+            at = (at.0 + DVec2::new(dx, dy), at.1 + dt);
+            points.push(at);
+        }
+        pieces(points)
+    }
+
+    fn any_walk() -> impl Strategy<Value = Vec<Segment>> {
+        (
+            0.0f64..20.0,
+            (0.0f64..8.0, 0.0f64..8.0),
+            proptest::collection::vec((-1.0f64..1.0, -1.0f64..1.0, 0.05f64..1.5), 1..40),
+        )
+            .prop_map(|(start, from, steps)| walk(start, from, &steps))
+    }
+
+    /// Every piece against every piece of every copy: what the sweeps must find.
+    fn brute(a: &[Segment], b: &[Segment], same: bool, period: f64) -> Option<f64> {
+        let mut best: Option<f64> = None;
+        for k in -10i64..=10 {
+            if same && k <= 0 {
                 continue;
             }
-            let found = to_rect(sa, rect.min, rect.max);
-            if best.is_none_or(|b| found.0 < b.0) {
-                best = Some(found);
+            for x in a {
+                for y in b {
+                    if let Some((d, _)) = closest(x, &y.shifted(k as f64 * period)) {
+                        best = Some(best.map_or(d, |b: f64| b.min(d)));
+                    }
+                }
             }
         }
-        if let Some((d, t, _)) = best {
-            out.push(Encounter {
-                margin: d - r,
-                distance: d,
-                t,
-                a,
-                other: Other::Obstacle(o),
-            });
+        best
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(512))]
+        /// The runs of pieces only skip what cannot come within reach: the closest approach
+        /// is the one every pair of pieces gives.
+        #[test]
+        fn the_sweep_finds_what_every_pair_of_pieces_finds(
+            a in any_walk(),
+            b in any_walk(),
+            period in 8.0f64..30.0,
+            radius in 0.2f64..1.5,
+        ) {
+            let tracks = Tracks::new(vec![a.clone(), b.clone()]);
+            let patch = Patch {
+                side_m: 8.0,
+                period_s: period,
+                radius_m: radius,
+                obstacles: &[],
+                standers: &[],
+            };
+            for (x, y, same) in [(0, 1, false), (0, 0, true), (1, 1, true)] {
+                let (sa, sb) = (tracks.get(x), tracks.get(y));
+                let want = brute(sa, sb, same, period).filter(|&d| d < 2.0 * radius);
+                let got = pair(&tracks, x, y, &patch).map(|e| e.distance);
+                match (want, got) {
+                    (Some(w), Some(g)) => prop_assert!((w - g).abs() < 1e-9, "{} {}", w, g),
+                    (None, None) => {}
+                    // At reach within rounding either may say so.
+                    (w, g) => prop_assert!(
+                        w.or(g).is_some_and(|d| (d - 2.0 * radius).abs() < 1e-9),
+                        "{:?} {:?}", w, g
+                    ),
+                }
+            }
         }
     }
-    out
 }

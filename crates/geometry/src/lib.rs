@@ -23,7 +23,7 @@ pub mod tracks;
 pub mod trajectory;
 
 pub use approach::{approach, closest, distance_to_rect, to_rect};
-pub use encounter::{Encounter, Other, pair};
+pub use encounter::{Encounter, Other, encounter_with, pair};
 pub use grid::{BoxGrid, PieceGrid};
 pub use patch::{Patch, obstacles_near};
 pub use rows::{refresh, rows};

@@ -13,7 +13,28 @@ use glam::DVec2;
 pub struct Tracks {
     segs: Vec<Vec<Segment>>,
     pub(crate) boxes: Vec<(DVec2, DVec2)>,
+    /// Every path cut into runs of [`CHUNK`] pieces, each with its time span and box: the
+    /// middle level of the broad phase, so that two paths that cross the same patch but are
+    /// near each other only for a moment are measured piece by piece only around it.
+    pub(crate) chunks: Vec<Vec<Chunk>>,
     pub(crate) changed: Vec<Option<Span>>,
+}
+
+/// Pieces per [`Chunk`]: long enough that a chunk's box is worth testing, short enough that
+/// a sampled curve's chunk (stage 6's curves hold a point every few tenths of a second) covers
+/// a few metres at most.
+pub(crate) const CHUNK: usize = 8;
+
+/// A run of consecutive pieces of one path: `start..end` in its pieces, from `t0` to `t1`,
+/// inside the box `lo`-`hi`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Chunk {
+    pub t0: f64,
+    pub t1: f64,
+    pub lo: DVec2,
+    pub hi: DVec2,
+    pub start: u32,
+    pub end: u32,
 }
 
 /// A time span `[start, end]`, s.
@@ -23,10 +44,12 @@ pub(crate) const ALWAYS: Span = (f64::NEG_INFINITY, f64::INFINITY);
 impl Tracks {
     pub fn new(segs: Vec<Vec<Segment>>) -> Tracks {
         let boxes = segs.iter().map(|s| bounds(s)).collect();
+        let chunks = segs.iter().map(|s| chunks(s)).collect();
         let changed = vec![None; segs.len()];
         Tracks {
             segs,
             boxes,
+            chunks,
             changed,
         }
     }
@@ -38,6 +61,7 @@ impl Tracks {
                 Some(self.changed[p].map_or(span, |c| (c.0.min(span.0), c.1.max(span.1))));
         }
         self.boxes[p] = bounds(&segs);
+        self.chunks[p] = chunks(&segs);
         self.segs[p] = segs;
     }
 
@@ -83,4 +107,23 @@ fn bounds(segs: &[Segment]) -> (DVec2, DVec2) {
         (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY)),
         |(lo, hi), s| (lo.min(s.p0).min(s.p1), hi.max(s.p0).max(s.p1)),
     )
+}
+
+/// A path's pieces in runs of [`CHUNK`].
+fn chunks(segs: &[Segment]) -> Vec<Chunk> {
+    segs.chunks(CHUNK)
+        .enumerate()
+        .map(|(k, run)| {
+            let (lo, hi) = bounds(run);
+            let start = k * CHUNK;
+            Chunk {
+                t0: run[0].t0,
+                t1: run[run.len() - 1].t1,
+                lo,
+                hi,
+                start: start as u32,
+                end: (start + run.len()) as u32,
+            }
+        })
+        .collect()
 }

@@ -311,12 +311,16 @@ fn keep_clear(
     patch: &Patch,
     curve_at: impl Fn(usize, u32, &[f64]) -> Trajectory,
 ) -> Vec<Trajectory> {
-    let old_segs: Vec<Vec<Segment>> = before.iter().map(trajectory_segments).collect();
-    let old: HashMap<_, f64> = crowd_geometry::rows(&Tracks::new(old_segs), patch)
-        .iter()
-        .flatten()
-        .map(|e| (key(e), e.margin))
-        .collect();
+    // The polylines' margins, measured only for the pairs whose curves come too close (a
+    // few in a patch): the whole matrix of the polylines cost as much as the curves'.
+    let old_tracks = Tracks::new(before.iter().map(trajectory_segments).collect());
+    let mut old: HashMap<_, f64> = HashMap::new();
+    let mut was = |e: &Encounter| {
+        *old.entry(key(e)).or_insert_with(|| {
+            crowd_geometry::encounter_with(&old_tracks, e.a, e.other, patch)
+                .map_or(f64::INFINITY, |o| o.margin)
+        })
+    };
     let mut tracks = Tracks::new(after.iter().map(trajectory_segments).collect());
     // Only the rows of walkers that changed are measured again.
     let mut rows = crowd_geometry::rows(&tracks, patch);
@@ -326,8 +330,7 @@ fn keep_clear(
         // Who must move back, and when (in their own time) it came too close.
         let mut again: Vec<(usize, f64)> = Vec::new();
         for e in rows.iter().flatten() {
-            let was = old.get(&key(e)).copied().unwrap_or(f64::INFINITY);
-            if e.margin < 0.0 && e.margin < was - 1e-9 {
+            if e.margin < 0.0 && e.margin < was(e) - 1e-9 {
                 again.push((e.a, e.t));
                 if let Other::Walker { b, shift } = e.other {
                     again.push((b, e.t - shift));
