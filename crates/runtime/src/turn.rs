@@ -200,44 +200,61 @@ pub struct PointHeadings {
 /// whether the piece from it walks. Stage 8 takes `world.glb`'s headings from here and the
 /// runtime's sampler its own, so the glTF and the runtime face the same way.
 pub fn library_headings(lib: &crate::Library) -> PointHeadings {
-    let rate = f64::from(lib.world.turn_rate_deg_s).to_radians();
     let mut out = PointHeadings {
         heading: vec![0.0; lib.points.len()],
         walks: vec![false; lib.points.len()],
     };
-    let (mut times, mut places, mut keys, mut walking) =
-        (Vec::new(), Vec::new(), Vec::new(), Vec::new());
     for ch in &lib.characters {
-        times.clear();
-        places.clear();
-        keys.clear();
-        walking.clear();
-        let (mut at, mut tick) = (ch.first_trajectory, 0u64);
-        for j in 0..ch.trajectories {
+        let one = character_headings(lib, ch);
+        let (mut heading, mut walks) = (one.heading.iter(), one.walks.iter());
+        let mut at = ch.first_trajectory;
+        for _ in 0..ch.trajectories {
             let tr = &lib.trajectories[at as usize];
-            let patch = &lib.patches[tr.patch as usize];
-            let pts = lib.points_of(tr);
-            for (i, p) in pts.iter().enumerate() {
-                if i > 0 || j == 0 {
-                    times.push((tick + u64::from(p.t)) as f64 * crate::TICK_S);
-                    places.push(lib.world_position(patch, *p));
-                }
+            let first = tr.first_point as usize;
+            for i in 0..tr.points as usize {
+                out.heading[first + i] = *heading.next().expect("a heading per point");
                 if i > 0 {
-                    let walks = piece_walks(lib, pts[i - 1], *p);
-                    out.walks[tr.first_point as usize + i - 1] = walks;
-                    walking.push(walks);
+                    out.walks[first + i - 1] = *walks.next().expect("one per piece");
                 }
-                keys.push((tr.first_point as usize + i, times.len() - 1));
             }
-            tick += u64::from(lib.duration_ticks(tr));
             at = tr.next;
-        }
-        let h = loop_headings_walking(&times, &places, &walking, rate);
-        for &(point, key) in &keys {
-            out.heading[point] = h[key];
         }
     }
     out
+}
+
+/// One character's share of [`library_headings`], in its loop's order: the heading at every
+/// point of each of its trajectories in turn (a trajectory's first point included, though it
+/// is its predecessor's last), and whether each piece walks. Each character's is its own, so
+/// a reader that needs a few characters (stage 8's `world.glb` of a region) need not pay for
+/// all.
+pub fn character_headings(lib: &crate::Library, ch: &crate::Character) -> PointHeadings {
+    let rate = f64::from(lib.world.turn_rate_deg_s).to_radians();
+    let (mut times, mut places, mut keys) = (Vec::new(), Vec::new(), Vec::new());
+    let mut walking = Vec::new();
+    let (mut at, mut tick) = (ch.first_trajectory, 0u64);
+    for j in 0..ch.trajectories {
+        let tr = &lib.trajectories[at as usize];
+        let patch = &lib.patches[tr.patch as usize];
+        let pts = lib.points_of(tr);
+        for (i, p) in pts.iter().enumerate() {
+            if i > 0 || j == 0 {
+                times.push((tick + u64::from(p.t)) as f64 * crate::TICK_S);
+                places.push(lib.world_position(patch, *p));
+            }
+            if i > 0 {
+                walking.push(piece_walks(lib, pts[i - 1], *p));
+            }
+            keys.push(times.len() - 1);
+        }
+        tick += u64::from(lib.duration_ticks(tr));
+        at = tr.next;
+    }
+    let h = loop_headings_walking(&times, &places, &walking, rate);
+    PointHeadings {
+        heading: keys.iter().map(|&k| h[k]).collect(),
+        walks: walking,
+    }
 }
 
 #[cfg(test)]

@@ -118,58 +118,79 @@ impl LoopPath {
     }
 }
 
-/// Every loop, in the library's CHAR order: stage 6's kept points at their times (what the
-/// translation keys show), and the headings of `crowd_runtime::turn::library_headings` with
-/// the library's own ticks for their turns, so that `world.glb` and `crowd-runtime` face the
-/// same way.
-pub(super) fn loop_paths(w: &World) -> Vec<LoopPath> {
+/// Loop `lp` (in the library's CHAR order): stage 6's kept points at their times (what the
+/// translation keys show), and the headings of `crowd_runtime::turn::character_headings`
+/// with the library's own ticks for their turns, so that `world.glb` and `crowd-runtime`
+/// face the same way.
+pub(super) fn loop_path(w: &World, lp: usize) -> LoopPath {
     let lib = w.library;
-    let table = turn::library_headings(lib);
-    w.links
-        .loops
+    let table = turn::character_headings(lib, &lib.characters[lp]);
+    let (mut heading, mut walks) = (table.heading.into_iter(), table.walks.into_iter());
+    let lp = &w.links.loops[lp];
+    let (mut times, mut points) = (Vec::new(), Vec::new());
+    let (mut headings, mut walking, mut turn_times) = (Vec::new(), Vec::new(), Vec::new());
+    let (mut offset, mut tick) = (0.0, 0u64);
+    let first = w.links.refs[lp[0]];
+    let start = w.motion[first.patch].trajectories[first.index].points[0].t;
+    for &i in lp {
+        let r = w.links.refs[i];
+        let tr = &w.motion[r.patch].trajectories[r.index];
+        let origin = w.graph.world_from_patch(w.graph.patches[r.patch].cell);
+        let t0 = tr.points[0].t;
+        // The library's trajectory `i` holds the same points, quantised.
+        let held = lib.points_of(&lib.trajectories[i]);
+        for (k, cp) in tr.points.iter().enumerate() {
+            let h = heading.next().expect("a heading per point");
+            if k > 0 {
+                walking.push(walks.next().expect("one per piece"));
+            } else if !times.is_empty() {
+                continue; // the previous trajectory's exit, the same instant and place
+            }
+            times.push(offset + cp.t - t0);
+            points.push(origin + cp.pos);
+            turn_times.push((tick + u64::from(held[k].t)) as f64 * TICK_S);
+            headings.push(h);
+        }
+        offset += tr.duration();
+        tick += u64::from(lib.duration_ticks(&lib.trajectories[i]));
+    }
+    LoopPath {
+        headings,
+        walking,
+        turn_times,
+        rate: f64::from(lib.world.turn_rate_deg_s).to_radians(),
+        times,
+        points,
+        start,
+        laps: loop_laps(w, lp),
+        period: w.period_s,
+    }
+}
+
+/// How many periods a loop lasts (its trajectories' durations, rounded; at least one).
+pub(super) fn loop_laps(w: &World, lp: &[usize]) -> u32 {
+    let length: f64 = lp
         .iter()
-        .map(|lp| {
-            let (mut times, mut points) = (Vec::new(), Vec::new());
-            let (mut headings, mut walking, mut turn_times) = (Vec::new(), Vec::new(), Vec::new());
-            let (mut offset, mut tick) = (0.0, 0u64);
-            let first = w.links.refs[lp[0]];
-            let start = w.motion[first.patch].trajectories[first.index].points[0].t;
-            for &i in lp {
-                let r = w.links.refs[i];
-                let tr = &w.motion[r.patch].trajectories[r.index];
-                let origin = w.graph.world_from_patch(w.graph.patches[r.patch].cell);
-                let t0 = tr.points[0].t;
-                // The library's trajectory `i` holds the same points, quantised.
-                let held = lib.points_of(&lib.trajectories[i]);
-                let first = lib.trajectories[i].first_point as usize;
-                for (k, cp) in tr.points.iter().enumerate() {
-                    if k > 0 {
-                        walking.push(table.walks[first + k - 1]);
-                    } else if !times.is_empty() {
-                        continue; // the previous trajectory's exit, the same instant and place
-                    }
-                    times.push(offset + cp.t - t0);
-                    points.push(origin + cp.pos);
-                    turn_times.push((tick + u64::from(held[k].t)) as f64 * TICK_S);
-                    headings.push(table.heading[first + k]);
-                }
-                offset += tr.duration();
-                tick += u64::from(lib.duration_ticks(&lib.trajectories[i]));
-            }
-            let laps = (offset / w.period_s).round().max(1.0) as u32;
-            LoopPath {
-                headings,
-                walking,
-                turn_times,
-                rate: f64::from(lib.world.turn_rate_deg_s).to_radians(),
-                times,
-                points,
-                start,
-                laps,
-                period: w.period_s,
-            }
+        .map(|&i| {
+            let r = w.links.refs[i];
+            w.motion[r.patch].trajectories[r.index].duration()
         })
-        .collect()
+        .sum();
+    (length / w.period_s).round().max(1.0) as u32
+}
+
+/// The box (world metres) that holds every point of a loop, so every key of its slots.
+pub(super) fn loop_box(w: &World, lp: &[usize]) -> (DVec2, DVec2) {
+    let mut bounds = (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY));
+    for &i in lp {
+        let r = w.links.refs[i];
+        let origin = w.graph.world_from_patch(w.graph.patches[r.patch].cell);
+        for cp in &w.motion[r.patch].trajectories[r.index].points {
+            let p = origin + cp.pos;
+            bounds = (bounds.0.min(p), bounds.1.max(p));
+        }
+    }
+    bounds
 }
 
 /// glTF's frame of a world point on the ground.
@@ -307,6 +328,32 @@ fn turn_keys(path: &LoopPath, tau0: f64, tau_end: f64) -> (Vec<f64>, Vec<[f32; 4
         turns.push(r);
     }
     (split.into_iter().map(|k| k.0).collect(), turns)
+}
+
+/// The box that holds every key of slot `lap` ([`slot_keys`]): its clip's ends and the
+/// loop's points in between.
+pub(super) fn window_box(path: &LoopPath, lap: u32) -> (DVec2, DVec2) {
+    let (tau0, tau_end) = (path.tau(lap), path.tau(path.next_lap(lap)));
+    let (start, end) = (path.at(tau0), path.at(tau_end));
+    let mut bounds = (start.min(end), start.max(end));
+    let (times, points) = (&path.times, &path.points);
+    let mut run = |from: f64, to: f64| {
+        let (a, b) = (
+            times.partition_point(|&t| t < from),
+            times.partition_point(|&t| t <= to),
+        );
+        for p in &points[a..b.max(a)] {
+            bounds = (bounds.0.min(*p), bounds.1.max(*p));
+        }
+    };
+    let end_tau = tau0 + path.period;
+    if end_tau <= path.length() {
+        run(tau0, end_tau);
+    } else {
+        run(tau0, path.length());
+        run(f64::NEG_INFINITY, end_tau - path.length());
+    }
+    bounds
 }
 
 /// The keys of slot `lap` of `path` (at loop time `path.tau(lap)` at clip time 0).

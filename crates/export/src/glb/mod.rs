@@ -32,7 +32,7 @@ use glam::DVec2;
 use gltf_json as json;
 use json::validation::Checked::Valid;
 use json::validation::USize64;
-use keys::{Keys, gltf_point, loop_paths, slot_keys};
+use keys::{Keys, gltf_point, loop_path, slot_keys};
 use mesh::capsule;
 
 /// What `world.glb` is made from.
@@ -95,28 +95,52 @@ pub fn world_glb(w: &World) -> Vec<u8> {
         keys: Keys,
         shown: Vec<(f64, f64)>,
     }
+    // Each loop's slots. With a region, a loop whose box misses it, and a slot whose keys'
+    // box does, shows nothing: their keys are never made (most of painting's, for its 160 m
+    // region).
+    let hidden = |b: (DVec2, DVec2)| w.region.is_some_and(|r| !region::may_show(b, r));
+    let per_loop: Vec<(u32, Vec<(u32, Keys, Vec<(f64, f64)>)>)> = w
+        .links
+        .loops
+        .iter()
+        .enumerate()
+        .map(|(lp, members)| {
+            let laps = keys::loop_laps(w, members);
+            if hidden(keys::loop_box(w, members)) {
+                return (laps, Vec::new());
+            }
+            let path = loop_path(w, lp);
+            let slots = (0..laps)
+                .filter(|&lap| !hidden(keys::window_box(&path, lap)))
+                .map(|lap| {
+                    let keys = slot_keys(&path, lap);
+                    let shown = match w.region {
+                        Some(r) => region::shown(&keys.times, &keys.points, r),
+                        None => vec![(0.0, period)],
+                    };
+                    (lap, keys, shown)
+                })
+                .collect();
+            (laps, slots)
+        })
+        .collect();
     let mut slots = Vec::new();
     let mut id = 0u32;
     let mut laps = Vec::new();
-    for (lp, path) in loop_paths(w).into_iter().enumerate() {
-        let first = id;
-        laps.push(path.laps);
-        for lap in 0..path.laps {
-            let keys = slot_keys(&path, lap);
-            let shown = match w.region {
-                Some(r) => region::shown(&keys.times, &keys.points, r),
-                None => vec![(0.0, period)],
-            };
+    for (lp, (n, made)) in per_loop.into_iter().enumerate() {
+        let (first, laps_here) = (id, n);
+        laps.push(n);
+        for (lap, keys, shown) in made {
             slots.push(Slot {
                 id: first + lap,
-                next: first + path.next_lap(lap),
+                next: first + (lap + laps_here - 1) % laps_here,
                 lp: lp as u32,
                 lap,
                 keys,
                 shown,
             });
         }
-        id += path.laps;
+        id += laps_here;
     }
     let named: std::collections::HashSet<u32> = slots
         .iter()

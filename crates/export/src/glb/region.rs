@@ -9,6 +9,15 @@ use glam::DVec2;
 /// An axis-aligned region of the world, `(x0, y0, x1, y1)` in world metres.
 pub(super) type Region = (f64, f64, f64, f64);
 
+/// Whether anything inside the box `lo`-`hi` may be shown in `region`: false only where the
+/// box lies a millimetre or more outside it (a loop's keys are points of its pieces, rounded
+/// within far less).
+pub(super) fn may_show((lo, hi): (DVec2, DVec2), region: Region) -> bool {
+    const SLACK_M: f64 = 1e-3;
+    let (x0, y0, x1, y1) = region;
+    hi.x >= x0 - SLACK_M && lo.x <= x1 + SLACK_M && hi.y >= y0 - SLACK_M && lo.y <= y1 + SLACK_M
+}
+
 /// The spans of clip time during which the walk through `keys` (times, positions, piecewise
 /// linear) is inside `region`, in order, touching spans merged.
 pub(super) fn shown(times: &[f64], points: &[DVec2], region: Region) -> Vec<(f64, f64)> {
