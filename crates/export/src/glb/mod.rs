@@ -99,48 +99,32 @@ pub fn world_glb(w: &World) -> Vec<u8> {
     // box does, shows nothing: their keys are never made (most of painting's, for its 160 m
     // region).
     let hidden = |b: (DVec2, DVec2)| w.region.is_some_and(|r| !region::may_show(b, r));
-    let per_loop: Vec<(u32, Vec<(u32, Keys, Vec<(f64, f64)>)>)> = w
-        .links
-        .loops
-        .iter()
-        .enumerate()
-        .map(|(lp, members)| {
-            let laps = keys::loop_laps(w, members);
-            if hidden(keys::loop_box(w, members)) {
-                return (laps, Vec::new());
-            }
-            let path = loop_path(w, lp);
-            let slots = (0..laps)
-                .filter(|&lap| !hidden(keys::window_box(&path, lap)))
-                .map(|lap| {
-                    let keys = slot_keys(&path, lap);
-                    let shown = match w.region {
-                        Some(r) => region::shown(&keys.times, &keys.points, r),
-                        None => vec![(0.0, period)],
-                    };
-                    (lap, keys, shown)
-                })
-                .collect();
-            (laps, slots)
-        })
-        .collect();
     let mut slots = Vec::new();
     let mut id = 0u32;
     let mut laps = Vec::new();
-    for (lp, (n, made)) in per_loop.into_iter().enumerate() {
-        let (first, laps_here) = (id, n);
+    for (lp, members) in w.links.loops.iter().enumerate() {
+        let (first, n) = (id, keys::loop_laps(w, members));
         laps.push(n);
-        for (lap, keys, shown) in made {
+        id += n;
+        if hidden(keys::loop_box(w, members)) {
+            continue;
+        }
+        let path = loop_path(w, lp);
+        for lap in (0..n).filter(|&lap| !hidden(keys::window_box(&path, lap))) {
+            let keys = slot_keys(&path, lap);
+            let shown = match w.region {
+                Some(r) => region::shown(&keys.times, &keys.points, r),
+                None => vec![(0.0, period)],
+            };
             slots.push(Slot {
                 id: first + lap,
-                next: first + (lap + laps_here - 1) % laps_here,
+                next: first + path.next_lap(lap),
                 lp: lp as u32,
                 lap,
                 keys,
                 shown,
             });
         }
-        id += laps_here;
     }
     let named: std::collections::HashSet<u32> = slots
         .iter()
