@@ -435,3 +435,53 @@ fn a_stage_file_cut_short_or_edited_by_hand_is_said_and_rebuilt() {
         assert!(stderr.contains("optimize: up to date"), "{what}: {stderr}");
     }
 }
+
+/// Every file of a folder with its bytes and modification time, sorted by name (the lock file
+/// included: even it is not written again).
+fn stamped(dir: &Path) -> Vec<(String, Vec<u8>, std::time::SystemTime)> {
+    let mut files: Vec<_> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .map(|p| {
+            (
+                p.file_name().unwrap().to_string_lossy().into_owned(),
+                std::fs::read(&p).unwrap(),
+                std::fs::metadata(&p).unwrap().modified().unwrap(),
+            )
+        })
+        .collect();
+    files.sort();
+    files
+}
+
+/// Up to date means read-only: a second build with nothing stale leaves every file's bytes
+/// and modification time alone (report and timings included), adds none, and succeeds in a
+/// folder it may not write in.
+#[test]
+fn an_up_to_date_build_writes_nothing_and_succeeds_in_a_read_only_folder() {
+    use std::os::unix::fs::PermissionsExt;
+    let dir = copy_of("bands");
+    let out = dir.path();
+    let pipeline = scene_pipeline("bands");
+    let build = || crowd_ok(&["build", "--pipeline", s(&pipeline), "--output", s(out)]);
+    build();
+    let before = stamped(out);
+    std::thread::sleep(std::time::Duration::from_millis(20));
+    let said = String::from_utf8_lossy(&build().stderr).into_owned();
+    assert!(!said.contains("built"), "{said}");
+    assert!(stamped(out) == before, "an up-to-date build wrote: {said}");
+
+    std::fs::set_permissions(out, std::fs::Permissions::from_mode(0o555)).unwrap();
+    // Root writes anyway; then the folder is not read-only and the run below proves less.
+    let probe = out.join("probe");
+    let privileged = std::fs::write(&probe, b"").is_ok();
+    let _ = std::fs::remove_file(&probe);
+    let result = crate::util::crowd(&["build", "--pipeline", s(&pipeline), "--output", s(out)]);
+    std::fs::set_permissions(out, std::fs::Permissions::from_mode(0o755)).unwrap();
+    assert!(
+        result.status.success(),
+        "read-only folder (privileged: {privileged}): {}",
+        String::from_utf8_lossy(&result.stderr)
+    );
+    assert!(stamped(out) == before);
+}

@@ -61,8 +61,11 @@ pub fn build(
     // The layers are read (headers checked, the region held to the maps) before the folder
     // is made: a refused painting leaves no trace.
     artifacts.layers()?;
-    files::ensure_writable_dir(&out)?;
+    std::fs::create_dir_all(&out)
+        .map_err(|e| crowd_core::Error::io(&out, "create the output folder", e))?;
     let lock = lock(&out, ui)?;
+    // Whether files can be written is proved before the first stage that runs does any work.
+    let mut writable = false;
     let mut timings = read_timings(&out);
     let mut pending = Writes::new();
     let mut outcomes = Vec::new();
@@ -80,6 +83,10 @@ pub fn build(
                 seconds: None,
             });
             continue;
+        }
+        if !writable {
+            files::ensure_writable_dir(&out)?;
+            writable = true;
         }
         let (ran, run) = timed(|| (stage.run)(&mut artifacts, &path, hash, ui))?;
         if let Some(bytes) = ran.bytes_of(&path) {
@@ -102,8 +109,12 @@ pub fn build(
             seconds: Some(run.seconds),
         });
     }
-    files::write_all(&pending)?;
-    files::write_atomic(&out.join(TIMINGS_FILE), files::to_ron(&timings).as_bytes())?;
+    // Up to date means read-only: a build that ran nothing writes nothing, not even its
+    // timings, so that it succeeds in a read-only folder and wakes no one who watches it.
+    if outcomes.iter().any(|o| o.seconds.is_some()) {
+        files::write_all(&pending)?;
+        files::write_atomic(&out.join(TIMINGS_FILE), files::to_ron(&timings).as_bytes())?;
+    }
     Ok((outcomes, lock))
 }
 

@@ -15,8 +15,54 @@ use std::path::{Path, PathBuf};
 /// The report's name in a build folder.
 pub const REPORT_FILE: &str = "report.md";
 
+/// The last line of `report.md`: the hash of what it was made from ([`made_from`]).
+const MADE_FROM: &str = "<!-- made from: ";
+
+/// The hash of everything a report of `dir` in `scope` reads: every RON and CSV file of the
+/// folder (stage files name their side files, the library and glTF by hash), by name and
+/// bytes, the scope and this program's version. The same hash, the same report.
+fn made_from(dir: &Path, scope: Scope) -> Result<crowd_core::Hash> {
+    let mut names: Vec<String> = std::fs::read_dir(dir)?
+        .filter_map(|e| e.ok()?.file_name().into_string().ok())
+        .filter(|n| n.ends_with(".ron") || n.ends_with(".csv"))
+        .collect();
+    names.sort();
+    let mut h = crowd_core::Hasher::new("report", 1);
+    h.value("crowd", &env!("CARGO_PKG_VERSION"));
+    h.value("scope", &scope.last.map(|s| s.name));
+    for name in names {
+        let bytes = std::fs::read(dir.join(&name))?;
+        h.value(&name, &crowd_core::Hash::of(&bytes));
+    }
+    Ok(h.finish())
+}
+
+/// Whether `dir`'s `report.md` was made from exactly what a report in `scope` would read now
+/// (and its pictures are there).
+pub fn up_to_date(dir: &Path, scope: Scope) -> bool {
+    let Ok(text) = std::fs::read_to_string(dir.join(REPORT_FILE)) else {
+        return false;
+    };
+    let pictures_there = text
+        .split("](")
+        .skip(1)
+        .filter_map(|rest| rest.split_once(')'))
+        .all(|(file, _)| dir.join(file).is_file());
+    let last = text.trim_end().lines().last().unwrap_or_default();
+    pictures_there && made_from(dir, scope).is_ok_and(|h| last == format!("{MADE_FROM}{h} -->"))
+}
+
+/// Writes `report.md` in `dir` unless it is [`up_to_date`] (a build with nothing to do
+/// rewrites nothing). The report's path either way.
+pub fn refresh(dir: &Path, scope: Scope) -> Result<PathBuf> {
+    if up_to_date(dir, scope) {
+        return Ok(dir.join(REPORT_FILE));
+    }
+    write(dir, scope)
+}
+
 /// Draws the pictures of the stage files in `dir` that are in `scope`, then writes `report.md`
-/// there.
+/// there, ending with the hash of what it was made from.
 pub fn write(dir: &Path, scope: Scope) -> Result<PathBuf> {
     let pictures = draw_pictures(dir, scope)?;
     let report = Report::gather_in(dir, scope)?;
@@ -36,6 +82,7 @@ pub fn write(dir: &Path, scope: Scope) -> Result<PathBuf> {
     // The warnings go first, under the title: they are what a person must read.
     let at = text.find("\n## ").map_or(text.len(), |i| i + 1);
     text.insert_str(at, &warnings_section(&warnings, marked));
+    let _ = writeln!(text, "\n{MADE_FROM}{} -->", made_from(dir, scope)?);
     let path = dir.join(REPORT_FILE);
     files::write_atomic(&path, text.as_bytes())?;
     Ok(path)

@@ -218,17 +218,20 @@ fn sealed(name: &str, path: &Path) -> bool {
     holds
 }
 
-/// Stages 4-6: up to date when the header matches and the file reads whole (side file
-/// included); its motion is then kept for the next stage.
-fn motion_fresh(stage: &'static Stage, a: &mut Artifacts, path: &Path, hash: Hash) -> Result<bool> {
+/// Stages 4-6: up to date when the header matches and the side file is the one it names (size
+/// and hash). The motion is decoded only if a later stage runs: a build with nothing to do
+/// reads each side file once, in pieces, and keeps none of it.
+fn motion_fresh(stage: &'static Stage, _: &mut Artifacts, path: &Path, hash: Hash) -> Result<bool> {
     if !header_matches(stage, path, hash) {
         return Ok(false);
     }
-    let Ok(motion) = TrajectoriesFile::load_stage(path, stage.kind, stage.version) else {
+    let Ok(file) = files::read_ron::<TrajectoriesFile>(path) else {
         return Ok(false);
     };
-    a.found_motion(stage, path, motion)?;
-    Ok(true)
+    Ok(
+        files::expect_stage(path, &file.header, stage.kind, stage.version).is_ok()
+            && file.motion.holds(path),
+    )
 }
 
 /// Stage 8 is up to date when `export.ron` records `hash` and the library and glTF beside it

@@ -65,6 +65,14 @@ impl SideFile {
         (path, record)
     }
 
+    /// Whether the side file next to `owner` is the one this record names (its size, then
+    /// its hash), without keeping its bytes.
+    pub fn holds(&self, owner: &Path) -> bool {
+        let path = owner.with_file_name(&self.file);
+        std::fs::metadata(&path).is_ok_and(|m| m.len() == self.bytes)
+            && Hash::of_file(&path).is_ok_and(|found| found == (self.bytes, self.hash))
+    }
+
     /// Reads the side file next to `owner` and checks its size and hash.
     pub fn read(&self, owner: &Path) -> Result<Vec<u8>> {
         let path = owner.with_file_name(&self.file);

@@ -13,6 +13,14 @@ impl Hash {
         Hash(*blake3::hash(bytes).as_bytes())
     }
 
+    /// Hash and length of a file's bytes, read in pieces (a 400 MB side file is checked
+    /// without holding it).
+    pub fn of_file(path: &std::path::Path) -> std::io::Result<(u64, Hash)> {
+        let mut hasher = blake3::Hasher::new();
+        hasher.update_reader(std::fs::File::open(path)?)?;
+        Ok((hasher.count(), Hash(*hasher.finalize().as_bytes())))
+    }
+
     /// The 32 bytes.
     pub fn as_bytes(&self) -> &[u8; 32] {
         &self.0
