@@ -156,13 +156,10 @@ fn optimize_settings_refuse_what_the_optimiser_cannot_use() {
         (BANDS, "optimize.tolerance", "NaN", tolerance),
         (BANDS, "optimize.tolerance", "-0.001", tolerance),
         (RING, "optimize.tolerance", "inf", tolerance),
-        (BANDS, "optimize.patience", "0", "at least 1 step"),
-        (
-            BANDS,
-            "optimize.max_iterations",
-            "0",
-            "at least 1 optimisation",
-        ),
+        (BANDS, "optimize.patience", "0", "from 1 to 10000 steps"),
+        (BANDS, "optimize.patience", "4000000000", "from 1 to 10000 steps"),
+        (BANDS, "optimize.max_iterations", "0", "from 1 to 10000 optimisation"),
+        (BANDS, "optimize.max_iterations", "10001", "from 1 to 10000 optimisation"),
     ]);
 }
 
@@ -197,9 +194,15 @@ fn match_speeds_out_of_order_are_refused() {
     }
 }
 
+/// A push budget bounds the work of a patch that stalls: none, or one that would let it run
+/// for hours, is refused.
 #[test]
-fn collide_settings_refuse_a_zero_push_budget() {
-    all_refused(&[(BANDS, "collide.max_iterations", "0", "at least 1 push")]);
+fn collide_settings_refuse_no_push_budget_and_an_unbounded_one() {
+    let pushes = "from 1 to 1000000 pushes per patch";
+    all_refused(&[
+        (BANDS, "collide.max_iterations", "0", pushes),
+        (BANDS, "collide.max_iterations", "4000000000", pushes),
+    ]);
 }
 
 #[test]

@@ -61,18 +61,41 @@ pub fn build(
     // The layers are read (headers checked, the region held to the maps) before the folder
     // is made: a refused painting leaves no trace.
     artifacts.layers()?;
+    let existed = out.exists();
     std::fs::create_dir_all(&out)
         .map_err(|e| crowd_core::Error::io(&out, "create the output folder", e))?;
     let lock = lock(&out, ui)?;
-    // Whether files can be written is proved before the first stage that runs does any work.
-    let mut writable = false;
-    let mut timings = read_timings(&out);
+    match run_stages(&out, &mut artifacts, options, ui) {
+        Ok(outcomes) => Ok((outcomes, lock)),
+        Err(e) => {
+            // A refused build leaves no trace: a folder it made holds only its lock file.
+            if !existed {
+                drop(lock);
+                let _ = std::fs::remove_file(out.join(files::FolderLock::FILE));
+                let _ = std::fs::remove_dir(&out);
+            }
+            Err(e)
+        }
+    }
+}
+
+/// The stages of [`build`] in order, under the folder's lock; their files written only when
+/// every stage has succeeded.
+fn run_stages(
+    out: &Path,
+    artifacts: &mut Artifacts,
+    options: &BuildOptions,
+    ui: &Ui,
+) -> Result<Vec<StageOutcome>> {
+    let mut timings = read_timings(out);
     let mut pending = Writes::new();
     let mut outcomes = Vec::new();
+    // Whether files can be written is proved before the first stage that runs does any work.
+    let mut writable = false;
     for stage in stage::up_to(options.until) {
         let path = out.join(stage.output);
-        let hash = (stage.hash)(&mut artifacts)?;
-        if !options.force && (stage.fresh)(&mut artifacts, &path, hash)? {
+        let hash = (stage.hash)(artifacts)?;
+        if !options.force && (stage.fresh)(artifacts, &path, hash)? {
             ui.say(format!(
                 "{:>8}: up to date, skipped ({})",
                 stage.name,
@@ -85,10 +108,10 @@ pub fn build(
             continue;
         }
         if !writable {
-            files::ensure_writable_dir(&out)?;
+            files::ensure_writable_dir(out)?;
             writable = true;
         }
-        let (ran, run) = timed(|| (stage.run)(&mut artifacts, &path, hash, ui))?;
+        let (ran, run) = timed(|| (stage.run)(artifacts, &path, hash, ui))?;
         if let Some(bytes) = ran.bytes_of(&path) {
             artifacts.keep_bytes(stage, bytes.to_vec());
         }
@@ -115,7 +138,7 @@ pub fn build(
         files::write_all(&pending)?;
         files::write_atomic(&out.join(TIMINGS_FILE), files::to_ron(&timings).as_bytes())?;
     }
-    Ok((outcomes, lock))
+    Ok(outcomes)
 }
 
 /// Takes the build folder `dir`'s lock, saying so when another build or check holds it.

@@ -81,7 +81,8 @@ impl fmt::Display for Num {
     }
 }
 
-/// A count of at least one.
-pub fn at_least_one(field: &str, value: u32, expected: &str) -> Check {
-    require(value >= 1, field, value, expected)
+/// A count from 1 to `most`: an iteration limit, whose largest value bounds the work it
+/// allows.
+pub fn count_up_to(field: &str, value: u32, most: u32, expected: &str) -> Check {
+    require((1..=most).contains(&value), field, value, expected)
 }

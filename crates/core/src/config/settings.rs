@@ -3,7 +3,7 @@
 //! its stage cannot use (NaN, a negative or zero where it means nothing, a minimum above its
 //! maximum) before any stage runs.
 
-use super::checks::{Check, at_least_one, invalid, not_negative, positive, require, share};
+use super::checks::{Check, count_up_to, invalid, not_negative, positive, require, share};
 use serde::{Deserialize, Serialize};
 
 /// Settings of stage 1.
@@ -109,22 +109,28 @@ impl OptimizeSettings {
             self.rho_max,
             "a positive density in characters per m2",
         )?;
-        at_least_one(
+        count_up_to(
             "optimize.max_iterations",
             self.max_iterations,
-            "at least 1 optimisation step",
+            Self::MOST_ITERATIONS,
+            "from 1 to 10000 optimisation steps (each measures the whole scene: `painting` \
+             takes about 0.2 s a step)",
         )?;
         not_negative(
             "optimize.tolerance",
             self.tolerance,
             "a gain in E of 0 or more (the loop stops when E gains less in `patience` steps)",
         )?;
-        at_least_one(
+        count_up_to(
             "optimize.patience",
             self.patience,
-            "at least 1 step to wait for E to gain `tolerance`",
+            Self::MOST_ITERATIONS,
+            "from 1 to 10000 steps to wait for E to gain `tolerance`",
         )
     }
+
+    /// The most steps `max_iterations` and `patience` may ask for.
+    pub const MOST_ITERATIONS: u32 = 10_000;
 }
 
 /// Settings of stage 4 (also used by stage 3 to measure density and direction).
@@ -207,12 +213,18 @@ impl Default for CollideSettings {
 
 impl CollideSettings {
     pub fn validate(&self) -> Check {
-        at_least_one(
+        count_up_to(
             "collide.max_iterations",
             self.max_iterations,
-            "at least 1 push per patch",
+            Self::MOST_PUSHES,
+            "from 1 to 1000000 pushes per patch (a patch that stalls spends about this many \
+             in each way stage 5 tries to clear it, so the worst build time grows with it: \
+             `bands` takes 4 s at 2000000, 17 s at 20000000)",
         )
     }
+
+    /// The most pushes per patch `max_iterations` may allow.
+    pub const MOST_PUSHES: u32 = 1_000_000;
 }
 
 /// Settings of stage 6 (Ramirez section 3.5).
