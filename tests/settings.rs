@@ -157,9 +157,24 @@ fn optimize_settings_refuse_what_the_optimiser_cannot_use() {
         (BANDS, "optimize.tolerance", "-0.001", tolerance),
         (RING, "optimize.tolerance", "inf", tolerance),
         (BANDS, "optimize.patience", "0", "from 1 to 10000 steps"),
-        (BANDS, "optimize.patience", "4000000000", "from 1 to 10000 steps"),
-        (BANDS, "optimize.max_iterations", "0", "from 1 to 10000 optimisation"),
-        (BANDS, "optimize.max_iterations", "10001", "from 1 to 10000 optimisation"),
+        (
+            BANDS,
+            "optimize.patience",
+            "4000000000",
+            "from 1 to 10000 steps",
+        ),
+        (
+            BANDS,
+            "optimize.max_iterations",
+            "0",
+            "from 1 to 10000 optimisation",
+        ),
+        (
+            BANDS,
+            "optimize.max_iterations",
+            "10001",
+            "from 1 to 10000 optimisation",
+        ),
     ]);
 }
 

@@ -10,6 +10,7 @@ mod check;
 mod export;
 mod export_clip;
 mod golden;
+mod hostile;
 mod paintings;
 mod patterns;
 mod scenes;

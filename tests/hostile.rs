@@ -1,0 +1,247 @@
+//! Hostile settings, one at a time, as a studio's unattended build would meet them: the real
+//! binary under a 6 GiB address-space cap and a time limit. Each case ends with the exit code
+//! it should, a first line that names the setting, no panic, and no output folder left behind
+//! when it is refused; a legal extreme finishes within the limit.
+//!
+//! `cargo test --test tests hostile -- --nocapture` prints the table (case, exit code, first
+//! line of the message).
+
+use crate::settings::broken;
+use crate::util::*;
+use std::path::Path;
+use std::process::{Command, Output, Stdio};
+use std::time::{Duration, Instant};
+
+/// The address space the binary may take (`ulimit -v`, KiB): 6 GiB.
+const MEMORY_KIB: u64 = 6 << 20;
+/// A case still running after this long is a failure (each takes well under a second today).
+const TIME_LIMIT: Duration = Duration::from_secs(60);
+
+const BANDS: &str = "assets/pipelines/bands.ron";
+
+/// Runs `crowd args` under the memory cap, killed at the time limit (`None` then).
+fn capped(args: &[&str]) -> Option<Output> {
+    let script = format!("ulimit -v {MEMORY_KIB} && exec \"$0\" \"$@\"");
+    let mut child = Command::new("sh")
+        .arg("-c")
+        .arg(script)
+        .arg(env!("CARGO_BIN_EXE_crowd"))
+        .args(args)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("sh runs");
+    let start = Instant::now();
+    while child.try_wait().expect("waitable").is_none() {
+        if start.elapsed() > TIME_LIMIT {
+            let _ = child.kill();
+            let _ = child.wait();
+            return None;
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    Some(child.wait_with_output().expect("output"))
+}
+
+/// One case: a pipeline (written into `dir`) and extra arguments before `build`.
+struct Case {
+    name: &'static str,
+    /// The shipped pipeline with one field set, or with one text replaced.
+    change: Change,
+    threads: Option<&'static str>,
+    code: i32,
+    /// What the message's first line must hold (for a refusal), or what stderr holds.
+    said: &'static str,
+}
+
+enum Change {
+    Field(&'static str, &'static str),
+    Text(&'static str, &'static str),
+}
+
+fn case(name: &'static str, field: &'static str, value: &'static str, said: &'static str) -> Case {
+    Case {
+        name,
+        change: Change::Field(field, value),
+        threads: None,
+        code: 1,
+        said,
+    }
+}
+
+fn cases() -> Vec<Case> {
+    vec![
+        case(
+            "period_s: 1e300",
+            "period_s",
+            "1e300",
+            "`period_s` is 1e300",
+        ),
+        case("period_s: 1e5", "period_s", "1e5", "`period_s` is 100000"),
+        case("period_s: 1e-9", "period_s", "1e-9", "`period_s` is 1e-9"),
+        case(
+            "smooth: (tack_spacing_s: 1e-9)",
+            "smooth.tack_spacing_s",
+            "1e-9",
+            "`smooth.tack_spacing_s` is 1e-9",
+        ),
+        case(
+            "patch_side_m: 1.0",
+            "patch_side_m",
+            "1.0",
+            "`patch_side_m` is 1",
+        ),
+        case(
+            "patch_side_m: 100.0 (maps 160 x 80 m)",
+            "patch_side_m",
+            "100.0",
+            "smaller than one patch of 100 m",
+        ),
+        case(
+            "radius_m: 2.0",
+            "radius_m",
+            "2.0",
+            "`patch_side_m` is 8; expected from 16 to 100 m",
+        ),
+        case(
+            "walkers: 1e9",
+            "walkers",
+            "1000000000",
+            "`walkers` is 1000000000 but at most",
+        ),
+        case(
+            "optimize: (tolerance: NaN)",
+            "optimize.tolerance",
+            "NaN",
+            "`optimize.tolerance` is NaN",
+        ),
+        case(
+            "optimize: (max_iterations: 4e9)",
+            "optimize.max_iterations",
+            "4000000000",
+            "`optimize.max_iterations` is 4000000000",
+        ),
+        case(
+            "collide: (max_iterations: 4e9)",
+            "collide.max_iterations",
+            "4000000000",
+            "`collide.max_iterations` is 4000000000",
+        ),
+        case(
+            "graph: (min_opening_m: Some(1e300))",
+            "graph.min_opening_m",
+            "Some(1e300)",
+            "`graph.min_opening_m` is 1e300",
+        ),
+        case(
+            "export: (gltf_region: NaN)",
+            "export.gltf_region",
+            "Some((NaN, 0.0, 10.0, 10.0))",
+            "`export.gltf_region` is (NaN, 0, 10, 10)",
+        ),
+        case(
+            "export: (gltf_region: inverted)",
+            "export.gltf_region",
+            "Some((10.0, 0.0, 0.0, 10.0))",
+            "`export.gltf_region` is (10, 0, 0, 10)",
+        ),
+        case(
+            "export: (gltf_region: off the map)",
+            "export.gltf_region",
+            "Some((1000.0, 1000.0, 1010.0, 1010.0))",
+            "`export.gltf_region`",
+        ),
+        case(
+            "scene: (meters_per_pixel: 8.0): too sparse",
+            "scene.meters_per_pixel",
+            "8.0",
+            "stage 3 placed no walker",
+        ),
+        Case {
+            name: "a layer with weight: 1e39",
+            change: Change::Text("density.png\")", "density.png\", weight: 1e39)"),
+            threads: None,
+            code: 1,
+            said: "`scene.layers[0].weight` is 1e39",
+        },
+        Case {
+            name: "--threads 1000",
+            change: Change::Field("walkers", "1100"),
+            threads: Some("1000"),
+            code: 0,
+            said: "note: --threads 1000: using",
+        },
+    ]
+}
+
+/// Runs one case in `dir`; the row of the table, or what went wrong.
+fn run(c: &Case, dir: &Path) -> Result<String, String> {
+    let (pipeline, _) = match c.change {
+        Change::Field(field, value) => broken(dir, BANDS, field, value),
+        Change::Text(from, to) => {
+            let (path, line) = broken(dir, BANDS, "walkers", "1100");
+            let text = std::fs::read_to_string(&path).unwrap();
+            assert!(text.contains(from), "{}: no {from:?} in {text}", c.name);
+            std::fs::write(&path, text.replace(from, to)).unwrap();
+            (path, line)
+        }
+    };
+    let mut args: Vec<&str> = Vec::new();
+    if let Some(n) = c.threads {
+        args.extend(["--threads", n]);
+    }
+    args.extend(["build", "--pipeline", s(&pipeline)]);
+    let Some(out) = capped(&args) else {
+        return Err(format!("{}: still running after {TIME_LIMIT:?}", c.name));
+    };
+    let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+    // The message (progress lines of the stages that ran come before it).
+    let first = stderr
+        .lines()
+        .find(|l| l.starts_with("error: ") || l.starts_with("note: "))
+        .unwrap_or_default()
+        .to_string();
+    let code = out.status.code();
+    let wrong = |why: &str| {
+        Err(format!(
+            "{}: {why}; exit {code:?}, stderr:\n{stderr}",
+            c.name
+        ))
+    };
+    if code != Some(c.code) {
+        return wrong(&format!("expected exit {}", c.code));
+    }
+    if stderr.contains("panicked") {
+        return wrong("panicked");
+    }
+    if c.code == 1 {
+        if !(first.starts_with("error: ") && first.contains(c.said)) {
+            return wrong(&format!("expected a first line with {:?}", c.said));
+        }
+        if dir.join("out").exists() {
+            return wrong("refused, but its output folder was left");
+        }
+    } else if !stderr.contains(c.said) {
+        return wrong(&format!("expected {:?}", c.said));
+    }
+    let shown: String = first.chars().take(110).collect();
+    Ok(format!("| {} | {} | {} |", c.name, c.code, shown))
+}
+
+#[test]
+fn hostile_settings_end_in_a_clear_error_or_a_crowd_within_time_and_memory() {
+    let mut rows = vec![
+        "| case | exit | first line |".to_string(),
+        "| --- | ---: | --- |".to_string(),
+    ];
+    let mut failed = Vec::new();
+    for c in cases() {
+        let dir = tempfile::tempdir().unwrap();
+        match run(&c, dir.path()) {
+            Ok(row) => rows.push(row),
+            Err(e) => failed.push(e),
+        }
+    }
+    println!("{}", rows.join("\n"));
+    assert!(failed.is_empty(), "{}", failed.join("\n\n"));
+}
