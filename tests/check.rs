@@ -148,3 +148,31 @@ fn crowd_check_fails_naming_every_broken_guarantee() {
     let report = check_file(out);
     assert!(report.gltf.unwrap().turn_rate_limit_rad_s.unwrap() < 1.6);
 }
+
+/// What is judged is what stage 8 wrote: a `world.glb` changed after the build (one letter of
+/// its JSON, still a valid glTF) fails `crowd check` and `crowd inspect export.ron`, both
+/// naming the file and the manifest's size and hash.
+#[test]
+fn a_product_changed_after_the_build_fails_check_and_inspect() {
+    let dir = copy_of("bands");
+    let out = dir.path();
+    let glb = out.join("world.glb");
+    let mut bytes = std::fs::read(&glb).unwrap();
+    let at = bytes
+        .windows(b"walker_0".len())
+        .position(|w| w == b"walker_0")
+        .expect("a node name");
+    bytes[at] = b'W';
+    std::fs::write(&glb, &bytes).unwrap();
+    let err = crowd_broken(&["check", "-q", s(out)]);
+    assert!(
+        err.contains("world.glb: is") && err.contains("export.ron names"),
+        "{err}"
+    );
+    assert!(!err.contains("library.crowd: is"), "{err}");
+    let err = crowd_err(&["inspect", s(&out.join("export.ron"))]);
+    assert!(
+        err.contains("world.glb: is") && err.contains("changed since stage 8 wrote it"),
+        "{err}"
+    );
+}

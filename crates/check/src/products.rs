@@ -49,6 +49,7 @@ impl ProductFigures {
             max_turn_rate_rad_s: None,
             turn_rate_limit_rad_s: None,
             sampled: None,
+            unlike_manifest: None,
         }
     }
 }
@@ -101,6 +102,10 @@ pub struct ProductFigures {
     pub turn_rate_limit_rad_s: Option<f64>,
     /// Library: the runtime's `Sampler` played frame after frame.
     pub sampled: Option<Sampled>,
+    /// How the file differs from the one `export.ron` names (its size and hash), if it does:
+    /// what is judged here is then not what stage 8 wrote.
+    #[serde(default)]
+    pub unlike_manifest: Option<String>,
 }
 
 /// The library played by `crowd_runtime::Sampler`, as an engine embeds it: every character,

@@ -179,6 +179,7 @@ fn input_hash(dir: &Path, stage: &Stage, options: &CheckOptions) -> Result<Hash>
         stage.output,
         LIBRARY_FILE,
         GLB_FILE,
+        stages::EXPORT_FILE,
     ] {
         let path = dir.join(file);
         let bytes = match std::fs::read(&path) {
@@ -215,6 +216,25 @@ fn measure(dir: &Path, options: &CheckOptions) -> Result<CheckReport> {
     let limit = options.max_speed * crowd_check::products::SPEED_MARGIN;
     report.library = library(dir, &walls, limit)?;
     report.gltf = gltf(dir, &graph, &walls, limit)?;
+    // What is judged must be what stage 8 wrote: each file against the manifest's size and hash.
+    let manifest = dir.join(stages::EXPORT_FILE);
+    let named = files::read_ron::<crowd_export::ExportFile>(&manifest).ok();
+    let unnamed = || {
+        Some(format!(
+            "{} does not name it (build again)",
+            manifest.display()
+        ))
+    };
+    if let Some(p) = report.library.as_mut() {
+        p.unlike_manifest = named
+            .as_ref()
+            .map_or_else(unnamed, |m| m.library_differs(&manifest));
+    }
+    if let Some(p) = report.gltf.as_mut() {
+        p.unlike_manifest = named
+            .as_ref()
+            .map_or_else(unnamed, |m| m.gltf_differs(&manifest));
+    }
     let turn_limit = options.turn_rate_deg_s.to_radians() * TURN_MARGIN;
     for p in [&mut report.library, &mut report.gltf]
         .into_iter()

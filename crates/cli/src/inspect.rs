@@ -46,7 +46,8 @@ fn version_of(stage: &str) -> u32 {
         .version
 }
 
-/// Stage 8's manifest, and its library loaded and checked as crowd-runtime loads it.
+/// Stage 8's manifest, its library and glTF world verified against it (size and hash), and
+/// the library loaded and checked as crowd-runtime loads it.
 fn inspect_export(path: &Path) -> Result<String> {
     let file: crowd_export::ExportFile = files::read_ron(path)?;
     files::expect_stage(
@@ -55,6 +56,14 @@ fn inspect_export(path: &Path) -> Result<String> {
         crowd_export::STAGE,
         crowd_export::VERSION,
     )?;
+    for (name, differs) in [
+        (&file.library, file.library_differs(path)),
+        (&file.gltf, file.gltf_differs(path)),
+    ] {
+        if let Some(how) = differs {
+            bail!("{}: {how}", path.with_file_name(name).display());
+        }
+    }
     let library_path = path.with_file_name(&file.library);
     let bytes = std::fs::read(&library_path)
         .map_err(|e| anyhow::anyhow!("{}: {e}", library_path.display()))?;

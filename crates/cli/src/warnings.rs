@@ -226,6 +226,9 @@ pub(crate) fn shipped(figures: &crowd_check::CheckReport) -> Vec<Warning> {
                 text: format!("{}: {text}", p.file),
             })
         };
+        if let Some(how) = &p.unlike_manifest {
+            say(how.clone());
+        }
         if p.collisions > 0 {
             say(format!(
                 "{} pairs come closer than two radii (smallest clearance {:.4} m)",

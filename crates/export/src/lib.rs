@@ -79,6 +79,33 @@ pub struct ExportFile {
 impl ExportFile {
     pub const STAGE: &'static str = STAGE;
     pub const VERSION: u32 = VERSION;
+
+    /// How the library beside `path` (this manifest) differs from the one it names, if it does.
+    pub fn library_differs(&self, path: &std::path::Path) -> Option<String> {
+        differs(path, &self.library, self.library_bytes, self.library_hash)
+    }
+
+    /// How the glTF world beside `path` differs from the one it names, if it does.
+    pub fn gltf_differs(&self, path: &std::path::Path) -> Option<String> {
+        differs(path, &self.gltf, self.gltf_bytes, self.gltf_hash)
+    }
+}
+
+/// How the file `name` beside the manifest `path` differs from `bytes` bytes hashing to `hash`.
+fn differs(path: &std::path::Path, name: &str, bytes: u64, hash: Hash) -> Option<String> {
+    let manifest = path.display();
+    match Hash::of_file(&path.with_file_name(name)) {
+        Ok(found) if found == (bytes, hash) => None,
+        Ok((n, h)) => Some(format!(
+            "is {n} bytes with hash {}, but {manifest} names {bytes} bytes with hash {}: it \
+             changed since stage 8 wrote it (build again)",
+            h.short(),
+            hash.short()
+        )),
+        Err(e) => Some(format!(
+            "cannot be read ({e}), but {manifest} names it (build again)"
+        )),
+    }
 }
 
 /// Everything stage 8 makes, in memory.
