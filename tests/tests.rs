@@ -11,6 +11,7 @@ mod export;
 mod export_clip;
 mod golden;
 mod hostile;
+mod kill;
 mod paintings;
 mod patterns;
 mod scenes;
