@@ -224,7 +224,7 @@ proptest! {
 }
 
 /// `bytes` with every section's checksum recomputed, where the table is readable.
-fn with_fresh_checksums(mut bytes: Vec<u8>) -> Vec<u8> {
+pub(crate) fn with_fresh_checksums(mut bytes: Vec<u8>) -> Vec<u8> {
     if bytes.len() < 16 {
         return bytes;
     }

@@ -9,6 +9,7 @@ mod build;
 mod check;
 mod export;
 mod export_clip;
+mod fuzz;
 mod golden;
 mod hostile;
 mod kill;

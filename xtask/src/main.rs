@@ -8,6 +8,9 @@
 //! - `cargo xtask soak [--scenes N] [--from SEED] [--max-patches P]`: random paintings through
 //!   the whole pipeline, each held to every guarantee (`crowd-paintings soak`).
 //!
+//! - `cargo xtask fuzz [--minutes N]`: each fuzz target of `tests/fuzz.rs` (the pipeline
+//!   parser, every stage file's reader, the library and the glTF) for N minutes.
+//!
 //! Kept light on purpose: no dependencies, cargo is found through the `CARGO` variable.
 
 #[cfg(test)]
@@ -36,6 +39,9 @@ tasks:
       build N random paintings (default 200, seeds SEED.., up to P x P patches, default 12)
       with the release `crowd`, check each and hold it to every guarantee; failing scenes stay
       in target/soak/seed-N and their seeds are printed
+  fuzz [--minutes N]
+      run each proptest fuzz target of tests/fuzz.rs (pipeline.ron, every stage file, the
+      library, the glTF world) for N minutes (default 10), two at a time; prints the cases run
   scenes
       build every pipeline of assets/pipelines/ from scratch (release) and print the
       Table 1 figures of each as markdown
@@ -69,6 +75,22 @@ fn main() -> ExitCode {
         Some("bench") => return bench(&cargo, &manifest, &rest),
         Some("scenes") => return scenes(&cargo, &root),
         Some("soak") => return soak(&cargo, &root, &rest),
+        Some("fuzz") => {
+            let minutes: u64 = match rest.as_slice() {
+                [] => 10,
+                [flag, n] if flag == "--minutes" && n.parse::<u64>().is_ok() => {
+                    n.parse().expect("checked")
+                }
+                _ => {
+                    eprint!("usage: cargo xtask fuzz [--minutes N]\n\n{HELP}");
+                    return ExitCode::FAILURE;
+                }
+            };
+            command.arg("test").arg("--manifest-path").arg(&manifest);
+            command.args(["--release", "--test", "tests", "fuzz::", "--"]);
+            command.args(["--nocapture", "--test-threads", "2"]);
+            command.env("CROWD_FUZZ_SECONDS", (minutes * 60).to_string());
+        }
         Some("help" | "--help" | "-h") => {
             print!("{HELP}");
             return ExitCode::SUCCESS;

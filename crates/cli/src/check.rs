@@ -275,10 +275,12 @@ fn gltf(
         return Ok(None);
     }
     let bytes = std::fs::read(&path).with_context(|| format!("{}", path.display()))?;
+    let w = &graph.world;
     let inputs = crowd_check::glb::Inputs {
         radius_m: graph.radius_m,
         walls,
         speed_limit_m_s: limit,
+        world_m: w.covered_m(),
     };
     let figures = crowd_check::glb::figures(&bytes, &inputs)
         .with_context(|| format!("{}: cannot be played", path.display()))?;

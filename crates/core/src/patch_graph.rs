@@ -113,6 +113,13 @@ pub struct World {
     pub size_m: DVec2,
 }
 
+impl World {
+    /// The corner opposite (0, 0) of the patches' grid, m: where the world's characters can be.
+    pub fn covered_m(&self) -> DVec2 {
+        DVec2::new(f64::from(self.cols), f64::from(self.rows)) * self.patch_side_m
+    }
+}
+
 /// A connected component of the patch graph.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Component {

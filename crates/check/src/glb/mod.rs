@@ -40,6 +40,9 @@ pub struct Inputs<'a> {
     pub walls: &'a [crate::Wall],
     /// `match.max_speed` x 1.05, m/s.
     pub speed_limit_m_s: f64,
+    /// The world's patches cover `(0, 0)` to this corner, m: no character of ours is
+    /// anywhere else.
+    pub world_m: DVec2,
 }
 
 /// One animated node: its translation keys (world metres, clip seconds) and rotation keys.
@@ -89,6 +92,10 @@ pub fn read(bytes: &[u8]) -> Result<Nodes, GlbError> {
     let mut tracks: HashMap<usize, Track> = HashMap::new();
     let mut clip_s = 0.0f64;
     for channel in clip.iter().flat_map(|a| a.channels()) {
+        let sampler = channel.sampler();
+        for accessor in [sampler.input(), sampler.output()] {
+            fits(&accessor, blob.map_or(0, <[u8]>::len)).map_err(err)?;
+        }
         let property = channel.target().property();
         if property == Property::Scale {
             let reader = channel.reader(data);
@@ -165,9 +172,68 @@ fn hold_ends<T: Copy>(keys: &mut Vec<(T, f64)>, clip: f64) {
     }
 }
 
+/// Whether `accessor`'s elements lie inside its buffer view and the view inside the binary
+/// chunk of `blob_len` bytes: a reader takes the count at its word and makes room for that
+/// many (a damaged count asked 5.5 GB of a 30 kB file).
+fn fits(accessor: &gltf::Accessor, blob_len: usize) -> Result<(), String> {
+    let place = || format!("accessor {}", accessor.index());
+    let Some(view) = accessor.view() else {
+        return Err(format!(
+            "{}: no buffer view (sparse accessors are not read)",
+            place()
+        ));
+    };
+    let size = accessor.size();
+    let stride = view.stride().unwrap_or(size).max(size);
+    let count = accessor.count();
+    let need = match count {
+        0 => Some(0),
+        n => (n - 1)
+            .checked_mul(stride)
+            .and_then(|b| b.checked_add(size))
+            .and_then(|b| b.checked_add(accessor.offset())),
+    };
+    let view_end = view.offset().checked_add(view.length());
+    match (need, view_end) {
+        (Some(need), Some(end)) if need <= view.length() && end <= blob_len => Ok(()),
+        _ => Err(format!(
+            "{}: {count} elements of {size} bytes do not fit its buffer view {} ({} bytes at \
+             {} of a {blob_len}-byte binary chunk)",
+            place(),
+            view.index(),
+            view.length(),
+            view.offset()
+        )),
+    }
+}
+
+/// Refuses a node whose keys lie outside the world (or are not numbers, or a clip time that
+/// is not): the world check files every piece in the grid cells its box touches, and one
+/// piece a damaged key throws across a million kilometres would fill memory with cells.
+fn in_world(nodes: &Nodes, world: DVec2) -> Result<(), GlbError> {
+    let slack = DVec2::splat(1.0);
+    let inside = |p: DVec2| p.is_finite() && p.cmpge(-slack).all() && p.cmple(world + slack).all();
+    let tracks = nodes.tracks.iter().enumerate();
+    let keys = tracks.flat_map(|(n, t)| t.path.iter().map(move |&(p, t)| (n, p, t)));
+    if let Some((n, p, t)) = keys.clone().find(|&(_, p, t)| !inside(p) || !t.is_finite()) {
+        return Err(GlbError(format!(
+            "animated node {n}: a key at ({}, {}) m, {t} s, outside the world (0, 0)-({}, {}) m",
+            p.x, p.y, world.x, world.y
+        )));
+    }
+    if let Some(p) = nodes.standers.iter().find(|p| !inside(**p)) {
+        return Err(GlbError(format!(
+            "a standing node at ({}, {}) m, outside the world (0, 0)-({}, {}) m",
+            p.x, p.y, world.x, world.y
+        )));
+    }
+    Ok(())
+}
+
 /// The figures of the glTF world in `bytes`.
 pub fn figures(bytes: &[u8], inputs: &Inputs) -> Result<ProductFigures, GlbError> {
     let nodes = read(bytes)?;
+    in_world(&nodes, inputs.world_m)?;
     let clip = nodes.clip_s;
     let paths: Vec<Vec<(DVec2, f64)>> = nodes.tracks.iter().map(|t| t.path.clone()).collect();
     let tally = Tally::of(&paths, inputs.speed_limit_m_s, MIN_DT, clip);

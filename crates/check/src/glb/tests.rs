@@ -66,6 +66,7 @@ fn figures_of(
         radius_m: 0.3,
         walls: &[],
         speed_limit_m_s: 1.89,
+        world_m: graph.world.covered_m(),
     };
     figures(&world_glb(&world), &inputs).unwrap()
 }
@@ -165,6 +166,7 @@ fn bytes_that_are_no_gltf_are_an_error() {
         radius_m: 0.3,
         walls: &[],
         speed_limit_m_s: 1.89,
+        world_m: glam::DVec2::splat(100.0),
     };
     let e = figures(b"glTF but not really", &inputs).unwrap_err();
     assert!(e.0.starts_with("not a glTF"), "{e}");
