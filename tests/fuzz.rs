@@ -213,48 +213,72 @@ fn any_pipeline_text_parses_and_validates_or_is_refused_without_a_panic() {
     });
 }
 
-/// A stage file (RON) mutated beside its build's other files, or its side file mutated and
-/// handed to its decoder (past the hash check that would refuse it first).
-#[test]
-fn any_stage_file_is_read_or_refused_without_a_panic() {
+/// The bands build the stage-file targets start from, and its graph.
+fn bands() -> (&'static Path, PatchGraph) {
     let dir = scene("bands");
-    let graph = PatchGraph::load(&dir.join("graph.ron")).unwrap();
-    let read = |name: &str| std::fs::read(dir.join(name)).unwrap();
-    let beside = |name: &str, bytes: &[u8], load: &dyn Fn(&Path)| {
-        let tmp = tempfile::tempdir().unwrap();
-        crate::util::copy_files(dir, tmp.path());
-        let path = tmp.path().join(name);
-        std::fs::write(&path, bytes).unwrap();
-        load(&path);
-    };
+    (dir, PatchGraph::load(&dir.join("graph.ron")).unwrap())
+}
+
+fn read(dir: &Path, name: &str) -> Vec<u8> {
+    std::fs::read(dir.join(name)).unwrap()
+}
+
+/// A copy of the build in `dir` with `name` replaced by `bytes`, given to `load`.
+fn beside(dir: &Path, name: &str, bytes: &[u8], load: &dyn Fn(&Path)) {
+    let tmp = tempfile::tempdir().unwrap();
+    crate::util::copy_files(dir, tmp.path());
+    let path = tmp.path().join(name);
+    std::fs::write(&path, bytes).unwrap();
+    load(&path);
+}
+
+// Each stage file (RON) mutated beside its build's other files, or its side file mutated and
+// handed to its decoder (past the hash check that would refuse it first).
+
+#[test]
+fn any_merge_file_is_read_or_refused_without_a_panic() {
+    let (dir, graph) = bands();
     let mpp = graph.world.meters_per_pixel;
-    fuzz("merge", &[read("merge.ron"), read("merge.bin")], |k, b| {
+    let bases = [read(dir, "merge.ron"), read(dir, "merge.bin")];
+    fuzz("merge", &bases, |k, b| {
         if k == 0 {
-            beside("merge.ron", b, &|p| {
+            beside(dir, "merge.ron", b, &|p| {
                 let _ = crowd_core::maps::MergeFile::load(p);
             })
         } else {
             let _ = MergedMaps::from_bytes(Path::new("merge.bin"), mpp, b);
         }
     });
-    fuzz("graph", &[read("graph.ron")], |_, b| {
+}
+
+#[test]
+fn any_graph_file_is_read_or_refused_without_a_panic() {
+    let (dir, _) = bands();
+    fuzz("graph", &[read(dir, "graph.ron")], |_, b| {
         as_file("graph.ron", b, |p| {
             let _ = PatchGraph::load(p);
         })
     });
-    fuzz(
-        "patterns",
-        &[read("patterns.ron"), read("patterns.bin")],
-        |k, b| {
-            if k == 0 {
-                beside("patterns.ron", b, &|p| {
-                    let _ = Patterns::load_for(p, &graph);
-                })
-            } else {
-                let _ = crowd_core::patterns::decode_crossings(Path::new("patterns.bin"), b);
-            }
-        },
-    );
+}
+
+#[test]
+fn any_patterns_file_is_read_or_refused_without_a_panic() {
+    let (dir, graph) = bands();
+    let bases = [read(dir, "patterns.ron"), read(dir, "patterns.bin")];
+    fuzz("patterns", &bases, |k, b| {
+        if k == 0 {
+            beside(dir, "patterns.ron", b, &|p| {
+                let _ = Patterns::load_for(p, &graph);
+            })
+        } else {
+            let _ = crowd_core::patterns::decode_crossings(Path::new("patterns.bin"), b);
+        }
+    });
+}
+
+#[test]
+fn any_trajectories_file_of_stages_4_to_6_is_read_or_refused_without_a_panic() {
+    let (dir, graph) = bands();
     let motion = [
         ("trajectories", "match"),
         ("collided", "collide"),
@@ -262,12 +286,17 @@ fn any_stage_file_is_read_or_refused_without_a_panic() {
     ];
     let bases: Vec<Vec<u8>> = motion
         .iter()
-        .flat_map(|(f, _)| [read(&format!("{f}.ron")), read(&format!("{f}.bin"))])
+        .flat_map(|(f, _)| {
+            [
+                read(dir, &format!("{f}.ron")),
+                read(dir, &format!("{f}.bin")),
+            ]
+        })
         .collect();
     fuzz("trajectories", &bases, |k, b| {
         let (file, stage) = motion[k / 2];
         if k % 2 == 0 {
-            beside(&format!("{file}.ron"), b, &|p| {
+            beside(dir, &format!("{file}.ron"), b, &|p| {
                 if let Ok((_, m)) = TrajectoriesFile::load_stage(p, stage, version(stage)) {
                     let _ = check_motion(p, graph.patches.len(), &m);
                 }
@@ -279,8 +308,13 @@ fn any_stage_file_is_read_or_refused_without_a_panic() {
             }
         }
     });
-    fuzz("export.ron", &[read("export.ron")], |_, b| {
-        beside("export.ron", b, &|p| {
+}
+
+#[test]
+fn any_export_manifest_is_read_or_refused_without_a_panic() {
+    let (dir, _) = bands();
+    fuzz("export.ron", &[read(dir, "export.ron")], |_, b| {
+        beside(dir, "export.ron", b, &|p| {
             if let Ok(file) = crowd_core::files::read_ron::<crowd_export::ExportFile>(p) {
                 let _ = (file.library_differs(p), file.gltf_differs(p));
             }
@@ -297,15 +331,12 @@ fn version(stage: &str) -> u32 {
         .version
 }
 
-/// The shipped files' readers: the runtime's loader and sampler, and `crowd check`'s glTF
-/// reader.
+/// The runtime's loader and sampler. The sections' checksums are made right again, so that
+/// the mutations reach the checks behind them.
 #[test]
-fn any_library_or_gltf_is_read_or_refused_without_a_panic() {
-    let dir = scene("bands");
-    let graph = PatchGraph::load(&dir.join("graph.ron")).unwrap();
-    let read = |name: &str| std::fs::read(dir.join(name)).unwrap();
-    // Its sections' checksums made right again, so that the mutations reach the checks behind.
-    fuzz("library.crowd", &[read("library.crowd")], |_, b| {
+fn any_library_is_loaded_or_refused_without_a_panic() {
+    let (dir, _) = bands();
+    fuzz("library.crowd", &[read(dir, "library.crowd")], |_, b| {
         let b = crate::export::with_fresh_checksums(b.to_vec());
         if let Ok(lib) = crowd_runtime::Library::from_bytes(&b) {
             let mut sampler = crowd_runtime::Sampler::new(&lib);
@@ -313,6 +344,12 @@ fn any_library_or_gltf_is_read_or_refused_without_a_panic() {
             sampler.sample(3.0, [-1e9, -1e9, 1e9, 1e9], &mut out);
         }
     });
+}
+
+/// `crowd check`'s glTF reader and its figures.
+#[test]
+fn any_gltf_world_is_read_or_refused_without_a_panic() {
+    let (dir, graph) = bands();
     let walls = crowd_check::walls(&graph);
     let inputs = crowd_check::glb::Inputs {
         radius_m: graph.radius_m,
@@ -320,7 +357,7 @@ fn any_library_or_gltf_is_read_or_refused_without_a_panic() {
         speed_limit_m_s: 1.9,
         world_m: graph.world.covered_m(),
     };
-    fuzz("world.glb", &[read("world.glb")], |_, b| {
+    fuzz("world.glb", &[read(dir, "world.glb")], |_, b| {
         let _ = crowd_check::glb::figures(b, &inputs);
     });
 }

@@ -41,7 +41,7 @@ tasks:
       in target/soak/seed-N and their seeds are printed
   fuzz [--minutes N]
       run each proptest fuzz target of tests/fuzz.rs (pipeline.ron, every stage file, the
-      library, the glTF world) for N minutes (default 10), two at a time; prints the cases run
+      library, the glTF world) for N minutes (default 10), four at a time; prints the cases run
   scenes
       build every pipeline of assets/pipelines/ from scratch (release) and print the
       Table 1 figures of each as markdown
@@ -88,7 +88,7 @@ fn main() -> ExitCode {
             };
             command.arg("test").arg("--manifest-path").arg(&manifest);
             command.args(["--release", "--test", "tests", "fuzz::", "--"]);
-            command.args(["--nocapture", "--test-threads", "2"]);
+            command.args(["--nocapture", "--test-threads", "4"]);
             command.env("CROWD_FUZZ_SECONDS", (minutes * 60).to_string());
         }
         Some("help" | "--help" | "-h") => {
