@@ -285,12 +285,21 @@ fn angle(a: DQuat, b: DQuat) -> f64 {
     4.0 * (a - b).length().atan2((a + b).length())
 }
 
-/// The fastest turn between consecutive rotation keys of any node, rad/s.
+/// The fastest turn between consecutive rotation keys of any node, rad/s. Key times are f32:
+/// each is the exact time rounded by up to half a unit in its last place, so the interval
+/// between two keys is taken one unit (at the later key) longer than it reads. Near the end of
+/// a 600 s clip a unit is 61 us, 3 % of a turn's 2 ms between keys (365 degrees a second
+/// measured for a 360 one, without it).
 fn max_turn_rate(tracks: &[Track]) -> f64 {
+    let ulp = |t: f64| {
+        let f = t as f32;
+        f64::from(f32::from_bits(f.to_bits() + 1)) - f64::from(f)
+    };
     let mut fastest = 0.0f64;
     for t in tracks {
         for w in t.turns.windows(2).filter(|w| w[1].1 > w[0].1) {
-            fastest = fastest.max(angle(w[0].0, w[1].0) / (w[1].1 - w[0].1));
+            let dt = w[1].1 - w[0].1 + ulp(w[1].1);
+            fastest = fastest.max(angle(w[0].0, w[1].0) / dt);
         }
     }
     fastest
