@@ -49,6 +49,8 @@ struct Case {
     /// The shipped pipeline with one field set, or with one text replaced.
     change: Change,
     threads: Option<&'static str>,
+    /// Flags of `crowd build`.
+    flags: &'static [&'static str],
     code: i32,
     /// What the message's first line must hold (for a refusal), or what stderr holds.
     said: &'static str,
@@ -64,6 +66,7 @@ fn case(name: &'static str, field: &'static str, value: &'static str, said: &'st
         name,
         change: Change::Field(field, value),
         threads: None,
+        flags: &[],
         code: 1,
         said,
     }
@@ -107,7 +110,7 @@ fn cases() -> Vec<Case> {
             "walkers: 1e9",
             "walkers",
             "1000000000",
-            "`walkers` is 1000000000 but at most",
+            "`walkers` is 1000000000: with 0 standers over a 20 s period the build needs",
         ),
         case(
             "optimize: (tolerance: NaN)",
@@ -161,6 +164,7 @@ fn cases() -> Vec<Case> {
             name: "a layer with weight: 1e39",
             change: Change::Text("density.png\")", "density.png\", weight: 1e39)"),
             threads: None,
+            flags: &[],
             code: 1,
             said: "`scene.layers[0].weight` is 1e39",
         },
@@ -168,8 +172,17 @@ fn cases() -> Vec<Case> {
             name: "--threads 1000",
             change: Change::Field("walkers", "1100"),
             threads: Some("1000"),
+            flags: &[],
             code: 0,
             said: "note: --threads 1000: using",
+        },
+        Case {
+            name: "--max-memory 50M",
+            change: Change::Field("walkers", "1100"),
+            threads: None,
+            flags: &["--max-memory", "50M"],
+            code: 1,
+            said: "`walkers` is 1100: with 0 standers over a 20 s period the build needs about",
         },
     ]
 }
@@ -191,6 +204,7 @@ fn run(c: &Case, dir: &Path) -> Result<String, String> {
         args.extend(["--threads", n]);
     }
     args.extend(["build", "--pipeline", s(&pipeline)]);
+    args.extend(c.flags);
     let Some(out) = capped(&args) else {
         return Err(format!("{}: still running after {TIME_LIMIT:?}", c.name));
     };

@@ -72,6 +72,10 @@ pub enum Command {
         /// painting it could not meet, listed on stderr and in `report.md`.
         #[arg(long)]
         deny_warnings: bool,
+        /// The most memory the build may take (512M, 4G, ...; default: this machine's). A
+        /// pipeline estimated to need more is refused before any stage runs.
+        #[arg(long, value_name = "SIZE", value_parser = crate::budget::parse_size)]
+        max_memory: Option<u64>,
     },
     /// The stages one at a time: `crowd merge`, `crowd graph`, ... (one subcommand per entry
     /// of the stage table).
@@ -281,6 +285,7 @@ pub fn run(cli: Cli) -> Result<()> {
             until,
             no_check,
             deny_warnings,
+            max_memory,
         } => {
             let file = PipelineFile::load(&pipeline)?;
             let out = output.clone().unwrap_or_else(|| file.output_dir());
@@ -288,6 +293,7 @@ pub fn run(cli: Cli) -> Result<()> {
                 force,
                 output,
                 until,
+                max_memory,
             };
             let (_, _lock) = driver::build(&pipeline, &options, &ui)?;
             if !no_check && stage::up_to(until).any(|s| *s == stages::EXPORT) {

@@ -34,6 +34,8 @@ pub struct BuildOptions {
     pub until: Option<&'static Stage>,
     /// Build folder instead of the pipeline's `output`.
     pub output: Option<PathBuf>,
+    /// The most memory the build may take, bytes (None: the machine's; `budget.rs`).
+    pub max_memory: Option<u64>,
 }
 
 /// What happened to one stage in a build.
@@ -61,6 +63,7 @@ pub fn build(
     // The layers are read (headers checked, the region held to the maps) before the folder
     // is made: a refused painting leaves no trace.
     artifacts.layers()?;
+    crate::budget::check(&pipeline, options.max_memory)?;
     let existed = out.exists();
     std::fs::create_dir_all(&out)
         .map_err(|e| crowd_core::Error::io(&out, "create the output folder", e))?;

@@ -1,6 +1,7 @@
 //! The `crowd` command line as a library, so tests and benchmarks drive exactly what users run.
 
 pub mod artifacts;
+pub mod budget;
 pub mod check;
 pub mod cli;
 pub mod driver;
