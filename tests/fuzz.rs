@@ -361,3 +361,33 @@ fn any_gltf_world_is_read_or_refused_without_a_panic() {
         let _ = crowd_check::glb::figures(b, &inputs);
     });
 }
+
+/// What the long fuzz runs found, kept: a glTF whose JSON holds a value the `gltf` crate
+/// parses as invalid but lets through its validation (an animation path, an interpolation)
+/// is an error of `crowd check`, not a panic inside the crate.
+#[test]
+fn a_gltf_with_an_unknown_path_or_interpolation_is_an_error() {
+    let (dir, graph) = bands();
+    let walls = crowd_check::walls(&graph);
+    let inputs = crowd_check::glb::Inputs {
+        radius_m: graph.radius_m,
+        walls: &walls,
+        speed_limit_m_s: 1.9,
+        world_m: graph.world.covered_m(),
+    };
+    let glb = read(dir, "world.glb");
+    for (from, to, said) in [
+        (
+            &b"\"translation\""[..],
+            &b"\"translatioX\""[..],
+            "target path",
+        ),
+        (b"\"LINEAR\"", b"\"LINEAX\"", "interpolation"),
+    ] {
+        let at = glb.windows(from.len()).position(|w| w == from).unwrap();
+        let mut bytes = glb.clone();
+        bytes[at..at + from.len()].copy_from_slice(to);
+        let e = crowd_check::glb::figures(&bytes, &inputs).unwrap_err();
+        assert!(e.0.contains(said), "{e}");
+    }
+}

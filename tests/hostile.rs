@@ -259,3 +259,74 @@ fn hostile_settings_end_in_a_clear_error_or_a_crowd_within_time_and_memory() {
     println!("{}", rows.join("\n"));
     assert!(failed.is_empty(), "{}", failed.join("\n\n"));
 }
+
+/// Settings drawn anywhere in their documented ranges, on a small painting (bands' density at
+/// a quarter metre a pixel: 40 x 20 m): whatever the validator accepts builds within the time
+/// limit and the memory cap, and whatever it refuses is refused with an error, never a panic.
+mod any_settings {
+    use super::*;
+    use proptest::prelude::*;
+
+    /// A pipeline text: the settings, over bands' density.
+    #[allow(clippy::too_many_arguments)]
+    fn pipeline(
+        (period, side, radius, walkers): (f64, f64, f64, u32),
+        (rho_max, opt_iterations, patience, tolerance): (f64, u32, u32, f64),
+        pushes: u32,
+        (tack, max_speed): (f64, f64),
+    ) -> String {
+        let layer = shared_scenes().join("bands/density.png");
+        format!(
+            "(\n    scene: (meters_per_pixel: 0.25, layers: [(kind: Density, path: {:?})]),\n    \
+             walkers: {walkers},\n    standers: 0,\n    patch_side_m: {side},\n    \
+             period_s: {period},\n    radius_m: {radius},\n    seed: 3,\n    output: \"out\",\n    \
+             optimize: (rho_max: {rho_max}, max_iterations: {opt_iterations}, patience: \
+             {patience}, tolerance: {tolerance}),\n    match: (max_speed: {max_speed}),\n    \
+             collide: (max_iterations: {pushes}),\n    smooth: (tack_spacing_s: {tack}),\n)\n",
+            s(&layer)
+        )
+    }
+
+    proptest! {
+        // Each case is a real build of up to a minute: no shrinking (it would rerun them).
+        #![proptest_config(ProptestConfig {
+            cases: 8,
+            max_shrink_iters: 0,
+            // A fixed draw in CI (`CROWD_SETTINGS_SEED` draws others).
+            rng_seed: proptest::test_runner::RngSeed::Fixed(
+                std::env::var("CROWD_SETTINGS_SEED").ok().and_then(|s| s.parse().ok()).unwrap_or(2026),
+            ),
+            failure_persistence: None,
+            ..ProptestConfig::default()
+        })]
+        #[test]
+        fn accepted_settings_build_in_bounded_time_and_refused_ones_say_why(
+            // Whole pixels of a patch side, as the graph asks.
+            top in (1u32..=6000, 10u32..48, 0.15f64..0.5, 1u32..400)
+                .prop_map(|(p, px, r, w)| (f64::from(p) / 10.0, f64::from(px) / 4.0, r, w)),
+            opt in (0.05f64..1.0, 1u32..=600, 1u32..=100, 0.0f64..0.05),
+            pushes in 1u32..=20_000,
+            smooth in (0.05f64..2.0, 1.5f64..3.0),
+        ) {
+            let dir = tempfile::tempdir().unwrap();
+            let path = dir.path().join("pipeline.ron");
+            let text = pipeline(top, opt, pushes, smooth);
+            std::fs::write(&path, &text).unwrap();
+            let start = Instant::now();
+            let out = capped(&["build", "-q", "--no-check", "--pipeline", s(&path)]);
+            let took = start.elapsed();
+            let Some(out) = out else {
+                return Err(TestCaseError::fail(format!("still running after {TIME_LIMIT:?}:\n{text}")));
+            };
+            let stderr = String::from_utf8_lossy(&out.stderr);
+            println!("{:?} in {:.1} s: {}", out.status.code(), took.as_secs_f64(),
+                stderr.lines().find(|l| !l.starts_with(' ')).unwrap_or_default());
+            prop_assert!(!stderr.contains("panicked"), "{}", stderr);
+            match out.status.code() {
+                Some(0) | Some(3) => {}
+                Some(1) => prop_assert!(stderr.lines().any(|l| l.starts_with("error: ")), "{}", stderr),
+                other => prop_assert!(false, "exit {:?} after {:?}: {}", other, took, stderr),
+            }
+        }
+    }
+}

@@ -92,11 +92,12 @@ pub fn read(bytes: &[u8]) -> Result<Nodes, GlbError> {
     let mut tracks: HashMap<usize, Track> = HashMap::new();
     let mut clip_s = 0.0f64;
     for channel in clip.iter().flat_map(|a| a.channels()) {
+        let property = usable(gltf.as_json(), channel.animation().index(), channel.index())
+            .map_err(|e| err(format!("channel {}: {e}", channel.index())))?;
         let sampler = channel.sampler();
         for accessor in [sampler.input(), sampler.output()] {
             fits(&accessor, blob.map_or(0, <[u8]>::len)).map_err(err)?;
         }
-        let property = channel.target().property();
         if property == Property::Scale {
             let reader = channel.reader(data);
             let (Some(times), Some(ReadOutputs::Scales(scales))) =
@@ -170,6 +171,42 @@ fn hold_ends<T: Copy>(keys: &mut Vec<(T, f64)>, clip: f64) {
             keys.push((last.0, clip));
         }
     }
+}
+
+/// The property channel `channel` of animation `animation` animates, once every value of its
+/// JSON that the `gltf` crate's accessors unwrap is known to be one glTF defines: its target
+/// path, its sampler's interpolation, its accessors' component and element types (the crate's
+/// validation lets a damaged path through, and `property()` then panics).
+fn usable(root: &gltf::json::Root, animation: usize, channel: usize) -> Result<Property, String> {
+    use gltf::json::validation::Checked::Valid;
+    let anim = root.animations.get(animation).ok_or("no such animation")?;
+    let ch = anim.channels.get(channel).ok_or("no such channel")?;
+    let Valid(property) = ch.target.path else {
+        return Err("its target path is not one glTF knows".into());
+    };
+    let sampler = anim
+        .samplers
+        .get(ch.sampler.value())
+        .ok_or("its sampler is not in the animation")?;
+    if !matches!(sampler.interpolation, Valid(_)) {
+        return Err("its sampler's interpolation is not one glTF knows".into());
+    }
+    for index in [sampler.input, sampler.output] {
+        let accessor = root
+            .accessors
+            .get(index.value())
+            .ok_or("its sampler's accessor is not in the file")?;
+        if !matches!(
+            (&accessor.component_type, &accessor.type_),
+            (Valid(_), Valid(_))
+        ) {
+            return Err(format!(
+                "accessor {}: its component or element type is not one glTF knows",
+                index.value()
+            ));
+        }
+    }
+    Ok(property)
 }
 
 /// Whether `accessor`'s elements lie inside its buffer view and the view inside the binary
