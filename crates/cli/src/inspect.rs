@@ -56,6 +56,13 @@ fn inspect_export(path: &Path) -> Result<String> {
         crowd_export::STAGE,
         crowd_export::VERSION,
     )?;
+    let library_path = path.with_file_name(&file.library);
+    let bytes = std::fs::read(&library_path)
+        .map_err(|e| anyhow::anyhow!("{}: {e}", library_path.display()))?;
+    // What the runtime says of a damaged library first (it names the section), then whether
+    // both files are the ones the manifest names.
+    let lib = crowd_runtime::Library::from_bytes(&bytes)
+        .map_err(|e| anyhow::anyhow!("{}: {e}", library_path.display()))?;
     for (name, differs) in [
         (&file.library, file.library_differs(path)),
         (&file.gltf, file.gltf_differs(path)),
@@ -64,11 +71,6 @@ fn inspect_export(path: &Path) -> Result<String> {
             bail!("{}: {how}", path.with_file_name(name).display());
         }
     }
-    let library_path = path.with_file_name(&file.library);
-    let bytes = std::fs::read(&library_path)
-        .map_err(|e| anyhow::anyhow!("{}: {e}", library_path.display()))?;
-    let lib = crowd_runtime::Library::from_bytes(&bytes)
-        .map_err(|e| anyhow::anyhow!("{}: {e}", library_path.display()))?;
     let mut s = String::new();
     let mb = |b: u64| b as f64 / 1e6;
     let _ = writeln!(
