@@ -131,7 +131,12 @@ fn each_settings_struct_refuses_what_its_stage_cannot_use() {
         (
             "optimize: (max_iterations: 0)",
             "optimize.max_iterations",
-            "at least 1",
+            "from 1 to 10000",
+        ),
+        (
+            "optimize: (max_iterations: 10001)",
+            "optimize.max_iterations",
+            "from 1 to 10000",
         ),
         (
             "optimize: (tolerance: NaN)",
@@ -143,7 +148,11 @@ fn each_settings_struct_refuses_what_its_stage_cannot_use() {
             "optimize.tolerance",
             "0 or more",
         ),
-        ("optimize: (patience: 0)", "optimize.patience", "at least 1"),
+        (
+            "optimize: (patience: 0)",
+            "optimize.patience",
+            "from 1 to 10000",
+        ),
         (
             "match: (min_speed: NaN)",
             "match.min_speed",
@@ -178,7 +187,12 @@ fn each_settings_struct_refuses_what_its_stage_cannot_use() {
         (
             "collide: (max_iterations: 0)",
             "collide.max_iterations",
-            "at least 1",
+            "from 1 to 1000000",
+        ),
+        (
+            "collide: (max_iterations: 1000001)",
+            "collide.max_iterations",
+            "from 1 to 1000000",
         ),
         (
             "smooth: (tack_spacing_s: 0.0)",
