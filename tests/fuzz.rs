@@ -346,17 +346,25 @@ fn any_library_is_loaded_or_refused_without_a_panic() {
     });
 }
 
+/// What `crowd check` gives its glTF reader for `graph`'s world.
+fn glb_inputs<'a>(
+    graph: &PatchGraph,
+    walls: &'a [crowd_check::Wall],
+) -> crowd_check::glb::Inputs<'a> {
+    crowd_check::glb::Inputs {
+        radius_m: graph.radius_m,
+        walls,
+        speed_limit_m_s: 1.9,
+        world_m: graph.world.covered_m(),
+    }
+}
+
 /// `crowd check`'s glTF reader and its figures.
 #[test]
 fn any_gltf_world_is_read_or_refused_without_a_panic() {
     let (dir, graph) = bands();
     let walls = crowd_check::walls(&graph);
-    let inputs = crowd_check::glb::Inputs {
-        radius_m: graph.radius_m,
-        walls: &walls,
-        speed_limit_m_s: 1.9,
-        world_m: graph.world.covered_m(),
-    };
+    let inputs = glb_inputs(&graph, &walls);
     fuzz("world.glb", &[read(dir, "world.glb")], |_, b| {
         let _ = crowd_check::glb::figures(b, &inputs);
     });
@@ -369,12 +377,7 @@ fn any_gltf_world_is_read_or_refused_without_a_panic() {
 fn a_gltf_with_an_unknown_path_or_interpolation_is_an_error() {
     let (dir, graph) = bands();
     let walls = crowd_check::walls(&graph);
-    let inputs = crowd_check::glb::Inputs {
-        radius_m: graph.radius_m,
-        walls: &walls,
-        speed_limit_m_s: 1.9,
-        world_m: graph.world.covered_m(),
-    };
+    let inputs = glb_inputs(&graph, &walls);
     let glb = read(dir, "world.glb");
     for (from, to, said) in [
         (

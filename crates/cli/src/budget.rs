@@ -34,14 +34,7 @@ pub fn estimate(pipeline: &PipelineFile) -> f64 {
 /// The memory a build may take by default: the machine's (`MemTotal`), where the system says.
 pub fn machine_memory() -> Option<u64> {
     let info = std::fs::read_to_string("/proc/meminfo").ok()?;
-    let line = info.lines().find(|l| l.starts_with("MemTotal:"))?;
-    let kb: u64 = line["MemTotal:".len()..]
-        .trim()
-        .strip_suffix("kB")?
-        .trim()
-        .parse()
-        .ok()?;
-    Some(kb * 1024)
+    crate::memory::kb_field(&info, "MemTotal:")
 }
 
 /// Refuses `pipeline` when its estimated peak passes `limit` bytes (`--max-memory`, else the

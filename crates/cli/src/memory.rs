@@ -17,8 +17,13 @@ pub fn peak_bytes() -> Option<u64> {
 
 /// `VmHWM:    13520 kB` in bytes.
 fn parse_hwm(status: &str) -> Option<u64> {
-    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
-    let kb: u64 = line["VmHWM:".len()..]
+    kb_field(status, "VmHWM:")
+}
+
+/// The line `key   N kB` of a `/proc` file (`status`, `meminfo`), in bytes.
+pub(crate) fn kb_field(text: &str, key: &str) -> Option<u64> {
+    let line = text.lines().find(|l| l.starts_with(key))?;
+    let kb: u64 = line[key.len()..]
         .trim()
         .strip_suffix("kB")?
         .trim()
