@@ -3,7 +3,29 @@
 use clap::Parser;
 use std::process::ExitCode;
 
+/// mimalloc, not glibc's malloc: the stages allocate and free many small vectors on every
+/// thread (a fifth of stage 3 was glibc's `malloc`), and whole-world tables of a gigabyte that
+/// glibc hands back to the kernel at once, so the next stage pays the first-touch page faults
+/// again. Measured on painting's whole build (BENCHMARKS.md).
+#[global_allocator]
+static ALLOCATOR: mimalloc::MiMalloc = mimalloc::MiMalloc;
+
+unsafe extern "C" {
+    /// mimalloc's option setter (`mimalloc.h`); the `mimalloc` crate exposes it only with a
+    /// feature whose dependency is not one we otherwise need.
+    fn mi_option_set(option: std::ffi::c_int, value: std::ffi::c_long);
+}
+
+/// `mi_option_purge_delay` in `mimalloc.h`'s `mi_option_t`.
+const MI_OPTION_PURGE_DELAY: std::ffi::c_int = 15;
+/// Freed memory goes back to the kernel after this long unused, ms (mimalloc's default: 10).
+/// A stage's tables freed and the next stage's allocated within a second reuse the same pages.
+const PURGE_DELAY_MS: std::ffi::c_long = 1000;
+
 fn main() -> ExitCode {
+    // SAFETY: sets one of mimalloc's documented options to a documented value; it takes
+    // effect on the next purge.
+    unsafe { mi_option_set(MI_OPTION_PURGE_DELAY, PURGE_DELAY_MS) };
     let cli = crowd::cli::Cli::parse();
     match crowd::cli::run(cli) {
         Ok(()) => ExitCode::SUCCESS,
