@@ -53,6 +53,7 @@ let prevV = null;
 let fastestTurn = 0;
 let fastestTurnAt = null;
 let largestJump = 0;
+let largestJumpAt = null;
 let seamJump = 0;
 let seamJumpAt = null;
 let seamTurn = 0;
@@ -92,7 +93,11 @@ for (let f = 0; f <= frames; f++) {
         fastestTurnAt = { node: walkers[i].name, t: f * dt };
       }
       if (prevV) {
-        largestJump = Math.max(largestJump, Math.hypot(v[i].x - prevV[i].x, v[i].y - prevV[i].y));
+        const jump = Math.hypot(v[i].x - prevV[i].x, v[i].y - prevV[i].y);
+        if (jump > largestJump) {
+          largestJump = jump;
+          largestJumpAt = { node: walkers[i].name, t: f * dt };
+        }
       }
     }
     prevV = wrapped ? null : v;
@@ -117,6 +122,7 @@ const figures = {
   fastest_turn_deg_s: (fastestTurn * 180) / Math.PI,
   fastest_turn_at: fastestTurnAt,
   largest_velocity_change_per_frame_m_s: largestJump,
+  largest_velocity_change_at: largestJumpAt,
   seam_fastest_turn_deg_s: (seamTurn * 180) / Math.PI,
   seam_largest_velocity_change_m_s: seamJump,
   seam_largest_velocity_change_at: seamJumpAt,

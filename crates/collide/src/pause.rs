@@ -4,7 +4,7 @@
 
 use crate::path::Path;
 use crate::repair::{Patch, Speeds, Tracks};
-use crowd_geometry::{Segment, at_time, copies, distance_to_rect};
+use crowd_geometry::{Segment, copies, distance_to_rect};
 use glam::DVec2;
 
 /// Moves the pause `(i, j)` of walker `p` to the spot of the patch that stays farthest from
@@ -88,17 +88,19 @@ pub(crate) fn relocate_pause(
 }
 
 /// Where everyone but walker `p` (and `p`'s own copies a period or more away) is during
-/// `[t0, t1]`: the standers, and every walker sampled every 0.2 s or so, bands and ghosts
-/// included.
+/// `[t0, t1]`: the standers (as pieces that do not move), and every piece of every walker that
+/// overlaps the pause, cut to it, bands and ghosts included. A spot standing still all through
+/// the pause is as close to a walker as to the nearest point of its cut pieces: exact, where
+/// samples every 0.2 s missed walkers passing between them, and made a pause of a 400 s
+/// period measure thousands of points per walker (a stage 5 of more than ten minutes).
 fn others_during(
     paths: &[Path],
     p: usize,
     (t0, t1): (f64, f64),
     patch: &Patch,
     (tracks, moved): (&Tracks, &[usize]),
-) -> Vec<DVec2> {
-    let mut others: Vec<DVec2> = patch.standers.to_vec();
-    let steps = ((t1 - t0) / 0.2).ceil().max(1.0) as usize;
+) -> Vec<(DVec2, DVec2)> {
+    let mut others: Vec<(DVec2, DVec2)> = patch.standers.iter().map(|&q| (q, q)).collect();
     for (b, path) in paths.iter().enumerate() {
         // Everywhere the walker is near the patch: its bands and their ghosts too.
         let segs: std::borrow::Cow<[Segment]> = if moved.contains(&b) {
@@ -109,16 +111,18 @@ fn others_during(
         let (Some(first), Some(last)) = (segs.first(), segs.last()) else {
             continue;
         };
-        let (b0, b1) = (first.t0, last.t1);
-        for k in copies((t0, t1), (b0, b1), patch.period_s) {
+        for k in copies((t0, t1), (first.t0, last.t1), patch.period_s) {
             if b == p && k == 0 {
                 continue;
             }
+            // The pause in b's own time.
             let shift = k as f64 * patch.period_s;
-            for s in 0..=steps {
-                let t = t0 + (t1 - t0) * s as f64 / steps as f64 - shift;
-                if t >= b0 && t <= b1 {
-                    others.extend(at_time(&segs, t));
+            let (lo, hi) = (t0 - shift, t1 - shift);
+            let from = segs.partition_point(|s| s.t1 < lo);
+            for s in segs[from..].iter().take_while(|s| s.t0 <= hi) {
+                let (a, z) = (lo.max(s.t0), hi.min(s.t1));
+                if a <= z {
+                    others.push((s.at(a), s.at(z)));
                 }
             }
         }
@@ -129,15 +133,20 @@ fn others_during(
 /// How clear spot `q` is: the distance to the nearest of `others`, or to the nearest wall plus
 /// a radius (as if the wall were a walker's centre a radius away from it); a spot inside or
 /// within a radius of a wall is never chosen.
-fn clearance(q: DVec2, others: &[DVec2], patch: &Patch) -> f64 {
+fn clearance(q: DVec2, others: &[(DVec2, DVec2)], patch: &Patch) -> f64 {
     clearance_above(q, others, patch, None).expect("no floor")
 }
 
 /// [`clearance`], or `None` as soon as it is sure to be below `floor`: the nearest of `others`
 /// is found by squared distances (the root of the least is the least of the roots, to the
 /// bit), and given up once one is surely nearer than `floor` (a pause's spot is chosen among
-/// 81, against hundreds of others each).
-fn clearance_above(q: DVec2, others: &[DVec2], patch: &Patch, floor: Option<f64>) -> Option<f64> {
+/// 81, against hundreds of pieces each).
+fn clearance_above(
+    q: DVec2,
+    others: &[(DVec2, DVec2)],
+    patch: &Patch,
+    floor: Option<f64>,
+) -> Option<f64> {
     let r = patch.radius_m;
     let walls = patch
         .obstacles
@@ -163,12 +172,93 @@ fn clearance_above(q: DVec2, others: &[DVec2], patch: &Patch, floor: Option<f64>
         return None;
     }
     let mut least = f64::INFINITY;
-    for o in others {
-        let d2 = o.distance_squared(q);
+    for &(a, z) in others {
+        let d2 = squared_distance_to_piece(q, a, z);
         if d2 < below {
             return None;
         }
         least = least.min(d2);
     }
     Some(walls.min(least.sqrt()))
+}
+
+/// The squared distance from `q` to the straight piece from `a` to `z`.
+fn squared_distance_to_piece(q: DVec2, a: DVec2, z: DVec2) -> f64 {
+    let along = z - a;
+    let l2 = along.length_squared();
+    let f = if l2 > 0.0 {
+        ((q - a).dot(along) / l2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    (a + along * f).distance_squared(q)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crowd_core::trajectories::{ControlPoint, PointKind, Trajectory};
+
+    fn path(points: &[(f64, f64, f64, PointKind)]) -> Path {
+        let points = points
+            .iter()
+            .map(|&(x, y, t, kind)| ControlPoint {
+                pos: DVec2::new(x, y),
+                t,
+                kind,
+            })
+            .collect();
+        Path::from_trajectory(&Trajectory {
+            entry: 0,
+            exit: 1,
+            points,
+        })
+    }
+
+    /// A walker pausing at (2, 4) from 1 s to 9 s, and one that runs across the patch at
+    /// 10 m/s along y = 6 at about 5 s: between two samples 0.2 s apart it covers 2 m.
+    fn pause_and_runner() -> (Vec<Path>, Patch<'static>) {
+        use PointKind::{Entry, Exit, Pause};
+        let pausing = path(&[
+            (0.0, 4.0, 0.0, Entry),
+            (2.0, 4.0, 1.0, Pause),
+            (2.0, 4.0, 9.0, Pause),
+            (0.0, 4.0, 10.0, Exit),
+        ]);
+        let runner = path(&[(0.0, 6.0, 4.61, Entry), (8.0, 6.0, 5.41, Exit)]);
+        let patch = Patch {
+            side_m: 8.0,
+            period_s: 20.0,
+            radius_m: 0.3,
+            obstacles: &[],
+            standers: &[],
+        };
+        (vec![pausing, runner], patch)
+    }
+
+    #[test]
+    fn a_spot_is_as_clear_as_the_nearest_point_anyone_passes_during_the_pause() {
+        let (paths, patch) = pause_and_runner();
+        let tracks = Tracks::new(paths.iter().map(Path::segments).collect());
+        let others = others_during(&paths, 0, (1.0, 9.0), &patch, (&tracks, &[]));
+        // On the runner's line at any x, and a metre off it: exactly 0 and 1 m.
+        for x in [0.5, 3.3, 5.9, 7.5] {
+            assert!(clearance(DVec2::new(x, 6.0), &others, &patch) < 1e-12);
+            let off = clearance(DVec2::new(x, 5.0), &others, &patch);
+            assert!((off - 1.0).abs() < 1e-12, "{off}");
+        }
+    }
+
+    #[test]
+    fn what_happens_outside_the_pause_is_not_in_the_way() {
+        let (paths, patch) = pause_and_runner();
+        let tracks = Tracks::new(paths.iter().map(Path::segments).collect());
+        // The runner is gone by 5.41 s: a pause from 6 s to 9 s sees nobody.
+        let others = others_during(&paths, 0, (6.0, 9.0), &patch, (&tracks, &[]));
+        assert!(others.is_empty(), "{others:?}");
+        // From 5 s: only the runner's last 0.41 s, from x = 3.9 m on.
+        let others = others_during(&paths, 0, (5.0, 9.0), &patch, (&tracks, &[]));
+        let near = clearance(DVec2::new(1.0, 6.0), &others, &patch);
+        assert!((near - 2.9).abs() < 1e-9, "{near}");
+    }
 }

@@ -11,7 +11,7 @@
 //! band ends, which therefore stay exactly where and when they were, with the band pieces
 //! beyond them; the ends of the walk are left as they are.
 
-use crowd_core::trajectories::{ControlPoint, PointKind, Trajectory, band_ends, position_at};
+use crowd_core::trajectories::{ControlPoint, PointKind, Trajectory, band_ends};
 use glam::DVec2;
 
 /// The largest change of velocity from one chord of the averaged walk to the next, m/s, where
@@ -118,6 +118,10 @@ struct Walk<'a> {
     ease_dv: (DVec2, DVec2),
     t0: f64,
     t1: f64,
+    /// The piece [`Walk::piece_at`] found last: the walk is read at times close together
+    /// (refining a stretch, easing an end), and a binary search of its points each time was
+    /// a tenth of stage 6.
+    last_piece: std::cell::Cell<usize>,
 }
 
 /// A corner of the walk, averaged over `t +- h`.
@@ -176,7 +180,28 @@ impl<'a> Walk<'a> {
             ease_dv,
             t0,
             t1,
+            last_piece: std::cell::Cell::new(1),
         }
+    }
+
+    /// The index `k` of the point that ends the piece holding `t`: the first point after `t`,
+    /// kept within `1..len` (exactly `position_at`'s). The last piece found, or the one after
+    /// it, when either holds `t`; a binary search otherwise.
+    fn piece_at(&self, t: f64) -> usize {
+        let n = self.pts.len();
+        // `k` is the first point after `t` when the one before it is not.
+        let first_after =
+            |k: usize| (k == 0 || self.pts[k - 1].t <= t) && (k == n || self.pts[k].t > t);
+        let hint = self.last_piece.get();
+        let k = if first_after(hint) {
+            hint
+        } else if hint < n && first_after(hint + 1) {
+            hint + 1
+        } else {
+            self.pts.partition_point(|p| p.t <= t)
+        };
+        self.last_piece.set(k);
+        k.clamp(1, n - 1)
     }
 
     /// Whether averaging or easing moves the walk anywhere in `[a, b]`.
@@ -238,7 +263,14 @@ impl<'a> Walk<'a> {
     fn at(&self, t: f64) -> DVec2 {
         // Cubic Hermite's h10: 0 at both ends, slope 1 at 0 and 0 at 1.
         let h10 = |s: f64| s * (1.0 - s) * (1.0 - s);
-        let mut p = position_at(self.pts, t);
+        let k = self.piece_at(t);
+        let (a, b) = (self.pts[k - 1], self.pts[k]);
+        // `position_at`'s interpolation, on the piece it would find.
+        let mut p = if b.t > a.t {
+            a.pos + (b.pos - a.pos) * ((t - a.t) / (b.t - a.t)).clamp(0.0, 1.0)
+        } else {
+            b.pos
+        };
         let from = self.corners.partition_point(|c| c.t <= t - self.half);
         for c in self.corners[from..]
             .iter()
@@ -272,10 +304,7 @@ impl<'a> Walk<'a> {
     fn velocity_at(&self, t: f64) -> DVec2 {
         // The slope of h10.
         let dh10 = |s: f64| (1.0 - s) * (1.0 - 3.0 * s);
-        let k = self
-            .pts
-            .partition_point(|p| p.t <= t)
-            .clamp(1, self.pts.len() - 1);
+        let k = self.piece_at(t);
         let mut v = velocity(&self.pts[k - 1], &self.pts[k]);
         let from = self.corners.partition_point(|c| c.t <= t - self.half);
         for c in self.corners[from..]
@@ -406,6 +435,7 @@ fn drop_straight(points: Vec<ControlPoint>) -> Vec<ControlPoint> {
 mod tests {
     use super::*;
     use crate::testing::cp;
+    use crowd_core::trajectories::position_at;
     use proptest::prelude::*;
 
     /// A walk as stage 5 leaves one: an entry band eastwards at 1.3 m/s, then random pieces of
