@@ -213,7 +213,7 @@ fn match_speeds_out_of_order_are_refused() {
 /// for hours, is refused.
 #[test]
 fn collide_settings_refuse_no_push_budget_and_an_unbounded_one() {
-    let pushes = "from 1 to 1000000 pushes per try";
+    let pushes = "from 1 to 1000000 pushes per patch";
     all_refused(&[
         (BANDS, "collide.max_iterations", "0", pushes),
         (BANDS, "collide.max_iterations", "4000000000", pushes),

@@ -53,31 +53,7 @@ pub fn with_restarts(
     max_iterations: u32,
     rng: &mut ChaCha8Rng,
 ) -> repair::Outcome {
-    let mut left = patch_budget(max_iterations);
-    with_attempts(
-        paths,
-        patch,
-        speeds,
-        max_iterations,
-        0..RESTARTS,
-        (rng, &mut left),
-    )
-}
-
-/// Pushes one patch may take over all its tries and rescues at walking pace ([`clear_patch`]),
-/// in `collide.max_iterations`: so that the setting bounds a patch's work, not each of its
-/// dozens of tries (a patch no try could clear took 40 times the setting, most of it in
-/// rescues: a 400 s period over 373 walkers ran for 8 minutes). The most any shared scene's
-/// patch took was 6.2 times (painting's patch 10807, 73,789 pushes at 12,000).
-pub const PATCH_BUDGET: u32 = 8;
-/// ... and then hurrying, whatever was left: the last resort always gets its turn (random
-/// painting 1's patch 27 spent 22 times the setting at walking pace, then cleared hurrying in
-/// a quarter of it).
-pub const HURRY_BUDGET: u32 = 2;
-
-/// [`PATCH_BUDGET`] times `max_iterations`.
-pub fn patch_budget(max_iterations: u32) -> u32 {
-    max_iterations.saturating_mul(PATCH_BUDGET)
+    with_attempts(paths, patch, speeds, max_iterations, 0..RESTARTS, rng)
 }
 
 /// [`with_restarts`]' attempts `attempts` only (their budgets as in the whole run).
@@ -87,7 +63,7 @@ fn with_attempts(
     speeds: repair::Speeds,
     max_iterations: u32,
     attempts: std::ops::Range<u32>,
-    (rng, left): (&mut ChaCha8Rng, &mut u32),
+    rng: &mut ChaCha8Rng,
 ) -> repair::Outcome {
     let start = paths.clone();
     // Budgets double from try to try: most stalls clear on a cheap second draw, the rest get
@@ -96,13 +72,11 @@ fn with_attempts(
     let mut best: Option<(Vec<Path>, repair::Outcome)> = None;
     let mut used = 0;
     for k in attempts {
-        // The first attempt runs even with nothing left (it then only measures).
-        let per_try = (unit << k).min(*left);
+        let per_try = unit << k;
         let mut attempt = start.clone();
         let outcome = repair::remove_collisions(&mut attempt, patch, speeds, per_try, rng);
         used += outcome.iterations;
-        *left = left.saturating_sub(outcome.iterations);
-        if keep_better(&mut best, attempt, outcome) || *left == 0 {
+        if keep_better(&mut best, attempt, outcome) {
             break;
         }
         if k + 1 >= RESCUE_AFTER {
@@ -111,11 +85,12 @@ fn with_attempts(
                 &mut rescued,
                 patch,
                 speeds,
-                (RESCUE_ROUNDS, rescue_pushes(max_iterations)),
-                (rng, &mut *left),
+                RESCUE_ROUNDS,
+                rescue_pushes(max_iterations),
+                rng,
             );
             used += outcome.iterations;
-            if keep_better(&mut best, rescued, outcome) || *left == 0 {
+            if keep_better(&mut best, rescued, outcome) {
                 break;
             }
         }
@@ -165,24 +140,10 @@ pub(crate) fn clear_patch(
     let margin = |o: &repair::Outcome| o.worst.map_or(f64::INFINITY, |w| w.margin);
     let mut best: Option<(Vec<Path>, repair::Outcome, Cleared)> = None;
     let mut iterations = 0;
-    let left = std::cell::Cell::new(patch_budget(max_iterations));
     // One try from `paths`, kept if its worst encounter is the best so far; its stall, if any.
-    // Once the budget is spent, no more tries: the best so far stands.
     let mut run = |paths: &[Path], speeds, attempts, waited: &[u32], hurried| {
-        if left.get() == 0 && best.is_some() {
-            return best.as_ref().and_then(|b| b.1.worst);
-        }
         let mut paths = paths.to_vec();
-        let mut budget = left.get();
-        let outcome = with_attempts(
-            &mut paths,
-            patch,
-            speeds,
-            max_iterations,
-            attempts,
-            (rng, &mut budget),
-        );
-        left.set(budget);
+        let outcome = with_attempts(&mut paths, patch, speeds, max_iterations, attempts, rng);
         iterations += outcome.iterations;
         if best
             .as_ref()
@@ -232,9 +193,7 @@ pub(crate) fn clear_patch(
             cleared = stall.is_none();
         }
     }
-    // Last, hurrying: from the straight lines, then with the waits (stalls are chancy), on a
-    // budget of its own.
-    left.set(max_iterations.saturating_mul(HURRY_BUDGET));
+    // Last, hurrying: from the straight lines, then with the waits (stalls are chancy).
     for (paths, waited) in [(&start, &[][..]), (&waiting, &waited[..])] {
         if cleared {
             break;

@@ -55,14 +55,14 @@ const STRAIGHT_MARGIN: f64 = 0.02;
 const LONGEST: usize = 60;
 
 /// Plans one walker of the worst pair anew, then pushes for `pushes` more, up to `rounds`
-/// times or until the patch is clear or its budget `left` is spent (each round takes its
-/// pushes and one for the plan from it); keeps the best state seen (by the worst margin).
+/// times or until the patch is clear; keeps the best state seen (by the worst margin).
 pub fn rescue(
     paths: &mut [Path],
     patch: &Patch,
     speeds: Speeds,
-    (rounds, pushes): (u32, u32),
-    (rng, left): (&mut ChaCha8Rng, &mut u32),
+    rounds: u32,
+    pushes: u32,
+    rng: &mut ChaCha8Rng,
 ) -> Outcome {
     let margin = |o: &Outcome| o.worst.map_or(f64::INFINITY, |w| w.margin);
     let mut outcome = repair::remove_collisions(paths, patch, speeds, 0, rng);
@@ -70,9 +70,6 @@ pub fn rescue(
     let mut iterations = 0;
     for round in 0..rounds {
         let Some(w) = outcome.worst else { break };
-        if *left == 0 {
-            break;
-        }
         let mut walkers = vec![w.a];
         if let repair::Other::Walker { b, .. } = w.other
             && b != w.a
@@ -91,10 +88,8 @@ pub fn rescue(
                 break;
             }
         }
-        // The plan counts as one push of the patch's budget.
-        outcome = repair::remove_collisions(paths, patch, speeds, pushes.min(*left - 1), rng);
+        outcome = repair::remove_collisions(paths, patch, speeds, pushes, rng);
         iterations += outcome.iterations + 1;
-        *left = left.saturating_sub(outcome.iterations + 1);
         if margin(&outcome) > margin(&best.1) {
             best = (paths.to_vec(), outcome);
         }

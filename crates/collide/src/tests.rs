@@ -668,36 +668,3 @@ fn a_walker_given_one_more_period_keeps_its_ends_modulo_the_period() {
     let m = before.points.len();
     assert_eq!(after.points[n - 2].pos, before.points[m - 2].pos);
 }
-
-/// `collide.max_iterations` bounds a patch's work: a patch no try can clear (two walkers whose
-/// fixed border bands overlap, among the crossroads' eight) stops after
-/// [`crate::PATCH_BUDGET`] times the setting's pushes over all its tries and rescues at walking
-/// pace and [`crate::HURRY_BUDGET`] times hurrying (before, a patch like it took forty times
-/// the setting), and still says which pair it could not part.
-#[test]
-fn a_patch_that_cannot_be_cleared_stops_within_its_budget() {
-    let mut paths = crossroads();
-    paths.push(banded(0, 3.2, 1.02, 1, 4.8, 7.0));
-    let mut rng = ChaCha8Rng::seed_from_u64(5);
-    let max_iterations = 300;
-    let (_, out, _) = crate::clear_patch(
-        paths,
-        &patch(),
-        Speeds::default(),
-        (20.0, max_iterations),
-        &mut rng,
-    );
-    assert!(out.worst.is_some(), "overlapping bands parted: {out:?}");
-    let budget = (crate::PATCH_BUDGET + crate::HURRY_BUDGET) * max_iterations;
-    assert!(
-        out.iterations <= budget,
-        "{} pushes for {budget}",
-        out.iterations
-    );
-    // Spent, not given up early.
-    assert!(
-        out.iterations >= budget / 2,
-        "{} pushes for {budget}",
-        out.iterations
-    );
-}

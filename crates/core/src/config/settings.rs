@@ -199,9 +199,7 @@ impl MatchSettings {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct CollideSettings {
-    /// Pushes per try at clearing a patch (a try's attempts share them); a patch that no try
-    /// clears stops after 8 times this over all its tries at walking pace and 2 times hurrying
-    /// (`crowd_collide::PATCH_BUDGET`, `HURRY_BUDGET`) and is reported unconverged.
+    /// Pushes per patch at most before the patch is reported unconverged.
     pub max_iterations: u32,
 }
 
@@ -219,13 +217,13 @@ impl CollideSettings {
             "collide.max_iterations",
             self.max_iterations,
             Self::MOST_PUSHES,
-            "from 1 to 1000000 pushes per try (a patch that stalls spends about this many \
-             in each way stage 5 tries to clear it, and at most 10 times this in all, so the \
-             worst build time grows with it: `bands` takes 4 s at 2000000, 17 s at 20000000)",
+            "from 1 to 1000000 pushes per patch (a patch that stalls spends about this many \
+             in each way stage 5 tries to clear it, so the worst build time grows with it: \
+             `bands` takes 4 s at 2000000, 17 s at 20000000)",
         )
     }
 
-    /// The most pushes per try `max_iterations` may allow.
+    /// The most pushes per patch `max_iterations` may allow.
     pub const MOST_PUSHES: u32 = 1_000_000;
 }
 
