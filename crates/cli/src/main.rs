@@ -16,7 +16,9 @@ unsafe extern "C" {
     fn mi_option_set(option: std::ffi::c_int, value: std::ffi::c_long);
 }
 
-/// `mi_option_purge_delay` in `mimalloc.h`'s `mi_option_t`.
+/// `mi_option_purge_delay` in `mimalloc.h`'s `mi_option_t` (15 in both the v2 and the v3
+/// header that `libmimalloc-sys` 0.1.49, pinned by `Cargo.lock`, builds; read it again there
+/// when that crate moves).
 const MI_OPTION_PURGE_DELAY: std::ffi::c_int = 15;
 /// Freed memory goes back to the kernel after this long unused, ms (mimalloc's default: 10).
 /// A stage's tables freed and the next stage's allocated within a second reuse the same pages.

@@ -4,7 +4,7 @@
 
 use crate::path::Path;
 use crate::repair::{Patch, Speeds, Tracks};
-use crowd_geometry::{Segment, copies, distance_to_rect};
+use crowd_geometry::{Segment, copies, distance_to_rect, nearest_along};
 use glam::DVec2;
 
 /// Moves the pause `(i, j)` of walker `p` to the spot of the patch that stays farthest from
@@ -184,48 +184,27 @@ fn clearance_above(
 
 /// The squared distance from `q` to the straight piece from `a` to `z`.
 fn squared_distance_to_piece(q: DVec2, a: DVec2, z: DVec2) -> f64 {
-    let along = z - a;
-    let l2 = along.length_squared();
-    let f = if l2 > 0.0 {
-        ((q - a).dot(along) / l2).clamp(0.0, 1.0)
-    } else {
-        0.0
-    };
-    (a + along * f).distance_squared(q)
+    (a + (z - a) * nearest_along(a, z, q)).distance_squared(q)
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crowd_core::trajectories::{ControlPoint, PointKind, Trajectory};
-
-    fn path(points: &[(f64, f64, f64, PointKind)]) -> Path {
-        let points = points
-            .iter()
-            .map(|&(x, y, t, kind)| ControlPoint {
-                pos: DVec2::new(x, y),
-                t,
-                kind,
-            })
-            .collect();
-        Path::from_trajectory(&Trajectory {
-            entry: 0,
-            exit: 1,
-            points,
-        })
-    }
+    use crate::tests::path_through;
+    use crowd_core::trajectories::PointKind;
 
     /// A walker pausing at (2, 4) from 1 s to 9 s, and one that runs across the patch at
     /// 10 m/s along y = 6 at about 5 s: between two samples 0.2 s apart it covers 2 m.
     fn pause_and_runner() -> (Vec<Path>, Patch<'static>) {
         use PointKind::{Entry, Exit, Pause};
-        let pausing = path(&[
-            (0.0, 4.0, 0.0, Entry),
-            (2.0, 4.0, 1.0, Pause),
-            (2.0, 4.0, 9.0, Pause),
-            (0.0, 4.0, 10.0, Exit),
+        let at = DVec2::new;
+        let pausing = path_through(&[
+            (at(0.0, 4.0), 0.0, Entry),
+            (at(2.0, 4.0), 1.0, Pause),
+            (at(2.0, 4.0), 9.0, Pause),
+            (at(0.0, 4.0), 10.0, Exit),
         ]);
-        let runner = path(&[(0.0, 6.0, 4.61, Entry), (8.0, 6.0, 5.41, Exit)]);
+        let runner = path_through(&[(at(0.0, 6.0), 4.61, Entry), (at(8.0, 6.0), 5.41, Exit)]);
         let patch = Patch {
             side_m: 8.0,
             period_s: 20.0,

@@ -68,7 +68,7 @@ fn inward(side: u8) -> DVec2 {
 }
 
 /// A path through `points` (place, time, kind), entry first and exit last.
-fn path_through(points: &[(DVec2, f64, PointKind)]) -> Path {
+pub(crate) fn path_through(points: &[(DVec2, f64, PointKind)]) -> Path {
     Path::from_trajectory(&Trajectory {
         entry: 0,
         exit: 0,

@@ -106,6 +106,12 @@ pub fn position_at(points: &[ControlPoint], t: f64) -> DVec2 {
     let k = points
         .partition_point(|p| p.t <= t)
         .clamp(1, points.len() - 1);
+    position_on(points, k, t)
+}
+
+/// [`position_at`] on the piece from point `k - 1` to point `k`, for a caller that knows which
+/// piece holds `t`.
+pub fn position_on(points: &[ControlPoint], k: usize, t: f64) -> DVec2 {
     let (a, b) = (points[k - 1], points[k]);
     if b.t > a.t {
         a.pos + (b.pos - a.pos) * ((t - a.t) / (b.t - a.t)).clamp(0.0, 1.0)

@@ -64,6 +64,18 @@ pub fn to_rect(s: &Segment, min: DVec2, max: DVec2) -> (f64, f64, DVec2) {
     (dist(f), s.t0 + f * (s.t1 - s.t0), p.clamp(min, max))
 }
 
+/// Where on the straight piece from `a` to `z` the point nearest `q` lies, as a share of the
+/// way (0 at `a`, 1 at `z`; 0 when the piece is a point).
+pub fn nearest_along(a: DVec2, z: DVec2, q: DVec2) -> f64 {
+    let d = z - a;
+    let l2 = d.length_squared();
+    if l2 > 0.0 {
+        ((q - a).dot(d) / l2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    }
+}
+
 /// The smallest distance from the path of `s` to the rectangle [min, max], exactly (0 when it
 /// crosses it): what [`to_rect`] finds, without its search, for callers that need only the
 /// distance (a random painting of thin walls spent 90 % of its build in `to_rect`).
@@ -91,14 +103,7 @@ pub fn distance_to_rect(s: &Segment, min: DVec2, max: DVec2) -> f64 {
     }
     // Apart, the two convex shapes are closest at an end of the segment or at a corner of the
     // box (its point nearest the segment).
-    let along = |c: DVec2| {
-        let l2 = d.length_squared();
-        if l2 > 0.0 {
-            ((c - s.p0).dot(d) / l2).clamp(0.0, 1.0)
-        } else {
-            0.0
-        }
-    };
+    let along = |c: DVec2| nearest_along(s.p0, s.p1, c);
     let corners = [min, DVec2::new(max.x, min.y), DVec2::new(min.x, max.y), max];
     [0.0, 1.0]
         .into_iter()

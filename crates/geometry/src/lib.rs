@@ -22,7 +22,7 @@ pub mod spacing;
 pub mod tracks;
 pub mod trajectory;
 
-pub use approach::{approach, closest, distance_to_rect, to_rect};
+pub use approach::{approach, closest, distance_to_rect, nearest_along, to_rect};
 pub use encounter::{Encounter, Other, encounter_with, pair};
 pub use grid::{BoxGrid, PieceGrid};
 pub use patch::{Patch, obstacles_near};

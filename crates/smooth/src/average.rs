@@ -11,7 +11,7 @@
 //! band ends, which therefore stay exactly where and when they were, with the band pieces
 //! beyond them; the ends of the walk are left as they are.
 
-use crowd_core::trajectories::{ControlPoint, PointKind, Trajectory, band_ends};
+use crowd_core::trajectories::{ControlPoint, PointKind, Trajectory, band_ends, position_on};
 use glam::DVec2;
 
 /// The largest change of velocity from one chord of the averaged walk to the next, m/s, where
@@ -263,14 +263,7 @@ impl<'a> Walk<'a> {
     fn at(&self, t: f64) -> DVec2 {
         // Cubic Hermite's h10: 0 at both ends, slope 1 at 0 and 0 at 1.
         let h10 = |s: f64| s * (1.0 - s) * (1.0 - s);
-        let k = self.piece_at(t);
-        let (a, b) = (self.pts[k - 1], self.pts[k]);
-        // `position_at`'s interpolation, on the piece it would find.
-        let mut p = if b.t > a.t {
-            a.pos + (b.pos - a.pos) * ((t - a.t) / (b.t - a.t)).clamp(0.0, 1.0)
-        } else {
-            b.pos
-        };
+        let mut p = position_on(self.pts, self.piece_at(t), t);
         let from = self.corners.partition_point(|c| c.t <= t - self.half);
         for c in self.corners[from..]
             .iter()
