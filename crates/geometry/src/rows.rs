@@ -4,6 +4,7 @@
 use crate::encounter::{Encounter, Other, fixed_row, pair, pair_in};
 use crate::patch::Patch;
 use crate::tracks::{ALWAYS, Span, Tracks};
+use glam::DVec2;
 
 /// Every encounter within reach in a patch, by walker: row `a` holds walker `a`'s encounters
 /// with every later walker (and its own later copies), with the standers and the obstacles.
@@ -19,9 +20,28 @@ pub fn rows(tracks: &Tracks, patch: &Patch) -> Vec<Vec<Encounter>> {
 pub fn refresh(rows: &mut [Vec<Encounter>], tracks: &mut Tracks, touched: &[usize], patch: &Patch) {
     let changed = |p: usize| tracks.changed[p].unwrap_or(ALWAYS);
     let outside = |t: f64, (lo, hi): Span| t < lo - 1e-9 || t > hi + 1e-9;
+    // Where a moved walker's changed pieces stay out of reach of the other's whole path, the
+    // pair cannot have come nearer: the test [`pair_in`]'s broad phase makes, on less.
+    let reach = 2.0 * patch.radius_m;
+    let moved_box: Vec<Option<(DVec2, DVec2)>> = touched
+        .iter()
+        .map(|&p| tracks.box_during(p, changed(p)))
+        .collect();
+    let out_of_reach = |moved: usize, other: usize| {
+        let k = touched
+            .iter()
+            .position(|&p| p == moved)
+            .expect("a touched walker");
+        moved_box[k].is_none_or(|(lo, hi)| {
+            let (olo, ohi) = tracks.boxes[other];
+            let gap = (olo - hi).max(lo - ohi).max(DVec2::ZERO);
+            gap.length_squared() > reach * reach
+        })
+    };
     // The pair (a, b) after one of them, `moved`, changed over `span`.
     let update = |old: Option<Encounter>, a: usize, b: usize, a_moved: bool| {
-        let span = changed(if a_moved { a } else { b });
+        let (moved, other) = if a_moved { (a, b) } else { (b, a) };
+        let span = changed(moved);
         let (wa, wb) = if a_moved {
             (span, ALWAYS)
         } else {
@@ -34,6 +54,9 @@ pub fn refresh(rows: &mut [Vec<Encounter>], tracks: &mut Tracks, touched: &[usiz
                 };
                 let when = if a_moved { e.t } else { e.t - shift };
                 if outside(when, span) {
+                    if out_of_reach(moved, other) {
+                        return Some(e);
+                    }
                     match pair_in(tracks, a, b, patch, wa, wb) {
                         Some(n) if n.distance < e.distance => Some(n),
                         _ => Some(e),
@@ -42,6 +65,7 @@ pub fn refresh(rows: &mut [Vec<Encounter>], tracks: &mut Tracks, touched: &[usiz
                     pair(tracks, a, b, patch)
                 }
             }
+            None if out_of_reach(moved, other) => None,
             None => pair_in(tracks, a, b, patch, wa, wb),
         }
     };

@@ -65,6 +65,18 @@ impl Tracks {
         self.segs[p] = segs;
     }
 
+    /// The box that holds walker `p`'s pieces that overlap `span` (a run's box where the run
+    /// overlaps it: a little larger, never smaller); `None` where no piece does.
+    pub(crate) fn box_during(&self, p: usize, (lo, hi): Span) -> Option<(DVec2, DVec2)> {
+        let chunks = &self.chunks[p];
+        let first = chunks.partition_point(|c| c.t1 < lo);
+        chunks[first..]
+            .iter()
+            .take_while(|c| c.t0 <= hi)
+            .map(|c| (c.lo, c.hi))
+            .reduce(|(lo, hi), (l, h)| (lo.min(l), hi.max(h)))
+    }
+
     pub fn get(&self, p: usize) -> &[Segment] {
         &self.segs[p]
     }
