@@ -275,16 +275,21 @@ fn stage_figures(dir: &Path, graph: &PatchGraph, chosen: &Stage) -> Result<Check
     let (kind, version) = (chosen.kind, chosen.version);
     let path = dir.join(chosen.output);
     let (file, motion) = TrajectoriesFile::load_for(&path, kind, version, graph.patches.len())?;
-    let mut report = crowd_check::check(graph, &motion, file.period_s);
+    // The world's pairs and the motion figures at once, as in the library's check.
+    let (mut report, motion_figures) = rayon::join(
+        || crowd_check::check(graph, &motion, file.period_s),
+        || -> Result<_> {
+            let (_, crossings) = Patterns::load_for(&dir.join(PATTERNS_FILE), graph)?;
+            Ok(crowd_check::motion::figures(
+                graph,
+                &crossings,
+                &motion,
+                file.period_s,
+            ))
+        },
+    );
     report.stage = kind.to_string();
-    let patterns_path = dir.join(PATTERNS_FILE);
-    let (_, crossings) = Patterns::load_for(&patterns_path, graph)?;
-    report.motion = Some(crowd_check::motion::figures(
-        graph,
-        &crossings,
-        &motion,
-        file.period_s,
-    ));
+    report.motion = Some(motion_figures?);
     Ok(report)
 }
 

@@ -668,3 +668,29 @@ fn a_walker_given_one_more_period_keeps_its_ends_modulo_the_period() {
     let m = before.points.len();
     assert_eq!(after.points[n - 2].pos, before.points[m - 2].pos);
 }
+
+/// A rescue that brings nothing better gives up after [`replan::RESCUE_PATIENCE`] rounds, not
+/// all [`RESCUE_ROUNDS`]: two walkers that enter at the same place at the same moment (anchors
+/// no push or plan can move) stay as close, whatever is planned.
+#[test]
+fn a_rescue_that_brings_nothing_better_gives_up_early() {
+    let mut paths = vec![
+        banded(0, 4.0, 1.0, 1, 2.0, 8.0),
+        banded(0, 4.0, 1.0, 1, 6.0, 8.0),
+    ];
+    let mut rng = ChaCha8Rng::seed_from_u64(5);
+    let pushes = 20;
+    let speeds = Speeds::default();
+    let out = replan::rescue(
+        &mut paths,
+        &patch(),
+        speeds,
+        RESCUE_ROUNDS,
+        pushes,
+        &mut rng,
+    );
+    assert!(out.worst.is_some_and(|w| w.margin < -0.5), "{out:?}");
+    // Each round plans one walker and pushes `pushes` times at most.
+    let most = replan::RESCUE_PATIENCE * (pushes + 1);
+    assert!(out.iterations <= most, "{} > {most}", out.iterations);
+}

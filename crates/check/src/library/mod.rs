@@ -46,12 +46,18 @@ pub fn paths(lib: &Library) -> Vec<Vec<(DVec2, f64)>> {
 pub fn figures(lib: &Library, inputs: &Inputs) -> ProductFigures {
     let period = lib.period_s();
     let paths = paths(lib);
-    let clearance = clearance(lib, &paths, inputs.walls);
     let tally = Tally::of(&paths, inputs.speed_limit_m_s, TICK_S, period);
-    let (borders, seams) = handovers(lib, &paths);
-    let sampled = inputs
-        .sample_step_s
-        .map(|step| sample(lib, step, tally.max_speed));
+    // The world's pairs and the played frames at once: the pairs' serial parts (the pieces,
+    // the grid) left a core idle, and the sampler holds little (painting's check -1 s).
+    let (clearance, ((borders, seams), sampled)) = rayon::join(
+        || clearance(lib, &paths, inputs.walls),
+        || {
+            let sampled = inputs
+                .sample_step_s
+                .map(|step| sample(lib, step, tally.max_speed));
+            (handovers(lib, &paths), sampled)
+        },
+    );
     let counts = (
         lib.walkers(),
         lib.standers.len() as u64,
