@@ -200,32 +200,21 @@ fn measure(dir: &Path, options: &CheckOptions) -> Result<CheckReport> {
     let chosen = chosen(dir, options.stage)?;
     let walls = crowd_check::walls(&graph);
     let limit = options.max_speed * crowd_check::products::SPEED_MARGIN;
-    // The three judgements read different files and share nothing. On a small world each
-    // runs while the others wait on their serial parts (reading, decoding, sorting), which
-    // left a core idle (ring's check: 0.86 -> 0.75 s); on a big one, one after the other, as
+    // The stage file and the products read different files and share nothing. On a small
+    // world they are judged at once, each while the other waits on its serial parts (reading,
+    // decoding, sorting), which left a core idle (ring's check: 0.86 -> 0.75 s; the library
+    // and the glTF at once as well gave nothing more); on a big one, one after the other, as
     // together they held half as much memory again (painting's: 2.4 -> 3.5 GB).
-    let together = || {
-        let stage = stage_figures(dir, &graph, chosen);
+    let products = || {
         (
-            stage,
-            (
-                library(dir, &walls, limit),
-                gltf(dir, &graph, &walls, limit),
-            ),
+            library(dir, &walls, limit),
+            gltf(dir, &graph, &walls, limit),
         )
     };
     let (stage, (library, gltf)) = if small_world(dir, chosen) {
-        rayon::join(
-            || stage_figures(dir, &graph, chosen),
-            || {
-                rayon::join(
-                    || library(dir, &walls, limit),
-                    || gltf(dir, &graph, &walls, limit),
-                )
-            },
-        )
+        rayon::join(|| stage_figures(dir, &graph, chosen), products)
     } else {
-        together()
+        (stage_figures(dir, &graph, chosen), products())
     };
     let mut report = stage?;
     report.library = library?;

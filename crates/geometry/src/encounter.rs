@@ -54,9 +54,8 @@ pub(crate) fn pair_in(
     // Broad phase: walkers whose whole paths stay farther apart than they need never meet.
     let reach = 2.0 * patch.radius_m;
     let ((amin, amax), (bmin, bmax)) = (tracks.boxes[a], tracks.boxes[b]);
-    let gap = (bmin - amax).max(amin - bmax).max(DVec2::ZERO);
     // Squared: most pairs end here, and the sweep finds nothing nearer than the gap anyway.
-    if gap.length_squared() > reach * reach {
+    if box_gap_squared((amin, amax), (bmin, bmax)) > reach * reach {
         return None;
     }
     // Copies of b that overlap a in time: b shifted by k periods.
@@ -81,8 +80,7 @@ pub(crate) fn pair_in(
         while i < ca.len() && j < cb.len() && ca[i].t0 <= hi && cb[j].t0 + shift <= hi {
             let (x, y) = (&ca[i], &cb[j]);
             let limit = best.map_or(reach, |(bd, _, _)| bd.min(reach));
-            let gap = (y.lo - x.hi).max(x.lo - y.hi).max(DVec2::ZERO);
-            if gap.length_squared() <= limit * limit {
+            if box_gap_squared((x.lo, x.hi), (y.lo, y.hi)) <= limit * limit {
                 let from = lo.max(x.t0).max(y.t0 + shift);
                 let to = hi.min(x.t1).min(y.t1 + shift);
                 let (pa, pb) = (
@@ -129,8 +127,7 @@ fn sweep(
         let limit = best.map_or(reach, |(bd, _, _)| bd.min(reach));
         let (lo_a, hi_a) = (sa[i].p0.min(sa[i].p1), sa[i].p0.max(sa[i].p1));
         let (lo_b, hi_b) = (x.p0.min(x.p1), x.p0.max(x.p1));
-        let gap = (lo_b - hi_a).max(lo_a - hi_b).max(DVec2::ZERO);
-        if gap.length_squared() <= limit * limit
+        if box_gap_squared((lo_a, hi_a), (lo_b, hi_b)) <= limit * limit
             && let Some((d, t)) = closest(&sa[i], &x)
             && best.is_none_or(|(bd, _, _)| d < bd)
         {
@@ -142,6 +139,12 @@ fn sweep(
             j += 1;
         }
     }
+}
+
+/// The squared distance between two boxes (lowest and highest corners), 0 where they
+/// overlap: no point of one is nearer the other. The broad phase of every encounter test.
+pub(crate) fn box_gap_squared((alo, ahi): (DVec2, DVec2), (blo, bhi): (DVec2, DVec2)) -> f64 {
+    (blo - ahi).max(alo - bhi).max(DVec2::ZERO).length_squared()
 }
 
 /// Every encounter of walker `a` with the standers and the obstacles.

@@ -1,7 +1,7 @@
 //! The distance matrix of a patch: every walker's encounters within reach, by walker, and
 //! how it is brought up to date after some walkers moved without measuring everything again.
 
-use crate::encounter::{Encounter, Other, fixed_row, pair, pair_in};
+use crate::encounter::{Encounter, Other, box_gap_squared, fixed_row, pair, pair_in};
 use crate::patch::Patch;
 use crate::tracks::{ALWAYS, Span, Tracks};
 use glam::DVec2;
@@ -32,11 +32,7 @@ pub fn refresh(rows: &mut [Vec<Encounter>], tracks: &mut Tracks, touched: &[usiz
             .iter()
             .position(|&p| p == moved)
             .expect("a touched walker");
-        moved_box[k].is_none_or(|(lo, hi)| {
-            let (olo, ohi) = tracks.boxes[other];
-            let gap = (olo - hi).max(lo - ohi).max(DVec2::ZERO);
-            gap.length_squared() > reach * reach
-        })
+        moved_box[k].is_none_or(|b| box_gap_squared(b, tracks.boxes[other]) > reach * reach)
     };
     // The pair (a, b) after one of them, `moved`, changed over `span`.
     let update = |old: Option<Encounter>, a: usize, b: usize, a_moved: bool| {
