@@ -211,3 +211,23 @@ fn a_sparse_painting_that_places_fewer_walkers_than_asked_is_a_warning() {
     let stderr = crowd_broken(&["build", "-q", "--deny-warnings", "--pipeline", s(&pipeline)]);
     assert!(stderr.contains("--deny-warnings"), "{stderr}");
 }
+
+/// Random painting 9001 (`crowd-paintings write --seed 9001 --max-patches 14`) asks for 17
+/// walkers over 27 patches of 6 m with a flow layer: stage 3's whole walkers, and those it sends
+/// to walk the painted directions, come out 44. More than asked is said as plainly as fewer.
+#[test]
+fn a_sparse_painting_that_places_more_walkers_than_asked_is_a_warning() {
+    let dir = tempfile::tempdir().unwrap();
+    let painting = crowd_paintings::random(9001, crowd_paintings::Limits { max_patches: 14 });
+    let pipeline = painting.write(dir.path()).unwrap();
+    let build = crowd(&["build", "-q", "--pipeline", s(&pipeline)]);
+    let stderr = String::from_utf8_lossy(&build.stderr);
+    assert!(build.status.success(), "{stderr}");
+    let warning = stderr
+        .lines()
+        .find(|l| l.contains("walkers placed of 17 asked"))
+        .unwrap_or_else(|| panic!("a surplus warning:\n{stderr}"));
+    assert!(warning.contains("more than asked"), "{warning}");
+    let md = std::fs::read_to_string(dir.path().join("out/report.md")).unwrap();
+    assert!(md.contains("walkers placed of 17 asked"), "{md}");
+}

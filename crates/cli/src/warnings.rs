@@ -106,12 +106,28 @@ fn open_components(graph: &PatchGraph) -> Vec<bool> {
     open
 }
 
-/// A build placing fewer walkers or standers than asked, by more than rounding (a tenth, and at
-/// least one character): what was asked, what was placed, and the likely cause.
+/// A build placing fewer walkers or standers than asked, or more walkers, by more than rounding
+/// (a tenth, and at least one character): what was asked, what was placed, and the likely
+/// cause.
 fn shortfall(graph: &PatchGraph, summary: &MotionSummary) -> Vec<Warning> {
-    let short = |asked: f64, placed: f64| asked - placed > (0.1 * asked).max(1.0);
+    let off = |x: f64, asked: f64| x > (0.1 * asked).max(1.0);
+    let short = |asked: f64, placed: f64| off(asked - placed, asked);
     let mut out = Vec::new();
     let asked = graph.walkers_requested as f64;
+    if off(summary.walkers_measured - asked, asked) {
+        out.push(Warning {
+            patches: Vec::new(),
+            text: format!(
+                "{:.0} walkers placed of {asked:.0} asked (`walkers`): the paint is so sparse \
+                 ({}) that stage 3's whole walkers, each crossing a patch in seconds, and those \
+                 it sends to walk the painted directions, come out more than asked; raise \
+                 `walkers`, paint them into a smaller area, or weaken the direction layers \
+                 where little is painted",
+                summary.walkers_measured,
+                density_figures(graph)
+            ),
+        });
+    }
     if short(asked, summary.walkers_measured) {
         let walled = asked - reachable_walkers(graph);
         let why = if walled > (0.1 * asked).max(1.0) {
