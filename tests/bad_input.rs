@@ -263,6 +263,48 @@ fn an_output_folder_that_cannot_be_written_is_refused() {
     );
 }
 
+/// What a user names most often is not a stage file but the build folder or what ships:
+/// `inspect` reads them through the manifest beside them, and says what a binary file is.
+#[test]
+fn inspect_reads_a_build_folder_and_its_products_through_the_manifest() {
+    let t = Setup::new();
+    let out = t.path("out");
+    for named in [
+        out.clone(),
+        out.join("library.crowd"),
+        out.join("world.glb"),
+    ] {
+        let said = crowd_ok(&["inspect", s(&named)]);
+        let said = String::from_utf8_lossy(&said.stdout);
+        assert!(
+            said.contains("stage 8 (export)"),
+            "{}: {said}",
+            named.display()
+        );
+        assert!(
+            said.contains("loads and checks"),
+            "{}: {said}",
+            named.display()
+        );
+    }
+    // A library moved away from its manifest, and a binary file of any other name.
+    let alone = t.path("alone");
+    std::fs::create_dir_all(&alone).unwrap();
+    std::fs::copy(out.join("library.crowd"), alone.join("library.crowd")).unwrap();
+    let err = crowd_err(&["inspect", s(&alone.join("library.crowd"))]);
+    assert_has(
+        &err,
+        &[
+            "library.crowd",
+            "a product of stage 8",
+            "export.ron is not there",
+        ],
+    );
+    std::fs::copy(out.join("library.crowd"), t.path("mine.bin")).unwrap();
+    let err = crowd_err(&["inspect", s(&t.path("mine.bin"))]);
+    assert_has(&err, &["mine.bin", "is not a stage file", "it is binary"]);
+}
+
 #[test]
 fn a_stage_file_of_another_kind_is_refused_by_inspect() {
     let t = Setup::new();

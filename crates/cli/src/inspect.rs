@@ -1,6 +1,6 @@
 //! `crowd inspect` and `crowd render`: any stage file, told apart by its header.
 
-use crate::stages::{GRAPH_FILE, PATTERNS_FILE};
+use crate::stages::{EXPORT_FILE, GRAPH_FILE, PATTERNS_FILE};
 use anyhow::{Result, bail};
 use crowd_core::files;
 use crowd_core::maps::MergeFile;
@@ -11,8 +11,12 @@ use crowd_core::{MergedMaps, PatchGraph};
 use std::fmt::Write;
 use std::path::Path;
 
-/// A readable summary of a stage file.
+/// A readable summary of a stage file. A build folder, or the library or glTF world that stage
+/// 8 wrote, is summed up through the manifest beside them (`export.ron`), which verifies them.
 pub fn inspect(path: &Path) -> Result<String> {
+    if let Some(manifest) = manifest_for(path)? {
+        return inspect_export(&manifest);
+    }
     let header = files::read_header(path)?;
     match header.stage.as_str() {
         MergeFile::STAGE => {
@@ -33,6 +37,31 @@ pub fn inspect(path: &Path) -> Result<String> {
             path.display()
         ),
     }
+}
+
+/// The manifest to inspect for `path` when it is a build folder or a product of stage 8 (the
+/// binary files a user is most likely to name): `export.ron` in the folder or beside the file.
+/// `None` for anything else; an error when the manifest is not there.
+fn manifest_for(path: &Path) -> Result<Option<std::path::PathBuf>> {
+    let (manifest, what) = if path.is_dir() {
+        (path.join(EXPORT_FILE), "a build folder")
+    } else if [crowd_export::LIBRARY_FILE, crowd_export::GLB_FILE]
+        .iter()
+        .any(|name| path.file_name().is_some_and(|f| f == *name))
+    {
+        (path.with_file_name(EXPORT_FILE), "a product of stage 8")
+    } else {
+        return Ok(None);
+    };
+    if !manifest.exists() {
+        bail!(
+            "{}: {what}, read through the manifest stage 8 writes, but {} is not there (build \
+             again, or name a stage file)",
+            path.display(),
+            manifest.display()
+        );
+    }
+    Ok(Some(manifest))
 }
 
 /// The format version this build reads of the files of `stage` (the header's stage name): the

@@ -266,7 +266,15 @@ pub fn read_header(path: &Path) -> Result<Header> {
     struct Peek {
         header: Header,
     }
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, "read", e))?;
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, "read", e))?;
+    let text = String::from_utf8(bytes).map_err(|_| {
+        Error::stage_file(
+            path,
+            "is not a stage file of this pipeline: it is binary, and stage files are RON text \
+             starting with `header: (stage: ..., version: ..., input_hash: ...)`"
+                .to_string(),
+        )
+    })?;
     // The header is the first field: parse only up to its end, not the whole (large) file.
     let end = text
         .find("\n  header:")
