@@ -476,3 +476,14 @@ fn a_layer_too_large_to_decode_is_refused_from_its_header() {
     assert!(stderr.contains("scene.meters_per_pixel"), "{stderr}");
     assert!(!dir.path().join("out").exists());
 }
+
+/// A folder that is not a build (the scene's folder, say) is named as such by the commands
+/// that read a build folder, not by the first file they miss.
+#[test]
+fn report_and_check_of_a_folder_without_a_build_say_so() {
+    let dir = tempfile::tempdir().unwrap();
+    for command in ["report", "check"] {
+        let err = crowd_err(&[command, s(dir.path())]);
+        assert_has(&err, &["no stage files here", "expected a build folder"]);
+    }
+}

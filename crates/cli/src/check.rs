@@ -52,6 +52,7 @@ impl Default for CheckOptions {
 /// Checks the build folder `dir`, writes `check.ron` and the check's time in `timings.ron`
 /// (returned too).
 pub fn check(dir: &Path, options: &CheckOptions) -> Result<(CheckReport, StageRun)> {
+    stages::expect_build_folder(dir)?;
     let (report, run) = timed(|| measure(dir, options))?;
     files::write_atomic(&dir.join(CHECK_FILE), files::to_ron(&report).as_bytes())?;
     let mut timings = read_timings(dir);

@@ -4,10 +4,9 @@ use crate::check::CHECK_FILE;
 use crate::driver::{StageRun, read_timings};
 use crate::stage::{self, Stage};
 use crate::stages::{
-    self, COLLIDED_FILE, EXPORT_FILE, GRAPH_FILE, MERGE_FILE, PATTERNS_FILE, SMOOTHED_FILE,
-    TRAJECTORIES_FILE,
+    self, COLLIDED_FILE, EXPORT_FILE, GRAPH_FILE, PATTERNS_FILE, SMOOTHED_FILE, TRAJECTORIES_FILE,
 };
-use anyhow::{Context, Result, bail};
+use anyhow::{Context, Result};
 use crowd_check::ProductFigures;
 use crowd_core::PatchGraph;
 use crowd_core::files;
@@ -72,13 +71,7 @@ impl Report {
 
     /// The figures of the stage files in `scope`.
     pub fn gather_in(dir: &Path, scope: Scope) -> Result<Report> {
-        if !dir.join(MERGE_FILE).exists() && !dir.join(GRAPH_FILE).exists() {
-            bail!(
-                "{}: no stage files here; expected a build folder (the `output` of a pipeline) \
-                 holding {MERGE_FILE} or {GRAPH_FILE}",
-                dir.display()
-            );
-        }
+        stages::expect_build_folder(dir)?;
         // Each stage file is read if the build got that far.
         fn read<T: serde::de::DeserializeOwned>(path: Option<PathBuf>) -> Result<Option<T>> {
             Ok(path.map(|p| files::read_ron(&p)).transpose()?)
