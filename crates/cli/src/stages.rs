@@ -349,6 +349,19 @@ fn export(a: &mut Artifacts, out: &Path, hash: Hash, _: &Ui) -> Result<Ran> {
     Ok(Ran::files(crowd_export::writes(out, export)))
 }
 
+/// Refuses a folder that holds no stage file, for the commands that read a build folder
+/// (`report`, `check`): the likely mistake, said as one (not as the first file missing).
+pub fn expect_build_folder(dir: &Path) -> Result<()> {
+    if !dir.join(MERGE_FILE).exists() && !dir.join(GRAPH_FILE).exists() {
+        bail!(
+            "{}: no stage files here; expected a build folder (the `output` of a pipeline) \
+             holding {MERGE_FILE} or {GRAPH_FILE}",
+            dir.display()
+        );
+    }
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -409,17 +422,4 @@ mod tests {
             assert_eq!(has("input"), !stage.reads.is_empty(), "{stage:?}");
         }
     }
-}
-
-/// Refuses a folder that holds no stage file, for the commands that read a build folder
-/// (`report`, `check`): the likely mistake, said as one (not as the first file missing).
-pub fn expect_build_folder(dir: &Path) -> Result<()> {
-    if !dir.join(MERGE_FILE).exists() && !dir.join(GRAPH_FILE).exists() {
-        bail!(
-            "{}: no stage files here; expected a build folder (the `output` of a pipeline) \
-             holding {MERGE_FILE} or {GRAPH_FILE}",
-            dir.display()
-        );
-    }
-    Ok(())
 }
