@@ -162,7 +162,10 @@ fn build_and_judge(crowd: &Path, pipeline: &Path, out: &Path) -> Result<Outcome>
     };
     let p = pipeline.to_str().context("utf-8 paths")?;
     let o = out.to_str().context("utf-8 paths")?;
-    let build = run(&["build", "-q", "--pipeline", p])?;
+    // `--force`: a folder left by an earlier soak (its failing and warned paintings stay) would
+    // otherwise be up to date whenever a stage changed without its version, and the soak would
+    // judge the old build (it did: a soak of 2026-12-04 reported two refused paintings as warned).
+    let build = run(&["build", "-q", "--force", "--pipeline", p])?;
     let stderr = String::from_utf8_lossy(&build.stderr).into_owned();
     if !build.status.success() {
         let clear =
