@@ -348,7 +348,7 @@ fn costly_first(motion: &[PatchMotion]) -> Vec<usize> {
 
 /// The stage name in `collided.ron`'s header.
 pub const STAGE: &str = "collide";
-pub const VERSION: u32 = 15;
+pub const VERSION: u32 = 16;
 
 /// What stage 5 reads of a pipeline besides its input files.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]

@@ -18,7 +18,7 @@ use crate::repair::{self, Outcome, Patch, Speeds};
 use crowd_core::trajectories::{ControlPoint, PointKind, split_at_periods};
 use crowd_geometry::{self as geometry, Segment};
 use glam::DVec2;
-
+use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 /// Largest grid cell, m (smaller where a step of one cell per [`LAYER`] would be faster than
@@ -64,7 +64,8 @@ pub const RESCUE_PATIENCE: u32 = 12;
 
 /// Plans one walker of the worst pair anew, then pushes for `pushes` more, up to `rounds`
 /// times, until the patch is clear or [`RESCUE_PATIENCE`] rounds in a row brought nothing
-/// better; keeps the best state seen (by the worst margin).
+/// better; keeps the best state seen (by the worst margin). Its random draws are its own
+/// (seeded by one draw of `rng`), so how long it runs does not change the tries after it.
 pub fn rescue(
     paths: &mut [Path],
     patch: &Patch,
@@ -73,6 +74,7 @@ pub fn rescue(
     pushes: u32,
     rng: &mut ChaCha8Rng,
 ) -> Outcome {
+    let rng = &mut ChaCha8Rng::seed_from_u64(rng.random());
     let margin = |o: &Outcome| o.worst.map_or(f64::INFINITY, |w| w.margin);
     let mut outcome = repair::remove_collisions(paths, patch, speeds, 0, rng);
     let mut best = (paths.to_vec(), outcome);
