@@ -18,10 +18,9 @@ mod world;
 
 use crowd_core::PatchGraph;
 use crowd_core::trajectories::PatchMotion;
-use crowd_geometry as geometry;
 use glam::DVec2;
 pub use products::{ProductFigures, Sampled};
-use world::{Ends, Piece, Repeat, Scene};
+use world::{Ends, Repeat, Scene};
 
 /// What the check found.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -68,19 +67,20 @@ pub fn check(graph: &PatchGraph, motion: &[PatchMotion], period_s: f64) -> Check
         standers: Vec::new(),
         walls: walls(graph),
     };
+    let trajectories = || motion.iter().flat_map(|m| &m.trajectories);
+    scene.pieces.reserve_exact(
+        trajectories()
+            .map(|t| t.points.len().saturating_sub(1))
+            .sum(),
+    );
+    scene.ends.reserve_exact(trajectories().count());
     let mut walker = 0u32;
     for (p, m) in motion.iter().enumerate() {
         let origin = graph.world_from_patch(graph.patches[p].cell);
         for tr in &m.trajectories {
             let (first, last) = (tr.points[0].t, tr.points[tr.points.len() - 1].t);
             let world = tr.points.iter().map(|p| (origin + p.pos, p.t));
-            for seg in geometry::pieces(world) {
-                scene.pieces.push(Piece {
-                    seg,
-                    walker,
-                    patch: p as u32,
-                });
-            }
+            scene.push_path(walker, p as u32, world);
             scene.ends.push(Ends {
                 entry: (tr.entry, first),
                 exit: (tr.exit, last),

@@ -107,6 +107,30 @@ type Margin = (f64, f64, DVec2);
 type Found<K, V> = (Vec<(K, V)>, Option<V>);
 
 impl Scene {
+    /// Files one walker's path (world metres and seconds, in time order) as pieces. Callers
+    /// reserve the pieces first: grown by doubling, painting's 16 M pieces were copied and
+    /// first-touched twice over (a tenth of the check's page faults).
+    pub(crate) fn push_path(
+        &mut self,
+        walker: u32,
+        patch: u32,
+        mut points: impl Iterator<Item = (DVec2, f64)>,
+    ) {
+        let Some(mut prev) = points.next() else {
+            return;
+        };
+        for next in points {
+            let seg = Segment {
+                p0: prev.0,
+                t0: prev.1,
+                p1: next.0,
+                t1: next.1,
+            };
+            self.pieces.push(Piece { seg, walker, patch });
+            prev = next;
+        }
+    }
+
     /// The closest approach of pieces `a` and `b` over the copies that can meet, if any.
     fn pair(&self, a: &Piece, b: &Piece) -> Option<(f64, f64, DVec2)> {
         let (ks, skip) = match self.repeat {

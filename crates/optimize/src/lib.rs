@@ -380,29 +380,73 @@ fn step(
             dirty.extend(cycle.iter().map(|s| s.to));
         }
     }
-    for cycle in additions.into_iter().flatten() {
-        let before: Vec<usize> = cycle
-            .iter()
-            .map(|s| state.crossings[s.border].len())
-            .collect();
-        if mutate::add_cycle(state, &cycle, &mut rng) {
-            let touched: Vec<usize> = cycle.iter().map(|s| s.to).collect();
-            state.remeasure(&touched);
-            if touched.iter().any(|&p| state.measured[p].density > rho_max) {
-                // Never above rho_max: take the cycle back.
-                for (s, n) in cycle.iter().zip(before) {
-                    state.crossings[s.border].truncate(n);
-                }
-                state.remeasure(&touched);
-            }
-        }
-    }
+    add_in_waves(state, additions.into_iter().flatten(), rho_max, &mut rng);
     dirty.sort_unstable();
     dirty.dedup();
     state.remeasure(&dirty);
     turn_around(state, net, &costs, &sizes);
     // Re-matching after removals and turns can lengthen a patch's pairs: never above rho_max.
     enforce_rho_max(state, rho_max);
+}
+
+/// Adds each cycle in turn, taking it back if it leaves a patch above rho_max, as if one at a
+/// time. A cycle's patches are measured only with the cycles around it that share none of its
+/// patches (a wave): cycles that share no patch share no border either, so neither what one
+/// adds nor what it takes back changes the other's measurement or the slots it finds, and the
+/// wave's measurements run in parallel (painting's steps spent two thirds of their time
+/// measuring one cycle after another).
+fn add_in_waves(
+    state: &mut State,
+    cycles: impl Iterator<Item = Vec<Step>>,
+    rho_max: f64,
+    rng: &mut ChaCha8Rng,
+) {
+    struct Added {
+        cycle: Vec<Step>,
+        before: Vec<usize>,
+    }
+    let mut busy = vec![false; state.links.len()];
+    let mut wave: Vec<Added> = Vec::new();
+    let settle = |state: &mut State, wave: &mut Vec<Added>, busy: &mut [bool]| {
+        let touched: Vec<usize> = wave
+            .iter()
+            .flat_map(|a| a.cycle.iter().map(|s| s.to))
+            .collect();
+        state.remeasure(&touched);
+        let mut again = Vec::new();
+        for a in wave.drain(..) {
+            if a.cycle
+                .iter()
+                .any(|s| state.measured[s.to].density > rho_max)
+            {
+                // Never above rho_max: take the cycle back.
+                for (s, &n) in a.cycle.iter().zip(&a.before) {
+                    state.crossings[s.border].truncate(n);
+                }
+                again.extend(a.cycle.iter().map(|s| s.to));
+            }
+        }
+        state.remeasure(&again);
+        for p in touched {
+            busy[p] = false;
+        }
+    };
+    for cycle in cycles {
+        if cycle.iter().any(|s| busy[s.to]) {
+            settle(state, &mut wave, &mut busy);
+        }
+        let before: Vec<usize> = cycle
+            .iter()
+            .map(|s| state.crossings[s.border].len())
+            .collect();
+        if mutate::add_cycle(state, &cycle, rng) {
+            for s in &cycle {
+                busy[s.to] = true;
+            }
+            wave.push(Added { cycle, before });
+        }
+    }
+    settle(state, &mut wave, &mut busy);
 }
 
 /// Density-neutral direction fixing: in the directed patches whose direction is furthest off,

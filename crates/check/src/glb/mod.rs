@@ -11,8 +11,7 @@
 //! (children are not composed with their parents).
 
 use crate::products::{OPEN_GAP_M, ProductFigures, Seams, Tally, end_velocities};
-use crate::world::{Piece, Repeat, Scene};
-use crowd_geometry as geometry;
+use crate::world::{Repeat, Scene};
 use glam::{DQuat, DVec2};
 use gltf::animation::{Interpolation, Property, util::ReadOutputs};
 use std::collections::HashMap;
@@ -282,14 +281,11 @@ pub fn figures(bytes: &[u8], inputs: &Inputs) -> Result<ProductFigures, GlbError
         standers: nodes.standers.clone(),
         walls: inputs.walls.to_vec(),
     };
+    scene
+        .pieces
+        .reserve_exact(paths.iter().map(|p| p.len().saturating_sub(1)).sum());
     for (i, path) in paths.iter().enumerate() {
-        for seg in geometry::pieces(path.iter().copied()) {
-            scene.pieces.push(Piece {
-                seg,
-                walker: i as u32,
-                patch: 0,
-            });
-        }
+        scene.push_path(i as u32, 0, path.iter().copied());
     }
     let clearance = scene.clearance();
     let seams = handovers(&nodes.tracks, clip);

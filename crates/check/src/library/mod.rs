@@ -7,8 +7,7 @@
 //! `Sampler` played frame after frame.
 
 use crate::products::{OPEN_GAP_M, ProductFigures, Sampled, Seams, Tally, end_velocities};
-use crate::world::{Clearance, Ends, Piece, Repeat, Scene};
-use crowd_geometry as geometry;
+use crate::world::{Clearance, Ends, Repeat, Scene};
 use crowd_runtime::{Library, Sample, Sampler, TICK_S};
 use glam::DVec2;
 
@@ -91,15 +90,12 @@ fn clearance(lib: &Library, paths: &[Vec<(DVec2, f64)>], walls: &[crate::Wall]) 
         standers: Vec::new(),
         walls: walls.to_vec(),
     };
+    let pieces = paths.iter().map(|p| p.len().saturating_sub(1)).sum();
+    scene.pieces.reserve_exact(pieces);
+    scene.ends.reserve_exact(paths.len());
     for (i, (t, path)) in lib.trajectories.iter().zip(paths).enumerate() {
         let (first, last) = (path[0].1, path[path.len() - 1].1);
-        for seg in geometry::pieces(path.iter().copied()) {
-            scene.pieces.push(Piece {
-                seg,
-                walker: i as u32,
-                patch: t.patch,
-            });
-        }
+        scene.push_path(i as u32, t.patch, path.iter().copied());
         scene.ends.push(Ends {
             entry: (t.entry, first),
             exit: (t.exit, last),
