@@ -16,7 +16,7 @@ use crate::stage::{self, Ran, Stage};
 use crate::ui::Ui;
 use anyhow::Result;
 use crowd_core::config::PipelineFile;
-use crowd_core::files::{self, Writes};
+use crowd_core::files;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -91,7 +91,7 @@ fn run_stages(
     ui: &Ui,
 ) -> Result<Vec<StageOutcome>> {
     let mut timings = read_timings(out);
-    let mut pending = Writes::new();
+    let mut pending = files::Staging::new();
     let mut outcomes = Vec::new();
     // Whether files can be written is proved before the first stage that runs does any work.
     let mut writable = false;
@@ -118,7 +118,7 @@ fn run_stages(
         if let Some(bytes) = ran.bytes_of(&path) {
             artifacts.keep_bytes(stage, bytes.to_vec());
         }
-        pending.extend(ran.writes);
+        pending.stage(ran.writes);
         let peak = run
             .peak_mb
             .map(|mb| format!(", peak {mb:.0} MB"))
@@ -138,7 +138,7 @@ fn run_stages(
     // Up to date means read-only: a build that ran nothing writes nothing, not even its
     // timings, so that it succeeds in a read-only folder and wakes no one who watches it.
     if outcomes.iter().any(|o| o.seconds.is_some()) {
-        files::write_all(&pending)?;
+        pending.commit()?;
         files::write_atomic(&out.join(TIMINGS_FILE), files::to_ron(&timings).as_bytes())?;
     }
     Ok(outcomes)

@@ -151,21 +151,28 @@ pub fn render(path: &Path, out: &Path, patch: Option<u32>) -> Result<&'static st
             let graph = PatchGraph::load(&beside(GRAPH_FILE))?;
             let (patterns, crossings) = Patterns::load_for(&beside(PATTERNS_FILE), &graph)?;
             let patches = graph.patches.len();
-            let (_, motion) = TrajectoriesFile::load_for(path, stage, version_of(stage), patches)?;
-            let busiest = (0..motion.len())
-                .max_by_key(|&p| (motion[p].trajectories.len(), std::cmp::Reverse(p)));
-            let Some(p) = patch.map(|p| p as usize).or(busiest) else {
-                bail!("{}: holds no patch", path.display());
-            };
-            if p >= motion.len() {
+            if let Some(p) = patch
+                && p as usize >= patches
+                && patches > 0
+            {
                 bail!(
                     "--patch {p}: {} holds patches 0 to {}",
                     path.display(),
-                    motion.len() - 1
+                    patches - 1
                 );
             }
+            let choose = |index: &crowd_core::trajectories::MotionIndex| {
+                let busiest = (0..index.patches())
+                    .max_by_key(|&p| (index.trajectories(p), std::cmp::Reverse(p)));
+                patch.map(|p| p as usize).or(busiest)
+            };
+            let (_, chosen) =
+                TrajectoriesFile::load_patch(path, stage, version_of(stage), patches, choose)?;
+            let Some((p, motion)) = chosen else {
+                bail!("{}: holds no patch", path.display());
+            };
             let image =
-                crowd_render::render_patch(&graph, &crossings, &motion[p], p, patterns.period_s);
+                crowd_render::render_patch(&graph, &crossings, &motion, p, patterns.period_s);
             (image, crowd_render::PATCH_LEGEND)
         }
         MergeFile::STAGE => {

@@ -271,41 +271,72 @@ impl Reader<'_> {
 /// patches are then decoded in parallel (painting's 412 MB took a second on one core, once in
 /// each of export, check and report).
 pub fn decode_motion(path: &Path, bytes: &[u8]) -> Result<Vec<PatchMotion>> {
-    let bad = |at: usize| {
-        Error::stage_file(
-            path,
-            format!("is not a trajectories file: damaged near byte {at}"),
-        )
-    };
-    let mut r = Reader { bytes, at: 0 };
-    if r.take(8) != Some(MAGIC.as_slice()) {
-        return Err(bad(0));
-    }
-    let n = r.count(8).ok_or_else(|| bad(r.at))?;
-    let mut spans = Vec::with_capacity(n);
-    for _ in 0..n {
-        let start = r.at;
-        patch_extent(&mut r).ok_or_else(|| bad(r.at))?;
-        spans.push(start..r.at);
-    }
-    if r.at != bytes.len() {
-        return Err(bad(r.at));
-    }
-    let decoded: Vec<std::result::Result<PatchMotion, usize>> = spans
+    let index = MotionIndex::of(path, bytes)?;
+    let decoded: Vec<Result<PatchMotion>> = (0..index.spans.len())
         .into_par_iter()
-        .map(|span| {
-            let mut r = Reader {
-                bytes: &bytes[..span.end],
-                at: span.start,
-            };
-            decode_patch(&mut r).ok_or(r.at)
-        })
+        .map(|p| index.decode(path, bytes, p))
         .collect();
-    decoded.into_iter().map(|p| p.map_err(bad)).collect()
+    decoded.into_iter().collect()
 }
 
-/// Moves `r` over one patch's bytes, reading only its counts.
-fn patch_extent(r: &mut Reader) -> Option<()> {
+/// Where each patch's motion lies in a side file's bytes, and how many trajectories it holds,
+/// found from the counts alone (a pass that touches a few bytes a trajectory).
+pub struct MotionIndex {
+    spans: Vec<(std::ops::Range<usize>, u32)>,
+}
+
+impl MotionIndex {
+    /// The index of [`encode_motion`]'s `bytes`, refused (naming `path`) unless every count
+    /// fits the bytes that are there and they end where the last patch does.
+    pub fn of(path: &Path, bytes: &[u8]) -> Result<MotionIndex> {
+        let mut r = Reader { bytes, at: 0 };
+        if r.take(8) != Some(MAGIC.as_slice()) {
+            return Err(damaged(path, 0));
+        }
+        let n = r.count(8).ok_or_else(|| damaged(path, r.at))?;
+        let mut spans = Vec::with_capacity(n);
+        for _ in 0..n {
+            let start = r.at;
+            let trajectories = patch_extent(&mut r).ok_or_else(|| damaged(path, r.at))?;
+            spans.push((start..r.at, trajectories));
+        }
+        if r.at != bytes.len() {
+            return Err(damaged(path, r.at));
+        }
+        Ok(MotionIndex { spans })
+    }
+
+    /// How many patches the file holds.
+    pub fn patches(&self) -> usize {
+        self.spans.len()
+    }
+
+    /// How many trajectories patch `p` holds.
+    pub fn trajectories(&self, p: usize) -> u32 {
+        self.spans[p].1
+    }
+
+    /// Patch `p`'s motion, from the `bytes` this index was made of.
+    pub fn decode(&self, path: &Path, bytes: &[u8], p: usize) -> Result<PatchMotion> {
+        let span = &self.spans[p].0;
+        let mut r = Reader {
+            bytes: &bytes[..span.end],
+            at: span.start,
+        };
+        decode_patch(&mut r).ok_or_else(|| damaged(path, r.at))
+    }
+}
+
+/// The error of a side file whose bytes are not what [`encode_motion`] writes.
+fn damaged(path: &Path, at: usize) -> Error {
+    Error::stage_file(
+        path,
+        format!("is not a trajectories file: damaged near byte {at}"),
+    )
+}
+
+/// Moves `r` over one patch's bytes, reading only its counts; its trajectory count.
+fn patch_extent(r: &mut Reader) -> Option<u32> {
     let ns = r.count(STANDER_BYTES)?;
     r.skip(ns, STANDER_BYTES)?;
     let nt = r.count(TRAJECTORY_BYTES)?;
@@ -314,7 +345,7 @@ fn patch_extent(r: &mut Reader) -> Option<()> {
         let np = r.count(POINT_BYTES)?;
         r.skip(np, POINT_BYTES)?;
     }
-    Some(())
+    Some(nt as u32)
 }
 
 /// One patch's motion from `r`, which holds exactly its bytes ([`patch_extent`]).
@@ -381,17 +412,28 @@ pub fn check_motion(path: &Path, patches: usize, motion: &[PatchMotion]) -> Resu
         )));
     }
     for (p, m) in motion.iter().enumerate() {
-        for (i, tr) in m.trajectories.iter().enumerate() {
-            let forward = tr.points.windows(2).all(|w| w[1].t >= w[0].t);
-            let finite = tr
-                .points
-                .iter()
-                .all(|c| c.pos.is_finite() && c.t.is_finite());
-            if tr.points.len() < 2 || !forward || !finite {
-                return Err(bad(format!(
-                    "trajectory {i} of patch {p} is not a path forward in time"
-                )));
-            }
+        check_patch_motion(path, p, m)?;
+    }
+    Ok(())
+}
+
+/// [`check_motion`]'s test of one patch's trajectories (patch `p`): each a path forward in
+/// time, of at least two finite points.
+pub fn check_patch_motion(path: &Path, p: usize, m: &PatchMotion) -> Result<()> {
+    for (i, tr) in m.trajectories.iter().enumerate() {
+        let forward = tr.points.windows(2).all(|w| w[1].t >= w[0].t);
+        let finite = tr
+            .points
+            .iter()
+            .all(|c| c.pos.is_finite() && c.t.is_finite());
+        if tr.points.len() < 2 || !forward || !finite {
+            return Err(Error::stage_file(
+                path,
+                format!(
+                    "does not fit the graph beside it: trajectory {i} of patch {p} is not a \
+                     path forward in time"
+                ),
+            ));
         }
     }
     Ok(())
@@ -539,6 +581,39 @@ impl TrajectoriesFile {
         Ok((file, motion))
     }
 
+    /// One patch of a trajectories file written by `stage` at `version` for a graph of
+    /// `patches` patches, chosen by `choose` from the index (None: the file holds none to
+    /// choose), without decoding the others: a picture of the busiest patch of painting's
+    /// 412 MB decoded all of it.
+    pub fn load_patch(
+        path: &Path,
+        stage: &str,
+        version: u32,
+        patches: usize,
+        choose: impl FnOnce(&MotionIndex) -> Option<usize>,
+    ) -> Result<(TrajectoriesFile, Option<(usize, PatchMotion)>)> {
+        let file: TrajectoriesFile = crate::files::read_ron(path)?;
+        crate::files::expect_stage(path, &file.header, stage, version)?;
+        let bytes = file.motion.read(path)?;
+        let side = path.with_file_name(&file.motion.file);
+        let index = MotionIndex::of(&side, &bytes)?;
+        if index.patches() != patches {
+            return Err(Error::stage_file(
+                path,
+                format!(
+                    "does not fit the graph beside it: {} patches of motion for {patches} patches",
+                    index.patches()
+                ),
+            ));
+        }
+        let Some(p) = choose(&index) else {
+            return Ok((file, None));
+        };
+        let motion = index.decode(&side, &bytes, p)?;
+        check_patch_motion(path, p, &motion)?;
+        Ok((file, Some((p, motion))))
+    }
+
     /// [`Self::load_stage`], refused unless the motion fits a graph of `patches` patches
     /// ([`check_motion`]).
     pub fn load_for(
@@ -587,5 +662,40 @@ mod tests {
                 "cut at {cut}"
             );
         }
+    }
+
+    #[test]
+    fn one_patch_decodes_alone_as_it_does_with_the_others() {
+        let walk = |n: usize, x: f64| Trajectory {
+            entry: n as u32,
+            exit: n as u32 + 1,
+            points: (0..n + 2)
+                .map(|i| ControlPoint {
+                    pos: DVec2::new(x, i as f64),
+                    t: i as f64,
+                    kind: PointKind::Sample,
+                })
+                .collect(),
+        };
+        let motion: Vec<PatchMotion> = (0..5)
+            .map(|p| PatchMotion {
+                standers: vec![DVec2::splat(p as f64); p % 2],
+                trajectories: (0..p).map(|k| walk(k, p as f64)).collect(),
+            })
+            .collect();
+        let bytes = encode_motion(&motion);
+        let index = MotionIndex::of(Path::new("m.bin"), &bytes).unwrap();
+        assert_eq!(index.patches(), 5);
+        for (p, m) in motion.iter().enumerate() {
+            assert_eq!(index.trajectories(p) as usize, m.trajectories.len());
+            assert_eq!(&index.decode(Path::new("m.bin"), &bytes, p).unwrap(), m);
+        }
+        // A bad point kind in patch 3 is found when patch 3 is decoded.
+        let mut bad = bytes.clone();
+        let last = encode_motion(&motion[..4]).len() - 1; // patch 3's last point's kind
+        bad[last] = 200;
+        let index = MotionIndex::of(Path::new("m.bin"), &bad).unwrap();
+        assert!(index.decode(Path::new("m.bin"), &bad, 3).is_err());
+        assert!(decode_motion(Path::new("m.bin"), &bad).is_err());
     }
 }
