@@ -48,54 +48,116 @@ pub fn smooth(
     v_exit: DVec2,
     limits: &Limits,
 ) -> (Trajectory, u64) {
-    let pts = &tr.points;
-    // The band pieces at either end stay as they are: straight, at the crossing velocity.
-    let (entry_band, exit_band) = crowd_core::trajectories::band_ends(pts);
-    let first = entry_band.unwrap_or(0);
-    let last = exit_band.unwrap_or(pts.len() - 1);
-    // Room for the samples of a walk of tacks every second or so, refined where it bends.
-    let duration = pts[pts.len() - 1].t - pts[0].t;
-    let mut out = Vec::with_capacity(pts.len() + (duration / MIN_STEP_S) as usize / 4);
-    out.extend_from_slice(&pts[..=first]);
-    let mut dropped = 0;
-    let mut i = first;
-    while i < last {
-        if pts[i + 1].pos == pts[i].pos {
-            // Standing still: kept as it is.
-            out.push(pts[i + 1]);
-            i += 1;
-            continue;
+    Curve::new(tr, v_entry, v_exit, limits).blend(limits)
+}
+
+/// A trajectory's curve before it is blended with its polyline: the splines through its tacks
+/// and where they are sampled, which do not depend on `Limits::blend`. Stage 6 moves a walker
+/// back towards its polyline one halving of the blend at a time; made once, each halving costs
+/// only its points (the splines and their sampling were a quarter of the stage, made again at
+/// every halving).
+pub struct Curve<'a> {
+    tr: &'a Trajectory,
+    /// The first and last points of the curved stretch (the band ends, or the ends).
+    first: usize,
+    last: usize,
+    parts: Vec<Part>,
+}
+
+/// A stretch of a [`Curve`] between two of its polyline's points.
+enum Part {
+    /// Standing still: the point kept as it is.
+    Stand(ControlPoint),
+    Moving(Moving),
+}
+
+/// A moving stretch's samples: each with its time, its place on the polyline and on the
+/// spline.
+struct Moving {
+    /// When the walker leaves the pause before, if it leaves earlier than the polyline (the
+    /// pause's end moves with it).
+    leaves: Option<f64>,
+    samples: Vec<(f64, DVec2, DVec2)>,
+    /// The stretch's last point, its time moved by the slack taken of a pause after it.
+    last: ControlPoint,
+    /// The multiples of the period inside the stretch.
+    splits: Vec<f64>,
+}
+
+impl<'a> Curve<'a> {
+    pub fn new(tr: &'a Trajectory, v_entry: DVec2, v_exit: DVec2, limits: &Limits) -> Curve<'a> {
+        let pts = &tr.points;
+        // The band pieces at either end stay as they are: straight, at the crossing velocity.
+        let (entry_band, exit_band) = crowd_core::trajectories::band_ends(pts);
+        let first = entry_band.unwrap_or(0);
+        let last = exit_band.unwrap_or(pts.len() - 1);
+        let mut parts = Vec::new();
+        let mut i = first;
+        while i < last {
+            if pts[i + 1].pos == pts[i].pos {
+                parts.push(Part::Stand(pts[i + 1]));
+                i += 1;
+                continue;
+            }
+            let mut j = i + 1;
+            while j < last && pts[j + 1].pos != pts[j].pos && !sharp(&pts[j - 1..=j + 1]) {
+                j += 1;
+            }
+            let v0 = if i == first { v_entry } else { DVec2::ZERO };
+            let v1 = if j == last { v_exit } else { DVec2::ZERO };
+            // Leaving a pause a little earlier and reaching the next one a little later, at
+            // most PAUSE_SHARE of the standing either side.
+            let leave = if i > first && pts[i - 1].pos == pts[i].pos {
+                PAUSE_SHARE * (pts[i].t - pts[i - 1].t)
+            } else {
+                0.0
+            };
+            let reach = if j < last && pts[j + 1].pos == pts[j].pos {
+                PAUSE_SHARE * (pts[j + 1].t - pts[j].t)
+            } else {
+                0.0
+            };
+            parts.push(Part::Moving(moving(
+                &pts[i..=j],
+                v0,
+                v1,
+                (leave, reach),
+                limits,
+            )));
+            i = j;
         }
-        let mut j = i + 1;
-        while j < last && pts[j + 1].pos != pts[j].pos && !sharp(&pts[j - 1..=j + 1]) {
-            j += 1;
+        Curve {
+            tr,
+            first,
+            last,
+            parts,
         }
-        let v0 = if i == first { v_entry } else { DVec2::ZERO };
-        let v1 = if j == last { v_exit } else { DVec2::ZERO };
-        // Leaving a pause a little earlier and reaching the next one a little later, at most
-        // PAUSE_SHARE of the standing either side.
-        let leave = if i > first && pts[i - 1].pos == pts[i].pos {
-            PAUSE_SHARE * (pts[i].t - pts[i - 1].t)
-        } else {
-            0.0
-        };
-        let reach = if j < last && pts[j + 1].pos == pts[j].pos {
-            PAUSE_SHARE * (pts[j + 1].t - pts[j].t)
-        } else {
-            0.0
-        };
-        dropped += piece(&pts[i..=j], v0, v1, (leave, reach), limits, &mut out);
-        i = j;
     }
-    out.extend_from_slice(&pts[last + 1..]);
-    (
-        Trajectory {
-            entry: tr.entry,
-            exit: tr.exit,
-            points: out,
-        },
-        dropped,
-    )
+
+    /// The curve blended with the polyline by `limits.blend`, and how many of its points were
+    /// dropped for straying too far.
+    pub fn blend(&self, limits: &Limits) -> (Trajectory, u64) {
+        let pts = &self.tr.points;
+        let duration = pts[pts.len() - 1].t - pts[0].t;
+        let mut out = Vec::with_capacity(pts.len() + (duration / MIN_STEP_S) as usize / 4);
+        out.extend_from_slice(&pts[..=self.first]);
+        let mut dropped = 0;
+        for part in &self.parts {
+            match part {
+                Part::Stand(p) => out.push(*p),
+                Part::Moving(m) => dropped += blend_moving(m, limits, &mut out),
+            }
+        }
+        out.extend_from_slice(&pts[self.last + 1..]);
+        (
+            Trajectory {
+                entry: self.tr.entry,
+                exit: self.tr.exit,
+                points: out,
+            },
+            dropped,
+        )
+    }
 }
 
 /// Does the polyline turn back at the middle of `w` (three points) by more than [`SHARP_RAD`]?
@@ -104,21 +166,20 @@ fn sharp(w: &[ControlPoint]) -> bool {
     u.length() > 0.0 && v.length() > 0.0 && u.perp_dot(v).atan2(u.dot(v)).abs() > SHARP_RAD
 }
 
-/// Smooths the moving piece `pts` (no pause inside) and appends its points after the first.
+/// The curve of the moving stretch `pts` (no pause inside), sampled.
 ///
-/// A piece that leaves or reaches a pause at rest may take up to `pause_slack` (before, after)
-/// of it: it starts moving that much earlier and stops that much later, so that it slows over
-/// its whole last tack interval instead of braking at its end (a clamped cubic that must
-/// cover its interval's distance and stop brakes at 4 u / h at the end; given half the
-/// interval more, at 4 u / 3 h).
-fn piece(
+/// A stretch that leaves or reaches a pause at rest may take up to `pause_slack` (before,
+/// after) of it: it starts moving that much earlier and stops that much later, so that it
+/// slows over its whole last tack interval instead of braking at its end (a clamped cubic
+/// that must cover its interval's distance and stop brakes at 4 u / h at the end; given half
+/// the interval more, at 4 u / 3 h).
+fn moving(
     pts: &[ControlPoint],
     v0: DVec2,
     v1: DVec2,
     pause_slack: (f64, f64),
     limits: &Limits,
-    out: &mut Vec<ControlPoint>,
-) -> u64 {
+) -> Moving {
     let (first, last) = (pts[0], pts[pts.len() - 1]);
     let duration = last.t - first.t;
     let n = ((duration / limits.tack_spacing_s).round() as usize).max(1);
@@ -138,12 +199,6 @@ fn piece(
             }
         })
         .collect();
-    if early > 0.0 {
-        // The pause's end point, already written, moves with the start.
-        let end = out.last_mut().expect("a pause before the piece");
-        debug_assert_eq!(end.pos, first.pos);
-        end.t = first.t - early;
-    }
     let (first, last) = (
         ControlPoint {
             t: first.t - early,
@@ -179,16 +234,33 @@ fn piece(
         refine(&spline, w[0], w[1], limits.tolerance_m, 8, &mut times);
         times.push(w[1]);
     }
+    let samples = times[1..times.len() - 1]
+        .iter()
+        .map(|k| (k.t, position_at(pts, k.t), k.p))
+        .collect();
+    Moving {
+        leaves: (early > 0.0).then_some(first.t),
+        samples,
+        last,
+        splits,
+    }
+}
 
+/// Appends the moving stretch `m`, blended, after the point before it (already in `out`);
+/// returns how many of its samples it dropped.
+fn blend_moving(m: &Moving, limits: &Limits, out: &mut Vec<ControlPoint>) -> u64 {
+    if let Some(t) = m.leaves {
+        // The pause's end point, already written, moves with the start.
+        let end = out.last_mut().expect("a pause before the piece");
+        end.t = t;
+    }
     let mut dropped = 0;
     // Out of the border bands, as stage 5 keeps every free point.
     let (lo, hi) = (limits.band_m, limits.side_m - limits.band_m);
     let inside = |p: DVec2| p.x >= lo && p.y >= lo && p.x <= hi && p.y <= hi;
     let from = out.len() - 1;
-    for k in &times[1..times.len() - 1] {
-        let t = k.t;
-        let on_line = position_at(pts, t);
-        let p = on_line + limits.blend * (k.p - on_line);
+    for &(t, on_line, curve) in &m.samples {
+        let p = on_line + limits.blend * (curve - on_line);
         if p.distance(on_line) <= limits.max_displacement_m && inside(p) {
             out.push(ControlPoint {
                 pos: p,
@@ -199,13 +271,13 @@ fn piece(
             dropped += 1;
         }
     }
-    out.push(last);
+    out.push(m.last);
     // A character passes the period where the walk between the points kept either side passes
     // then: a mark, not a corner, so that a player's loop seam, where a character goes from one
     // node to the next, has the same velocity on both sides. (Sampled on the curve it was a
     // corner; put back on the polyline where the curve point was dropped, a jump of up to
     // alpha in a few hundredths of a second.)
-    for &s in &splits {
+    for &s in &m.splits {
         let k = from + out[from..].partition_point(|c| c.t < s);
         if out[k].t == s {
             out[k].kind = PointKind::Split;

@@ -191,19 +191,29 @@ fn smooth_patch(
             (tr.clone(), 0)
         }
     };
+    // Each trajectory's curve, made when first wanted and blended at every level after.
+    let curves: Vec<std::cell::OnceCell<curve::Curve>> =
+        trajectories.iter().map(|_| Default::default()).collect();
+    let curve_of = |i: usize| {
+        curves[i].get_or_init(|| {
+            let tr = &trajectories[i];
+            let v = |c: u32| velocities[c as usize];
+            curve::Curve::new(tr, v(tr.entry), v(tr.exit), limits)
+        })
+    };
     // The first candidate from `level` on that walks no faster than `max_speed` (or than the
     // polyline did); the polyline if none does.
-    let curve_at = |tr: &Trajectory, level: u32| {
+    let curve_at = |i: usize, level: u32| {
+        let tr = &trajectories[i];
         let allowed = max_speed.max(fastest(tr)) + 1e-9;
         (level..=LEVELS)
-            .map(|level| candidate(tr, level, velocities, limits, allowed))
+            .map(|level| candidate(tr, level, || curve_of(i), limits, allowed))
             .find(|(c, _)| fastest(c) <= allowed)
             .unwrap_or_else(|| held_at(tr, &[], limits, allowed))
     };
-    let smoothed: Vec<Trajectory> = trajectories
-        .iter()
-        .map(|tr| {
-            let (s, d) = curve_at(tr, 0);
+    let smoothed: Vec<Trajectory> = (0..trajectories.len())
+        .map(|i| {
+            let (s, d) = curve_at(i, 0);
             dropped += d;
             s
         })
@@ -211,7 +221,7 @@ fn smooth_patch(
     let chosen = keep_clear(trajectories, smoothed, patch, |i, level, held| {
         let tr = &trajectories[i];
         if held.is_empty() {
-            curve_at(tr, level).0
+            curve_at(i, level).0
         } else {
             held_at(tr, held, limits, max_speed.max(fastest(tr)) + 1e-9).0
         }
@@ -240,21 +250,20 @@ fn smooth_patch(
 /// ([`CURVE_LEVELS`]), each with its corners averaged and eased into the band pieces; then
 /// the polyline itself so averaged over shorter and shorter windows ([`AVERAGE_S`]). Each eases
 /// into its band pieces as far as it stays within `allowed` m/s.
-fn candidate(
+fn candidate<'c, 't: 'c>(
     tr: &Trajectory,
     level: u32,
-    velocities: &[DVec2],
+    curve: impl FnOnce() -> &'c curve::Curve<'t>,
     limits: &curve::Limits,
     allowed: f64,
 ) -> (Trajectory, u64) {
     let period = limits.period_s;
     if level <= CURVE_LEVELS {
-        let v = |c: u32| velocities[c as usize];
         let limits = curve::Limits {
             blend: 1.0 / f64::from(1u32 << level),
             ..*limits
         };
-        let (c, dropped) = curve::smooth(tr, v(tr.entry), v(tr.exit), &limits);
+        let (c, dropped) = curve().blend(&limits);
         return (
             average::average(&c, AVERAGE_S[0], Some(allowed), period, &[]),
             dropped,
