@@ -304,23 +304,24 @@ fn collide(a: &mut Artifacts, out: &Path, hash: Hash, ui: &Ui) -> Result<Ran> {
     let bar = ui.stage_bar(COLLIDE.name);
     let (graph, matched) = (a.graph()?, a.take_motion(&MATCH)?);
     let s = crowd_collide::inputs(a.pipeline);
-    let (motion, reports) = crowd_collide::collide(&graph, &matched.1, &s, &bar);
+    let cleared = crowd_collide::collide_or_first_stall(&graph, &matched.1, &s, &bar);
     drop(matched);
-    if let Some(stall) = reports.iter().find_map(|r| r.stall) {
-        let stalled = reports.iter().filter(|r| r.stall.is_some()).count();
-        bail!(
-            "stage 5 could not keep {} clear ({stalled} patch(es) in all): walker {} and {:?} \
-             stay {:.3} m too close at t = {:.2} s, even with walkers let hurry, after \
-             collide.max_iterations = {} pushes; no file was written. Paint fewer walkers or \
-             crossing flows there, or raise collide.max_iterations",
+    let (motion, reports) = match cleared {
+        Ok(done) => done,
+        Err(stall) => bail!(
+            "stage 5 could not keep {} clear: walker {} and {:?} stay {:.3} m too close at \
+             t = {:.2} s, even with walkers let hurry, after collide.max_iterations = {} \
+             pushes; no file was written, and the patches after it (busiest first) were not \
+             tried. Paint fewer walkers or crossing flows there, or raise \
+             collide.max_iterations",
             crate::warnings::place(&graph, stall.patch),
             stall.walker,
             stall.with,
             -stall.margin_m,
             stall.t_s,
             s.max_iterations
-        );
-    }
+        ),
+    };
     let (file, writes) = crowd_collide::encode(out, &motion, &reports, &graph, &s, hash);
     a.made_motion(&COLLIDE, (file, motion));
     Ok(Ran::files(writes))
