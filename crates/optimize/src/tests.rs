@@ -131,3 +131,57 @@ fn aligning_velocities_keeps_the_crossings_and_spacing() {
     assert_eq!(before, key(&state));
     assert!(spacing::all_spaced(&state.spacing, &state.crossings, 20.0));
 }
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(8))]
+
+    /// Adding a step's cycles in waves of cycles that share no patch leaves exactly what adding
+    /// them one at a time leaves (the loop it replaced, kept here as the reference): the same
+    /// crossings, the same measurements, the same random draws after, cycles taken back where
+    /// a patch would pass rho_max included.
+    #[test]
+    fn cycles_added_in_waves_leave_what_one_at_a_time_leaves(
+        seed in any::<u64>(),
+        picks in proptest::collection::vec((0usize..1000, 0usize..8), 10..60),
+        rho_max in 0.15f64..0.5,
+    ) {
+        let graph = scene(300);
+        let matching = MatchSettings::default();
+        let state = started(&graph, &matching, seed);
+        // Back-and-forths over links of random patches: many share a patch.
+        let patches = state.links.len();
+        let cycles: Vec<Vec<Step>> = picks
+            .iter()
+            .filter_map(|&(p, l)| {
+                let from = p % patches;
+                let link = state.links[from].get(l % state.links[from].len().max(1))?;
+                let back = state.links[link.to].iter().find(|b| b.border == link.border)?;
+                Some(vec![
+                    Step { from, to: link.to, border: link.border, way: link.way },
+                    Step { from: link.to, to: from, border: back.border, way: back.way },
+                ])
+            })
+            .collect();
+        let (mut one, mut waves) = (state.fork(), state.fork());
+        let mut rng_one = ChaCha8Rng::seed_from_u64(seed ^ 1);
+        let mut rng_waves = rng_one.clone();
+        for cycle in cycles.clone() {
+            let before: Vec<usize> =
+                cycle.iter().map(|s| one.crossings[s.border].len()).collect();
+            if mutate::add_cycle(&mut one, &cycle, &mut rng_one) {
+                let touched: Vec<usize> = cycle.iter().map(|s| s.to).collect();
+                one.remeasure(&touched);
+                if touched.iter().any(|&p| one.measured[p].density > rho_max) {
+                    for (s, n) in cycle.iter().zip(before) {
+                        one.crossings[s.border].truncate(n);
+                    }
+                    one.remeasure(&touched);
+                }
+            }
+        }
+        add_in_waves(&mut waves, cycles.into_iter(), rho_max, &mut rng_waves);
+        prop_assert_eq!(&one.crossings, &waves.crossings);
+        prop_assert_eq!(&one.measured, &waves.measured);
+        prop_assert_eq!(rand::Rng::random::<u64>(&mut rng_one), rand::Rng::random::<u64>(&mut rng_waves));
+    }
+}
