@@ -85,6 +85,22 @@ fn a_build_without_warnings_says_so_and_passes_deny_warnings() {
     assert!(!out.join("report_warnings.png").exists());
 }
 
+/// Random painting `seed` (`crowd-paintings write --seed SEED --max-patches MAX`), written in
+/// `dir`: its pipeline's path.
+fn random_painting(dir: &std::path::Path, seed: u64, max_patches: u32) -> std::path::PathBuf {
+    crowd_paintings::random(seed, crowd_paintings::Limits { max_patches })
+        .write(dir)
+        .unwrap()
+}
+
+/// Builds `pipeline`, which must succeed; its stderr.
+fn built(pipeline: &std::path::Path) -> String {
+    let build = crowd(&["build", "-q", "--pipeline", s(pipeline)]);
+    let stderr = String::from_utf8_lossy(&build.stderr).into_owned();
+    assert!(build.status.success(), "{stderr}");
+    stderr
+}
+
 /// Random painting 1 (`crowd-paintings write --seed 1 --max-patches 8`) paints 72 walkers into
 /// patch 27 (1.1 per m2, in crossing flows): at walking pace, and with walkers given a period
 /// more, stage 5 keeps them apart only by letting one hurry, and the build says where. (Which
@@ -93,11 +109,7 @@ fn a_build_without_warnings_says_so_and_passes_deny_warnings() {
 #[test]
 fn a_patch_whose_walkers_must_hurry_is_a_warning_that_names_it() {
     let dir = tempfile::tempdir().unwrap();
-    let painting = crowd_paintings::random(1, crowd_paintings::Limits { max_patches: 8 });
-    let pipeline = painting.write(dir.path()).unwrap();
-    let build = crowd(&["build", "-q", "--pipeline", s(&pipeline)]);
-    let stderr = String::from_utf8_lossy(&build.stderr);
-    assert!(build.status.success(), "{stderr}");
+    let stderr = built(&random_painting(dir.path(), 1, 8));
     let hurry = stderr
         .lines()
         .find(|l| l.starts_with("warning: patch 27 ") && l.contains(" runs at "))
@@ -120,8 +132,7 @@ fn a_patch_whose_walkers_must_hurry_is_a_warning_that_names_it() {
 #[test]
 fn a_patch_no_try_clears_is_an_error_that_names_it_and_nothing_is_written() {
     let dir = tempfile::tempdir().unwrap();
-    let painting = crowd_paintings::random(105, crowd_paintings::Limits { max_patches: 8 });
-    let pipeline = painting.write(dir.path()).unwrap();
+    let pipeline = random_painting(dir.path(), 105, 8);
     let text = std::fs::read_to_string(&pipeline).unwrap();
     let text = text.replace(
         "    output: \"out\",",
@@ -222,11 +233,7 @@ fn a_sparse_painting_that_places_fewer_walkers_than_asked_is_a_warning() {
 #[test]
 fn a_sparse_painting_that_places_more_walkers_than_asked_is_a_warning() {
     let dir = tempfile::tempdir().unwrap();
-    let painting = crowd_paintings::random(9001, crowd_paintings::Limits { max_patches: 14 });
-    let pipeline = painting.write(dir.path()).unwrap();
-    let build = crowd(&["build", "-q", "--pipeline", s(&pipeline)]);
-    let stderr = String::from_utf8_lossy(&build.stderr);
-    assert!(build.status.success(), "{stderr}");
+    let stderr = built(&random_painting(dir.path(), 9001, 14));
     let warning = stderr
         .lines()
         .find(|l| l.contains("walkers placed of 17 asked"))
