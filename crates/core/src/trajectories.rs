@@ -403,18 +403,24 @@ pub struct MotionSummary {
 /// Refuses motion that does not fit a graph of `patches` patches (built from another graph, or
 /// damaged): one entry per patch, every trajectory at least two points forward in time.
 pub fn check_motion(path: &Path, patches: usize, motion: &[PatchMotion]) -> Result<()> {
-    let bad =
-        |what: String| Error::stage_file(path, format!("does not fit the graph beside it: {what}"));
-    if motion.len() != patches {
-        return Err(bad(format!(
-            "{} patches of motion for {patches} patches",
-            motion.len()
-        )));
-    }
+    check_patch_count(path, motion.len(), patches)?;
     for (p, m) in motion.iter().enumerate() {
         check_patch_motion(path, p, m)?;
     }
     Ok(())
+}
+
+/// Refuses motion of `found` patches for a graph of `patches`.
+fn check_patch_count(path: &Path, found: usize, patches: usize) -> Result<()> {
+    if found == patches {
+        return Ok(());
+    }
+    Err(Error::stage_file(
+        path,
+        format!(
+            "does not fit the graph beside it: {found} patches of motion for {patches} patches"
+        ),
+    ))
 }
 
 /// [`check_motion`]'s test of one patch's trajectories (patch `p`): each a path forward in
@@ -574,11 +580,18 @@ impl TrajectoriesFile {
         stage: &str,
         version: u32,
     ) -> Result<(TrajectoriesFile, Vec<PatchMotion>)> {
+        let (file, bytes) = Self::read_stage(path, stage, version)?;
+        let motion = decode_motion(&path.with_file_name(&file.motion.file), &bytes)?;
+        Ok((file, motion))
+    }
+
+    /// The file written by `stage` at `version`, and its motion side file's bytes (size and
+    /// hash checked), not yet decoded.
+    fn read_stage(path: &Path, stage: &str, version: u32) -> Result<(TrajectoriesFile, Vec<u8>)> {
         let file: TrajectoriesFile = crate::files::read_ron(path)?;
         crate::files::expect_stage(path, &file.header, stage, version)?;
         let bytes = file.motion.read(path)?;
-        let motion = decode_motion(&path.with_file_name(&file.motion.file), &bytes)?;
-        Ok((file, motion))
+        Ok((file, bytes))
     }
 
     /// One patch of a trajectories file written by `stage` at `version` for a graph of
@@ -592,20 +605,10 @@ impl TrajectoriesFile {
         patches: usize,
         choose: impl FnOnce(&MotionIndex) -> Option<usize>,
     ) -> Result<(TrajectoriesFile, Option<(usize, PatchMotion)>)> {
-        let file: TrajectoriesFile = crate::files::read_ron(path)?;
-        crate::files::expect_stage(path, &file.header, stage, version)?;
-        let bytes = file.motion.read(path)?;
+        let (file, bytes) = Self::read_stage(path, stage, version)?;
         let side = path.with_file_name(&file.motion.file);
         let index = MotionIndex::of(&side, &bytes)?;
-        if index.patches() != patches {
-            return Err(Error::stage_file(
-                path,
-                format!(
-                    "does not fit the graph beside it: {} patches of motion for {patches} patches",
-                    index.patches()
-                ),
-            ));
-        }
+        check_patch_count(path, index.patches(), patches)?;
         let Some(p) = choose(&index) else {
             return Ok((file, None));
         };
