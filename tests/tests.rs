@@ -7,6 +7,7 @@ mod util;
 mod bad_input;
 mod build;
 mod check;
+mod edit;
 mod export;
 mod export_clip;
 mod fuzz;

@@ -106,6 +106,9 @@ pub enum Command {
         #[arg(long, value_name = "FILE")]
         pipeline: Option<PathBuf>,
     },
+    /// Run one of the optimal crowd editing paper's experiments (Allain et al. 2014) and write
+    /// its per-iteration CSV, plots, trajectories before and after, and result.ron.
+    Edit(EditArgs),
     /// The figures of a build folder (`--json` for one JSON object).
     Report {
         /// Build folders (one for text and JSON; several for `--table`).
@@ -121,6 +124,60 @@ pub enum Command {
         #[arg(long, conflicts_with_all = ["table", "json"])]
         markdown: bool,
     },
+}
+
+/// One of the optimal crowd editing paper's experiments (see `crowd-edit`).
+#[derive(Debug, clap::Args)]
+pub struct EditArgs {
+    /// rendez-vous, letters, density, vorticity or flow.
+    #[arg(long, value_name = "NAME")]
+    pub experiment: String,
+    /// Where to write the CSV, pictures and result.ron (default: edit-NAME).
+    #[arg(long, short, value_name = "DIR")]
+    pub output: Option<PathBuf>,
+    /// Descent iterations (default: the experiment's, as in the paper).
+    #[arg(long, value_name = "N")]
+    pub iterations: Option<usize>,
+    /// local, global, or alternating (5 local iterations then 5 global, section 4.3) (default:
+    /// the paper's for the experiment).
+    #[arg(long, value_name = "DESCENT", value_parser = parse_descent)]
+    pub descent: Option<crowd_edit::Descent>,
+    /// Every constraint's covariance R (default: the paper's for the experiment).
+    #[arg(long, value_name = "R", allow_negative_numbers = true)]
+    pub r: Option<f64>,
+    /// The model covariance Q_u, m^2/s^4 (default: the paper's for the experiment).
+    #[arg(long, value_name = "Q", allow_negative_numbers = true)]
+    pub q: Option<f64>,
+    /// rendez-vous only: the meeting point, metres.
+    #[arg(long, value_name = "X,Y", value_parser = parse_point, allow_negative_numbers = true)]
+    pub meet: Option<(f64, f64)>,
+    /// rendez-vous only: the meeting time, seconds.
+    #[arg(long, value_name = "T", allow_negative_numbers = true)]
+    pub meet_time: Option<f64>,
+}
+
+fn parse_descent(text: &str) -> Result<crowd_edit::Descent, String> {
+    match text {
+        "local" => Ok(crowd_edit::Descent::Local),
+        "global" => Ok(crowd_edit::Descent::Global),
+        "alternating" => Ok(crowd_edit::Descent::Alternating {
+            local: 5,
+            global: 5,
+        }),
+        _ => Err("expected local, global or alternating".to_string()),
+    }
+}
+
+fn parse_point(text: &str) -> Result<(f64, f64), String> {
+    let numbers: Vec<f64> = text
+        .split(',')
+        .map(|s| s.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .map_err(|e| format!("expected X,Y in metres: {e}"))?;
+    match numbers[..] {
+        [x, y] => Ok((x, y)),
+        _ => Err(format!("expected two numbers X,Y, found {}", numbers.len())),
+    }
 }
 
 /// One stage run alone: `crowd <stage> [--pipeline FILE] [-i INPUT] [-o OUTPUT]`. Its
@@ -332,6 +389,22 @@ pub fn run(cli: Cli) -> Result<()> {
                 p.pipeline.export.gltf_region = region;
             }
             driver::run_stage(stage, &p, input, output, &ui)?;
+        }
+        Command::Edit(args) => {
+            let command = crate::edit::EditCommand {
+                experiment: args.experiment,
+                output: args.output,
+                overrides: crowd_edit::experiments::Overrides {
+                    iterations: args.iterations,
+                    descent: args.descent,
+                    r: args.r,
+                    q_velocity: args.q,
+                    meet: args.meet.map(|(x, y)| glam::DVec2::new(x, y)),
+                    meet_time: args.meet_time,
+                },
+            };
+            let dir = crate::edit::run(&command, &ui)?;
+            ui.say(format!("  wrote {}", dir.display()));
         }
         Command::Inspect { file } => out(crate::inspect::inspect(&file)?)?,
         Command::Check {

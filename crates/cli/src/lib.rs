@@ -5,6 +5,8 @@ pub mod budget;
 pub mod check;
 pub mod cli;
 pub mod driver;
+pub mod edit;
+pub mod edit_pictures;
 pub mod inspect;
 pub mod memory;
 pub mod report;

@@ -3,7 +3,9 @@
 
 mod draw;
 mod optimize;
+pub mod plot;
 
+pub use draw::line_colour;
 pub use optimize::{PATCH_LEGEND, PATTERNS_LEGEND, render_patch, render_patterns};
 
 use crowd_core::patch_graph::{BorderAxis, Cell};

@@ -1,0 +1,295 @@
+//! The local and global gradient descents of Allain section 4.2.2 and their alternation
+//! (section 4.3), each with a backtracking line search.
+//!
+//! Both move the errors along the paper's update, d eps = Q lambda (eq. 9) and d eps_0 =
+//! B lambda(t_0) / (t_f - t_0) (eq. 10), taken here with the current errors' own penalty so
+//! that it is the steepest descent of J in the metric of Q and B: d = -(eps + Q grad_obs / dt).
+//! - Global (eq. 14-15): eps += rho d and the full model is run again, so trajectories may
+//!   jump between solutions (through a group instead of round it).
+//! - Local (eq. 11-13): the tangent-linear model turns rho d into a trajectory offset dX and
+//!   X += dX, without running the model.
+//!
+//! The step rho: the paper takes rho = 1, which overshoots by orders of magnitude when R is
+//! small next to Q (a 10 m miss under R = 10 m^2 and Q_u = 100 m^2/s^4 asks for tens of metres
+//! of correction). Each iteration therefore tries twice its last accepted step (1 at first)
+//! and halves it until J falls by the Armijo condition (1e-4 of the predicted decrease), so J
+//! never rises within a descent; one model run (global) or a few observation evaluations
+//! (local) per trial.
+
+use crate::cost::{CostParts, Problem};
+use crate::integrate::Run;
+use serde::{Deserialize, Serialize};
+
+/// Which descent each iteration takes.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub enum Descent {
+    Local,
+    Global,
+    /// `local` local iterations, then `global` global ones, and again.
+    Alternating {
+        local: usize,
+        global: usize,
+    },
+}
+
+impl Descent {
+    fn kind(&self, iteration: usize) -> Kind {
+        match *self {
+            Descent::Local => Kind::Local,
+            Descent::Global => Kind::Global,
+            Descent::Alternating { local, global } => {
+                if iteration % (local + global).max(1) < local {
+                    Kind::Local
+                } else {
+                    Kind::Global
+                }
+            }
+        }
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Kind {
+    Start,
+    Local,
+    Global,
+}
+
+/// What one iteration reached.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct Iteration {
+    pub index: usize,
+    pub kind: Kind,
+    pub cost: CostParts,
+    /// The step rho taken (0 at the start).
+    pub step: f64,
+    /// Per constraint, the root mean square of H(X) - Y over its samples.
+    pub residuals: Vec<f64>,
+}
+
+/// The edited trajectory and how the descent got there.
+pub struct Outcome {
+    /// The model run with no edit.
+    pub before: Run,
+    /// The edited trajectory (states at every step, one state after another).
+    pub states: Vec<f64>,
+    pub controls: Vec<f64>,
+    pub shift: Vec<f64>,
+    pub log: Vec<Iteration>,
+    /// Set when a line search found no step that lowers J: the descent stopped there.
+    pub stalled_at: Option<usize>,
+}
+
+/// The current errors and the trajectory they give.
+struct Iterate {
+    shift: Vec<f64>,
+    controls: Vec<f64>,
+    states: Vec<f64>,
+    /// The model's run of these errors, when `states` is one (not after a local step).
+    run: Option<Run>,
+    cost: CostParts,
+}
+
+/// Halvings before a line search gives up.
+const MAX_HALVINGS: usize = 40;
+const ARMIJO: f64 = 1e-4;
+
+/// Runs `iterations` descents; `each(iteration, states)` sees every iterate.
+pub fn solve(
+    problem: &Problem,
+    descent: Descent,
+    iterations: usize,
+    mut each: impl FnMut(&Iteration, &[f64]),
+) -> Outcome {
+    let n = problem.n();
+    let zeros = vec![0.0; n];
+    let controls = vec![0.0; problem.timeline.steps * n];
+    let before = problem.run(&zeros, &controls);
+    let mut it = Iterate {
+        cost: problem.cost(&zeros, &controls, &before.states),
+        shift: zeros,
+        controls,
+        states: before.states.clone(),
+        run: Some(before.clone()),
+    };
+    let mut log = vec![record(problem, 0, Kind::Start, &it, 0.0)];
+    each(&log[0], &it.states);
+    let mut step = 1.0;
+    let mut stalled_at = None;
+    for index in 1..=iterations {
+        let mut kind = descent.kind(index - 1);
+        let mut taken = match kind {
+            Kind::Global => global(problem, &mut it, step),
+            _ => local(problem, &mut it, step),
+        };
+        // Alternating: a local step that finds no way down hands over to a global one, which
+        // may jump to another solution (section 4.3).
+        if taken.is_none() && kind == Kind::Local && descent != Descent::Local {
+            kind = Kind::Global;
+            taken = global(problem, &mut it, step);
+        }
+        let Some(taken) = taken else {
+            stalled_at = Some(index);
+            break;
+        };
+        step = 2.0 * taken;
+        log.push(record(problem, index, kind, &it, taken));
+        each(log.last().unwrap(), &it.states);
+    }
+    Outcome {
+        before,
+        states: it.states,
+        controls: it.controls,
+        shift: it.shift,
+        log,
+        stalled_at,
+    }
+}
+
+fn record(problem: &Problem, index: usize, kind: Kind, it: &Iterate, step: f64) -> Iteration {
+    let n = problem.n();
+    Iteration {
+        index,
+        kind,
+        cost: it.cost,
+        step,
+        residuals: problem
+            .constraints
+            .iter()
+            .map(|c| c.misfit(&it.states, n).1)
+            .collect(),
+    }
+}
+
+/// The descent direction in the metric of Q and B, and J's slope along it.
+struct Direction {
+    controls: Vec<f64>,
+    shift: Vec<f64>,
+    slope: f64,
+}
+
+fn direction(problem: &Problem, run: &Run, it: &Iterate) -> Direction {
+    let g = problem.gradient(run, &it.shift, &it.controls);
+    let n = problem.n();
+    let c = &problem.covariances;
+    let (dt, t) = (problem.timeline.dt, problem.timeline.duration());
+    let controls: Vec<f64> = g
+        .controls
+        .iter()
+        .enumerate()
+        .map(|(m, g)| -c.q(m % n) * g / dt)
+        .collect();
+    let shift: Vec<f64> = g
+        .initial
+        .iter()
+        .enumerate()
+        .map(|(m, g)| -c.b(m) * g / t)
+        .collect();
+    let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(a, b)| a * b).sum::<f64>();
+    let slope = dot(&g.controls, &controls) + dot(&g.initial, &shift);
+    Direction {
+        controls,
+        shift,
+        slope,
+    }
+}
+
+fn moved(a: &[f64], d: &[f64], rho: f64) -> Vec<f64> {
+    a.iter().zip(d).map(|(a, d)| a + rho * d).collect()
+}
+
+/// Backtracks from `rho` until `trial(rho)` lowers J enough; `None` when no step does.
+fn line_search<T>(
+    start: f64,
+    slope: f64,
+    rho: f64,
+    mut trial: impl FnMut(f64) -> (f64, T),
+) -> Option<(f64, T)> {
+    if slope >= 0.0 || !slope.is_finite() {
+        return None;
+    }
+    let mut rho = rho;
+    for _ in 0..MAX_HALVINGS {
+        let (value, extra) = trial(rho);
+        if value.is_finite() && value <= start + ARMIJO * rho * slope {
+            return Some((rho, extra));
+        }
+        rho *= 0.5;
+    }
+    None
+}
+
+/// One global iteration (eq. 14-15): returns the step taken.
+fn global(problem: &Problem, it: &mut Iterate, rho: f64) -> Option<f64> {
+    let run = match it.run.take() {
+        Some(run) => run,
+        None => {
+            // After local steps: the model itself under the errors found so far.
+            let run = problem.run(&it.shift, &it.controls);
+            it.cost = problem.cost(&it.shift, &it.controls, &run.states);
+            it.states = run.states.clone();
+            run
+        }
+    };
+    let d = direction(problem, &run, it);
+    let start = it.cost.objective(problem.objective);
+    let found = line_search(start, d.slope, rho, |rho| {
+        let shift = moved(&it.shift, &d.shift, rho);
+        let controls = moved(&it.controls, &d.controls, rho);
+        let run = problem.run(&shift, &controls);
+        let cost = problem.cost(&shift, &controls, &run.states);
+        (
+            cost.objective(problem.objective),
+            (shift, controls, run, cost),
+        )
+    });
+    let Some((rho, (shift, controls, run, cost))) = found else {
+        it.run = Some(run);
+        return None;
+    };
+    it.shift = shift;
+    it.controls = controls;
+    it.states = run.states.clone();
+    it.run = Some(run);
+    it.cost = cost;
+    Some(rho)
+}
+
+/// One local iteration (eq. 11-13): returns the step taken.
+fn local(problem: &Problem, it: &mut Iterate, rho: f64) -> Option<f64> {
+    let run = match it.run.take() {
+        Some(run) => run,
+        None => Run::along(problem.timeline, it.states.clone()),
+    };
+    let d = direction(problem, &run, it);
+    let dx = run.tangent(&problem.model, &d.shift, &d.controls);
+    let gap = problem.model.clearance(&it.states).0;
+    let start = it.cost.objective(problem.objective);
+    let found = line_search(start, d.slope, rho, |rho| {
+        let shift = moved(&it.shift, &d.shift, rho);
+        let controls = moved(&it.controls, &d.controls, rho);
+        let states = moved(&it.states, &dx, rho);
+        let cost = problem.cost(&shift, &controls, &states);
+        // The tangent-linear model holds only while characters keep apart: a step that brings
+        // two of them closer than the repulsion's range b (or than they already are) is too
+        // long. Squeezed pairs make the linearised dynamics unstable across them (a pushed
+        // pair's sideways mode grows as exp(t sqrt(s / (d m)))), and the next gradient with it.
+        let floor = gap.min(problem.model.repulsion.range);
+        let value = if problem.model.clearance(&states).0 >= floor {
+            cost.objective(problem.objective)
+        } else {
+            f64::INFINITY
+        };
+        (value, (shift, controls, states, cost))
+    });
+    let Some((rho, (shift, controls, states, cost))) = found else {
+        it.run = Some(run);
+        return None;
+    };
+    it.shift = shift;
+    it.controls = controls;
+    it.states = states;
+    it.run = None;
+    it.cost = cost;
+    Some(rho)
+}

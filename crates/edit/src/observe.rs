@@ -1,0 +1,327 @@
+//! Observation operators H (Allain eq. 5) with their tangent-linear and adjoint: positions of
+//! chosen characters (eq. 31), and the Eulerian density, velocity and vorticity on a grid
+//! (section 6.2, after Allain, Courty and Corpetti 2012, "Particle swarm control").
+//!
+//! Eulerian quantities come from a Gaussian kernel G(x_c - y_i) = exp(-|x_c - y_i|^2 / 2 s^2) /
+//! (2 pi s^2) centred on each character (so the density is in people per m^2):
+//! - density  rho(c) = sum_i G(x_c - y_i);
+//! - velocity v(c)   = sum_i G(x_c - y_i) u_i / (rho(c) + rho_0), a kernel-weighted mean
+//!   velocity that fades to zero where nobody is (rho_0 keeps it defined there; the paper's
+//!   Figure 5 notes the error that empty cells always leave);
+//! - vorticity w(c)  = d v_y / dx - d v_x / dy by central differences on the grid (one-sided at
+//!   its edge): a linear map of the velocity field, so its linearisation is the velocity's
+//!   followed by the same differences, and its adjoint their transpose before the velocity's.
+
+use crate::model::{position, velocity};
+use glam::DVec2;
+
+/// An observation operator: what a constraint measures on a state.
+pub trait Observe: Send + Sync {
+    /// How many numbers it observes.
+    fn len(&self) -> usize;
+    fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+    /// H(X).
+    fn observe(&self, x: &[f64], out: &mut [f64]);
+    /// H'(X) dx.
+    fn tangent(&self, x: &[f64], dx: &[f64], out: &mut [f64]);
+    /// out += H'(X)^T dy.
+    fn adjoint_add(&self, x: &[f64], dy: &[f64], out: &mut [f64]);
+}
+
+/// The positions of chosen characters (eq. 31): two numbers each.
+#[derive(Clone, Debug)]
+pub struct Positions {
+    pub who: Vec<usize>,
+}
+
+impl Observe for Positions {
+    fn len(&self) -> usize {
+        2 * self.who.len()
+    }
+    fn observe(&self, x: &[f64], out: &mut [f64]) {
+        for (o, &i) in out.chunks_exact_mut(2).zip(&self.who) {
+            o.copy_from_slice(&x[4 * i..4 * i + 2]);
+        }
+    }
+    fn tangent(&self, _: &[f64], dx: &[f64], out: &mut [f64]) {
+        self.observe(dx, out);
+    }
+    fn adjoint_add(&self, _: &[f64], dy: &[f64], out: &mut [f64]) {
+        for (d, &i) in dy.chunks_exact(2).zip(&self.who) {
+            out[4 * i] += d[0];
+            out[4 * i + 1] += d[1];
+        }
+    }
+}
+
+/// Kernel contributions below exp(-18) of the peak are skipped: the jump this leaves is
+/// 1.5e-8 of a character's weight, far below what any constraint or test resolves.
+const KERNEL_REACH: f64 = 18.0;
+
+/// A grid of square cells over which Eulerian quantities are measured.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct EulerGrid {
+    pub origin: DVec2,
+    pub cell: f64,
+    pub nx: usize,
+    pub ny: usize,
+    /// The kernel's standard deviation, m.
+    pub sigma: f64,
+}
+
+/// Per cell, the kernel density and momentum (sum of G u).
+struct Moments {
+    rho: Vec<f64>,
+    momentum: Vec<DVec2>,
+}
+
+impl EulerGrid {
+    pub fn cells(&self) -> usize {
+        self.nx * self.ny
+    }
+
+    pub fn centre(&self, c: usize) -> DVec2 {
+        let (i, j) = (c % self.nx, c / self.nx);
+        self.origin + (DVec2::new(i as f64, j as f64) + 0.5) * self.cell
+    }
+
+    /// The cells whose centre lies in the rectangle `[min, max]`.
+    pub fn cells_in(&self, min: DVec2, max: DVec2) -> Vec<usize> {
+        (0..self.cells())
+            .filter(|&c| {
+                let p = self.centre(c);
+                p.cmpge(min).all() && p.cmple(max).all()
+            })
+            .collect()
+    }
+
+    /// Calls `visit(cell, G, dG/dy)` for each cell the kernel of a character at `p` reaches.
+    fn around(&self, p: DVec2, mut visit: impl FnMut(usize, f64, DVec2)) {
+        let s2 = self.sigma * self.sigma;
+        let norm = 1.0 / (2.0 * std::f64::consts::PI * s2);
+        let reach = self.sigma * (2.0 * KERNEL_REACH).sqrt();
+        let range = |lo: f64, n: usize| {
+            let a = ((lo - reach) / self.cell - 0.5).floor().max(0.0) as usize;
+            let b = (((lo + reach) / self.cell - 0.5).ceil() + 1.0).clamp(0.0, n as f64) as usize;
+            a..b
+        };
+        let local = p - self.origin;
+        for j in range(local.y, self.ny) {
+            for i in range(local.x, self.nx) {
+                let c = j * self.nx + i;
+                let d = self.centre(c) - p;
+                let q = d.length_squared() / (2.0 * s2);
+                if q > KERNEL_REACH {
+                    continue;
+                }
+                let g = norm * (-q).exp();
+                // d/dy of G(x_c - y) = G (x_c - y) / s^2.
+                visit(c, g, d * (g / s2));
+            }
+        }
+    }
+
+    fn moments(&self, x: &[f64]) -> Moments {
+        let mut m = Moments {
+            rho: vec![0.0; self.cells()],
+            momentum: vec![DVec2::ZERO; self.cells()],
+        };
+        for i in 0..x.len() / 4 {
+            let u = velocity(x, i);
+            self.around(position(x, i), |c, g, _| {
+                m.rho[c] += g;
+                m.momentum[c] += u * g;
+            });
+        }
+        m
+    }
+
+    fn moments_tangent(&self, x: &[f64], dx: &[f64]) -> Moments {
+        let mut m = Moments {
+            rho: vec![0.0; self.cells()],
+            momentum: vec![DVec2::ZERO; self.cells()],
+        };
+        for i in 0..x.len() / 4 {
+            let (u, dp, du) = (velocity(x, i), position(dx, i), velocity(dx, i));
+            self.around(position(x, i), |c, g, dg| {
+                let dgi = dg.dot(dp);
+                m.rho[c] += dgi;
+                m.momentum[c] += u * dgi + du * g;
+            });
+        }
+        m
+    }
+
+    /// out += the adjoint of the moments applied to (rho_bar, momentum_bar).
+    fn moments_adjoint(&self, x: &[f64], rho_bar: &[f64], mom_bar: &[DVec2], out: &mut [f64]) {
+        for i in 0..x.len() / 4 {
+            let u = velocity(x, i);
+            let (mut dp, mut du) = (DVec2::ZERO, DVec2::ZERO);
+            self.around(position(x, i), |c, g, dg| {
+                dp += dg * (rho_bar[c] + mom_bar[c].dot(u));
+                du += mom_bar[c] * g;
+            });
+            for (k, v) in [dp.x, dp.y, du.x, du.y].into_iter().enumerate() {
+                out[4 * i + k] += v;
+            }
+        }
+    }
+}
+
+/// The kernel density at chosen cells, people per m^2.
+#[derive(Clone, Debug)]
+pub struct Density {
+    pub grid: EulerGrid,
+    pub cells: Vec<usize>,
+}
+
+impl Observe for Density {
+    fn len(&self) -> usize {
+        self.cells.len()
+    }
+    fn observe(&self, x: &[f64], out: &mut [f64]) {
+        let m = self.grid.moments(x);
+        for (o, &c) in out.iter_mut().zip(&self.cells) {
+            *o = m.rho[c];
+        }
+    }
+    fn tangent(&self, x: &[f64], dx: &[f64], out: &mut [f64]) {
+        let m = self.grid.moments_tangent(x, dx);
+        for (o, &c) in out.iter_mut().zip(&self.cells) {
+            *o = m.rho[c];
+        }
+    }
+    fn adjoint_add(&self, x: &[f64], dy: &[f64], out: &mut [f64]) {
+        let mut rho_bar = vec![0.0; self.grid.cells()];
+        for (d, &c) in dy.iter().zip(&self.cells) {
+            rho_bar[c] += d;
+        }
+        let mom_bar = vec![DVec2::ZERO; self.grid.cells()];
+        self.grid.moments_adjoint(x, &rho_bar, &mom_bar, out);
+    }
+}
+
+/// The regulariser rho_0 of the Eulerian velocity, people per m^2: a tenth of a sparse crowd.
+pub const VELOCITY_FLOOR: f64 = 0.05;
+
+/// The Eulerian velocity of every cell of a grid (the fields both velocity and vorticity
+/// constraints read).
+fn velocity_field(grid: &EulerGrid, x: &[f64]) -> (Vec<DVec2>, Moments) {
+    let m = grid.moments(x);
+    let v = m
+        .rho
+        .iter()
+        .zip(&m.momentum)
+        .map(|(r, mo)| *mo / (r + VELOCITY_FLOOR))
+        .collect();
+    (v, m)
+}
+
+fn velocity_tangent(grid: &EulerGrid, x: &[f64], dx: &[f64]) -> Vec<DVec2> {
+    let m = grid.moments(x);
+    let dm = grid.moments_tangent(x, dx);
+    (0..grid.cells())
+        .map(|c| {
+            let r = m.rho[c] + VELOCITY_FLOOR;
+            dm.momentum[c] / r - m.momentum[c] * (dm.rho[c] / (r * r))
+        })
+        .collect()
+}
+
+fn velocity_adjoint(grid: &EulerGrid, x: &[f64], v_bar: &[DVec2], out: &mut [f64]) {
+    let m = grid.moments(x);
+    let mut rho_bar = vec![0.0; grid.cells()];
+    let mut mom_bar = vec![DVec2::ZERO; grid.cells()];
+    for c in 0..grid.cells() {
+        let r = m.rho[c] + VELOCITY_FLOOR;
+        mom_bar[c] = v_bar[c] / r;
+        rho_bar[c] = -v_bar[c].dot(m.momentum[c]) / (r * r);
+    }
+    grid.moments_adjoint(x, &rho_bar, &mom_bar, out);
+}
+
+/// The Eulerian velocity at chosen cells: two numbers each.
+#[derive(Clone, Debug)]
+pub struct Velocity {
+    pub grid: EulerGrid,
+    pub cells: Vec<usize>,
+}
+
+impl Observe for Velocity {
+    fn len(&self) -> usize {
+        2 * self.cells.len()
+    }
+    fn observe(&self, x: &[f64], out: &mut [f64]) {
+        let (v, _) = velocity_field(&self.grid, x);
+        for (o, &c) in out.chunks_exact_mut(2).zip(&self.cells) {
+            o.copy_from_slice(&[v[c].x, v[c].y]);
+        }
+    }
+    fn tangent(&self, x: &[f64], dx: &[f64], out: &mut [f64]) {
+        let dv = velocity_tangent(&self.grid, x, dx);
+        for (o, &c) in out.chunks_exact_mut(2).zip(&self.cells) {
+            o.copy_from_slice(&[dv[c].x, dv[c].y]);
+        }
+    }
+    fn adjoint_add(&self, x: &[f64], dy: &[f64], out: &mut [f64]) {
+        let mut v_bar = vec![DVec2::ZERO; self.grid.cells()];
+        for (d, &c) in dy.chunks_exact(2).zip(&self.cells) {
+            v_bar[c] += DVec2::new(d[0], d[1]);
+        }
+        velocity_adjoint(&self.grid, x, &v_bar, out);
+    }
+}
+
+/// The vorticity (curl) of the Eulerian velocity at chosen cells, 1/s.
+#[derive(Clone, Debug)]
+pub struct Vorticity {
+    pub grid: EulerGrid,
+    pub cells: Vec<usize>,
+}
+
+impl Vorticity {
+    /// The difference stencil of d/dx or d/dy at cell c: (lower cell, upper cell, 1 / distance).
+    fn stencil(&self, c: usize, along_x: bool) -> (usize, usize, f64) {
+        let g = &self.grid;
+        let (i, j) = (c % g.nx, c / g.nx);
+        let (pos, n) = if along_x { (i, g.nx) } else { (j, g.ny) };
+        let lo = pos.saturating_sub(1);
+        let hi = (pos + 1).min(n - 1);
+        let at = |k: usize| if along_x { j * g.nx + k } else { k * g.nx + i };
+        (at(lo), at(hi), 1.0 / ((hi - lo).max(1) as f64 * g.cell))
+    }
+
+    fn curl(&self, v: &[DVec2], out: &mut [f64]) {
+        for (o, &c) in out.iter_mut().zip(&self.cells) {
+            let (xl, xh, sx) = self.stencil(c, true);
+            let (yl, yh, sy) = self.stencil(c, false);
+            *o = (v[xh].y - v[xl].y) * sx - (v[yh].x - v[yl].x) * sy;
+        }
+    }
+}
+
+impl Observe for Vorticity {
+    fn len(&self) -> usize {
+        self.cells.len()
+    }
+    fn observe(&self, x: &[f64], out: &mut [f64]) {
+        self.curl(&velocity_field(&self.grid, x).0, out);
+    }
+    fn tangent(&self, x: &[f64], dx: &[f64], out: &mut [f64]) {
+        self.curl(&velocity_tangent(&self.grid, x, dx), out);
+    }
+    fn adjoint_add(&self, x: &[f64], dy: &[f64], out: &mut [f64]) {
+        let mut v_bar = vec![DVec2::ZERO; self.grid.cells()];
+        for (d, &c) in dy.iter().zip(&self.cells) {
+            let (xl, xh, sx) = self.stencil(c, true);
+            let (yl, yh, sy) = self.stencil(c, false);
+            v_bar[xh].y += d * sx;
+            v_bar[xl].y -= d * sx;
+            v_bar[yh].x -= d * sy;
+            v_bar[yl].x += d * sy;
+        }
+        velocity_adjoint(&self.grid, x, &v_bar, out);
+    }
+}
