@@ -18,6 +18,7 @@
 
 use crate::cost::{CostParts, Problem};
 use crate::integrate::Run;
+use crate::quasi_newton::Memory;
 use serde::{Deserialize, Serialize};
 
 /// Which descent each iteration takes.
@@ -116,17 +117,21 @@ pub fn solve(
     each(&log[0], &it.states);
     let mut step = 1.0;
     let mut stalled_at = None;
+    let mut memory = Memory::default();
     for index in 1..=iterations {
         let mut kind = descent.kind(index - 1);
         let mut taken = match kind {
-            Kind::Global => global(problem, &mut it, step),
-            _ => local(problem, &mut it, step),
+            Kind::Global => global(problem, &mut it, step, &mut memory),
+            _ => {
+                memory.clear();
+                local(problem, &mut it, step)
+            }
         };
         // Alternating: a local step that finds no way down hands over to a global one, which
         // may jump to another solution (section 4.3).
         if taken.is_none() && kind == Kind::Local && descent != Descent::Local {
             kind = Kind::Global;
-            taken = global(problem, &mut it, step);
+            taken = global(problem, &mut it, step, &mut memory);
         }
         let Some(taken) = taken else {
             stalled_at = Some(index);
@@ -168,27 +173,35 @@ struct Direction {
     slope: f64,
 }
 
-fn direction(problem: &Problem, run: &Run, it: &Iterate) -> Direction {
+/// The paper's direction d eps = Q lambda, d eps_0 = B lambda(t_0) / T (steepest descent in
+/// the metric of Q and B) or, given a memory, its L-BFGS correction.
+fn direction(problem: &Problem, run: &Run, it: &Iterate, memory: Option<&mut Memory>) -> Direction {
     let g = problem.gradient(run, &it.shift, &it.controls);
     let n = problem.n();
     let c = &problem.covariances;
     let (dt, t) = (problem.timeline.dt, problem.timeline.duration());
-    let controls: Vec<f64> = g
-        .controls
-        .iter()
-        .enumerate()
-        .map(|(m, g)| -c.q(m % n) * g / dt)
+    let h0: Vec<f64> = (0..g.controls.len())
+        .map(|m| c.q(m % n) / dt)
+        .chain((0..g.initial.len()).map(|m| c.b(m) / t))
         .collect();
-    let shift: Vec<f64> = g
-        .initial
-        .iter()
-        .enumerate()
-        .map(|(m, g)| -c.b(m) * g / t)
-        .collect();
+    let gradient: Vec<f64> = g.controls.iter().chain(&g.initial).copied().collect();
+    let steepest = || -> Vec<f64> { gradient.iter().zip(&h0).map(|(g, h)| -h * g).collect() };
+    let mut d = match memory {
+        Some(memory) => {
+            let x: Vec<f64> = it.controls.iter().chain(&it.shift).copied().collect();
+            memory.direction(&x, &gradient, &h0)
+        }
+        None => steepest(),
+    };
     let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(a, b)| a * b).sum::<f64>();
-    let slope = dot(&g.controls, &controls) + dot(&g.initial, &shift);
+    let mut slope = dot(&gradient, &d);
+    if slope >= 0.0 || slope.is_nan() {
+        d = steepest();
+        slope = dot(&gradient, &d);
+    }
+    let shift = d.split_off(g.controls.len());
     Direction {
-        controls,
+        controls: d,
         shift,
         slope,
     }
@@ -220,7 +233,7 @@ fn line_search<T>(
 }
 
 /// One global iteration (eq. 14-15): returns the step taken.
-fn global(problem: &Problem, it: &mut Iterate, rho: f64) -> Option<f64> {
+fn global(problem: &Problem, it: &mut Iterate, rho: f64, memory: &mut Memory) -> Option<f64> {
     let run = match it.run.take() {
         Some(run) => run,
         None => {
@@ -231,7 +244,9 @@ fn global(problem: &Problem, it: &mut Iterate, rho: f64) -> Option<f64> {
             run
         }
     };
-    let d = direction(problem, &run, it);
+    // With curvature pairs the direction is scaled: try its whole length first.
+    let rho = if memory.is_empty() { rho } else { 1.0 };
+    let d = direction(problem, &run, it, Some(memory));
     let start = it.cost.objective(problem.objective);
     let found = line_search(start, d.slope, rho, |rho| {
         let shift = moved(&it.shift, &d.shift, rho);
@@ -245,7 +260,12 @@ fn global(problem: &Problem, it: &mut Iterate, rho: f64) -> Option<f64> {
     });
     let Some((rho, (shift, controls, run, cost))) = found else {
         it.run = Some(run);
-        return None;
+        if memory.is_empty() {
+            return None;
+        }
+        // The curvature pairs led nowhere: start again from the paper's direction.
+        memory.clear();
+        return global(problem, it, rho, memory);
     };
     it.shift = shift;
     it.controls = controls;
@@ -261,7 +281,7 @@ fn local(problem: &Problem, it: &mut Iterate, rho: f64) -> Option<f64> {
         Some(run) => run,
         None => Run::along(problem.timeline, it.states.clone()),
     };
-    let d = direction(problem, &run, it);
+    let d = direction(problem, &run, it, None);
     let dx = run.tangent(&problem.model, &d.shift, &d.controls);
     let gap = problem.model.clearance(&it.states).0;
     let start = it.cost.objective(problem.objective);

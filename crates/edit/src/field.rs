@@ -89,24 +89,48 @@ impl NodeField {
     /// The bilinear interpolation at `p` and its gradient (exact for this interpolant, so the
     /// model's Jacobian is the derivative of the forces it integrates).
     pub fn sample(&self, p: DVec2) -> (f64, DVec2) {
-        let l = &self.lattice;
-        let (i, j, t, inside) = l.locate(p);
-        let (v00, v10) = (self.at(i, j), self.at(i + 1, j));
-        let (v01, v11) = (self.at(i, j + 1), self.at(i + 1, j + 1));
+        self.at_stencil(&self.lattice.stencil(p))
+    }
+
+    fn at_stencil(&self, s: &Stencil) -> (f64, DVec2) {
+        let v = |k: usize| self.values[k];
+        let (v00, v10, v01, v11) = (
+            v(s.corner),
+            v(s.corner + 1),
+            v(s.corner + s.row),
+            v(s.corner + s.row + 1),
+        );
+        let t = s.t;
         let bottom = v00 + (v10 - v00) * t.x;
         let top = v01 + (v11 - v01) * t.x;
         let value = bottom + (top - bottom) * t.y;
-        let mut grad = DVec2::new(
-            ((v10 - v00) * (1.0 - t.y) + (v11 - v01) * t.y) / l.spacing,
-            (top - bottom) / l.spacing,
+        let grad = DVec2::new(
+            ((v10 - v00) * (1.0 - t.y) + (v11 - v01) * t.y) * s.scale.x,
+            (top - bottom) * s.scale.y,
         );
-        if !inside[0] {
-            grad.x = 0.0;
-        }
-        if !inside[1] {
-            grad.y = 0.0;
-        }
         (value, grad)
+    }
+}
+
+/// Where a point falls in a lattice: its cell's first node, the row stride, the position in
+/// the cell, and per axis 1 / spacing (0 outside the lattice, where fields are held constant).
+struct Stencil {
+    corner: usize,
+    row: usize,
+    t: DVec2,
+    scale: DVec2,
+}
+
+impl Lattice {
+    fn stencil(&self, p: DVec2) -> Stencil {
+        let (i, j, t, inside) = self.locate(p);
+        let per = |inside: bool| if inside { 1.0 / self.spacing } else { 0.0 };
+        Stencil {
+            corner: self.index(i, j),
+            row: self.nx,
+            t,
+            scale: DVec2::new(per(inside[0]), per(inside[1])),
+        }
     }
 }
 
@@ -120,8 +144,9 @@ pub struct VectorField {
 
 impl VectorField {
     pub fn sample(&self, p: DVec2) -> (DVec2, [DVec2; 2]) {
-        let (vx, gx) = self.x.sample(p);
-        let (vy, gy) = self.y.sample(p);
+        let s = self.x.lattice.stencil(p);
+        let (vx, gx) = self.x.at_stencil(&s);
+        let (vy, gy) = self.y.at_stencil(&s);
         (DVec2::new(vx, vy), [gx, gy])
     }
 }

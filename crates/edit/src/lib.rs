@@ -17,11 +17,12 @@ pub mod integrate;
 pub mod model;
 pub mod neighbours;
 pub mod observe;
+pub mod quasi_newton;
 pub mod world;
 
 pub use cost::{Constraint, CostParts, Covariances, Objective, Problem};
 pub use descent::{Descent, Iteration, Outcome, solve};
 pub use error::EditError;
 pub use integrate::{Run, Timeline};
-pub use model::{Character, Model, Repulsion};
+pub use model::{Character, Linearisation, Model, Repulsion};
 pub use world::{Rect, World};

@@ -4,10 +4,17 @@
 use crate::model::position;
 use glam::DVec2;
 
+/// How much farther than the cutoff `near` looks, so that its list stays complete while no
+/// character has moved more than half of this since it was made (a Verlet list), m.
+pub const SKIN: f64 = 0.6;
+
 /// Reusable buffers for finding pairs; `find` overwrites the list.
 #[derive(Clone, Debug, Default)]
 pub struct Pairs {
     pairs: Vec<(usize, usize)>,
+    /// Where the characters stood when `near` last searched, and its cutoff.
+    anchor: Vec<DVec2>,
+    anchor_cutoff: f64,
     cell_of: Vec<usize>,
     starts: Vec<usize>,
     sorted: Vec<usize>,
@@ -19,6 +26,7 @@ impl Pairs {
     pub fn find(&mut self, x: &[f64], cutoff: f64) {
         let n = x.len() / 4;
         self.pairs.clear();
+        self.anchor.clear();
         if n < 2 {
             return;
         }
@@ -79,6 +87,27 @@ impl Pairs {
                     }
                 }
             }
+        }
+    }
+
+    /// A list holding every pair closer than `cutoff` (and maybe some up to `cutoff + SKIN`
+    /// apart; callers check the distance): searched again only when someone has moved more
+    /// than `SKIN / 2` since the last search, so consecutive stages and steps share one search.
+    pub fn near(&mut self, x: &[f64], cutoff: f64) {
+        let n = x.len() / 4;
+        let limit = (SKIN / 2.0) * (SKIN / 2.0);
+        let fresh = self.anchor.len() == n
+            && self.anchor_cutoff == cutoff
+            && (0..n).all(|i| (position(x, i) - self.anchor[i]).length_squared() <= limit);
+        if fresh {
+            return;
+        }
+        self.find(x, cutoff + SKIN);
+        self.anchor.clear();
+        self.anchor.extend((0..n).map(|i| position(x, i)));
+        self.anchor_cutoff = cutoff;
+        if !self.anchor.iter().all(|p| p.is_finite()) {
+            self.anchor.clear();
         }
     }
 

@@ -71,6 +71,32 @@ pub struct EulerGrid {
     pub sigma: f64,
 }
 
+/// The cells an operator reads, as a box of columns and rows (end exclusive): the moments are
+/// only made there.
+#[derive(Clone, Copy, Debug)]
+struct Window {
+    cols: (usize, usize),
+    rows: (usize, usize),
+}
+
+impl Window {
+    /// The box around `cells`, widened by `margin` cells (clamped to the grid).
+    fn around(grid: &EulerGrid, cells: &[usize], margin: usize) -> Window {
+        let (mut c0, mut c1, mut r0, mut r1) = (usize::MAX, 0, usize::MAX, 0);
+        for &c in cells {
+            let (i, j) = (c % grid.nx, c / grid.nx);
+            c0 = c0.min(i.saturating_sub(margin));
+            c1 = c1.max((i + margin + 1).min(grid.nx));
+            r0 = r0.min(j.saturating_sub(margin));
+            r1 = r1.max((j + margin + 1).min(grid.ny));
+        }
+        Window {
+            cols: (c0.min(c1), c1),
+            rows: (r0.min(r1), r1),
+        }
+    }
+}
+
 /// Per cell, the kernel density and momentum (sum of G u).
 struct Moments {
     rho: Vec<f64>,
@@ -97,19 +123,20 @@ impl EulerGrid {
             .collect()
     }
 
-    /// Calls `visit(cell, G, dG/dy)` for each cell the kernel of a character at `p` reaches.
-    fn around(&self, p: DVec2, mut visit: impl FnMut(usize, f64, DVec2)) {
+    /// Calls `visit(cell, G, dG/dy)` for each cell of `window` the kernel of a character at `p`
+    /// reaches.
+    fn around(&self, p: DVec2, window: Window, mut visit: impl FnMut(usize, f64, DVec2)) {
         let s2 = self.sigma * self.sigma;
         let norm = 1.0 / (2.0 * std::f64::consts::PI * s2);
         let reach = self.sigma * (2.0 * KERNEL_REACH).sqrt();
-        let range = |lo: f64, n: usize| {
+        let range = |lo: f64, (first, end): (usize, usize)| {
             let a = ((lo - reach) / self.cell - 0.5).floor().max(0.0) as usize;
-            let b = (((lo + reach) / self.cell - 0.5).ceil() + 1.0).clamp(0.0, n as f64) as usize;
-            a..b
+            let b = (((lo + reach) / self.cell - 0.5).ceil() + 1.0).max(0.0) as usize;
+            a.max(first)..b.min(end)
         };
         let local = p - self.origin;
-        for j in range(local.y, self.ny) {
-            for i in range(local.x, self.nx) {
+        for j in range(local.y, window.rows) {
+            for i in range(local.x, window.cols) {
                 let c = j * self.nx + i;
                 let d = self.centre(c) - p;
                 let q = d.length_squared() / (2.0 * s2);
@@ -123,14 +150,14 @@ impl EulerGrid {
         }
     }
 
-    fn moments(&self, x: &[f64]) -> Moments {
+    fn moments(&self, x: &[f64], window: Window) -> Moments {
         let mut m = Moments {
             rho: vec![0.0; self.cells()],
             momentum: vec![DVec2::ZERO; self.cells()],
         };
         for i in 0..x.len() / 4 {
             let u = velocity(x, i);
-            self.around(position(x, i), |c, g, _| {
+            self.around(position(x, i), window, |c, g, _| {
                 m.rho[c] += g;
                 m.momentum[c] += u * g;
             });
@@ -138,14 +165,14 @@ impl EulerGrid {
         m
     }
 
-    fn moments_tangent(&self, x: &[f64], dx: &[f64]) -> Moments {
+    fn moments_tangent(&self, x: &[f64], dx: &[f64], window: Window) -> Moments {
         let mut m = Moments {
             rho: vec![0.0; self.cells()],
             momentum: vec![DVec2::ZERO; self.cells()],
         };
         for i in 0..x.len() / 4 {
             let (u, dp, du) = (velocity(x, i), position(dx, i), velocity(dx, i));
-            self.around(position(x, i), |c, g, dg| {
+            self.around(position(x, i), window, |c, g, dg| {
                 let dgi = dg.dot(dp);
                 m.rho[c] += dgi;
                 m.momentum[c] += u * dgi + du * g;
@@ -155,11 +182,18 @@ impl EulerGrid {
     }
 
     /// out += the adjoint of the moments applied to (rho_bar, momentum_bar).
-    fn moments_adjoint(&self, x: &[f64], rho_bar: &[f64], mom_bar: &[DVec2], out: &mut [f64]) {
+    fn moments_adjoint(
+        &self,
+        x: &[f64],
+        rho_bar: &[f64],
+        mom_bar: &[DVec2],
+        window: Window,
+        out: &mut [f64],
+    ) {
         for i in 0..x.len() / 4 {
             let u = velocity(x, i);
             let (mut dp, mut du) = (DVec2::ZERO, DVec2::ZERO);
-            self.around(position(x, i), |c, g, dg| {
+            self.around(position(x, i), window, |c, g, dg| {
                 dp += dg * (rho_bar[c] + mom_bar[c].dot(u));
                 du += mom_bar[c] * g;
             });
@@ -182,13 +216,16 @@ impl Observe for Density {
         self.cells.len()
     }
     fn observe(&self, x: &[f64], out: &mut [f64]) {
-        let m = self.grid.moments(x);
+        let m = self
+            .grid
+            .moments(x, Window::around(&self.grid, &self.cells, 0));
         for (o, &c) in out.iter_mut().zip(&self.cells) {
             *o = m.rho[c];
         }
     }
     fn tangent(&self, x: &[f64], dx: &[f64], out: &mut [f64]) {
-        let m = self.grid.moments_tangent(x, dx);
+        let window = Window::around(&self.grid, &self.cells, 0);
+        let m = self.grid.moments_tangent(x, dx, window);
         for (o, &c) in out.iter_mut().zip(&self.cells) {
             *o = m.rho[c];
         }
@@ -199,7 +236,9 @@ impl Observe for Density {
             rho_bar[c] += d;
         }
         let mom_bar = vec![DVec2::ZERO; self.grid.cells()];
-        self.grid.moments_adjoint(x, &rho_bar, &mom_bar, out);
+        let window = Window::around(&self.grid, &self.cells, 0);
+        self.grid
+            .moments_adjoint(x, &rho_bar, &mom_bar, window, out);
     }
 }
 
@@ -208,8 +247,8 @@ pub const VELOCITY_FLOOR: f64 = 0.05;
 
 /// The Eulerian velocity of every cell of a grid (the fields both velocity and vorticity
 /// constraints read).
-fn velocity_field(grid: &EulerGrid, x: &[f64]) -> (Vec<DVec2>, Moments) {
-    let m = grid.moments(x);
+fn velocity_field(grid: &EulerGrid, x: &[f64], window: Window) -> (Vec<DVec2>, Moments) {
+    let m = grid.moments(x, window);
     let v = m
         .rho
         .iter()
@@ -219,9 +258,9 @@ fn velocity_field(grid: &EulerGrid, x: &[f64]) -> (Vec<DVec2>, Moments) {
     (v, m)
 }
 
-fn velocity_tangent(grid: &EulerGrid, x: &[f64], dx: &[f64]) -> Vec<DVec2> {
-    let m = grid.moments(x);
-    let dm = grid.moments_tangent(x, dx);
+fn velocity_tangent(grid: &EulerGrid, x: &[f64], dx: &[f64], window: Window) -> Vec<DVec2> {
+    let m = grid.moments(x, window);
+    let dm = grid.moments_tangent(x, dx, window);
     (0..grid.cells())
         .map(|c| {
             let r = m.rho[c] + VELOCITY_FLOOR;
@@ -230,8 +269,8 @@ fn velocity_tangent(grid: &EulerGrid, x: &[f64], dx: &[f64]) -> Vec<DVec2> {
         .collect()
 }
 
-fn velocity_adjoint(grid: &EulerGrid, x: &[f64], v_bar: &[DVec2], out: &mut [f64]) {
-    let m = grid.moments(x);
+fn velocity_adjoint(grid: &EulerGrid, x: &[f64], v_bar: &[DVec2], window: Window, out: &mut [f64]) {
+    let m = grid.moments(x, window);
     let mut rho_bar = vec![0.0; grid.cells()];
     let mut mom_bar = vec![DVec2::ZERO; grid.cells()];
     for c in 0..grid.cells() {
@@ -239,7 +278,7 @@ fn velocity_adjoint(grid: &EulerGrid, x: &[f64], v_bar: &[DVec2], out: &mut [f64
         mom_bar[c] = v_bar[c] / r;
         rho_bar[c] = -v_bar[c].dot(m.momentum[c]) / (r * r);
     }
-    grid.moments_adjoint(x, &rho_bar, &mom_bar, out);
+    grid.moments_adjoint(x, &rho_bar, &mom_bar, window, out);
 }
 
 /// The Eulerian velocity at chosen cells: two numbers each.
@@ -254,13 +293,18 @@ impl Observe for Velocity {
         2 * self.cells.len()
     }
     fn observe(&self, x: &[f64], out: &mut [f64]) {
-        let (v, _) = velocity_field(&self.grid, x);
+        let (v, _) = velocity_field(&self.grid, x, Window::around(&self.grid, &self.cells, 0));
         for (o, &c) in out.chunks_exact_mut(2).zip(&self.cells) {
             o.copy_from_slice(&[v[c].x, v[c].y]);
         }
     }
     fn tangent(&self, x: &[f64], dx: &[f64], out: &mut [f64]) {
-        let dv = velocity_tangent(&self.grid, x, dx);
+        let dv = velocity_tangent(
+            &self.grid,
+            x,
+            dx,
+            Window::around(&self.grid, &self.cells, 0),
+        );
         for (o, &c) in out.chunks_exact_mut(2).zip(&self.cells) {
             o.copy_from_slice(&[dv[c].x, dv[c].y]);
         }
@@ -270,7 +314,8 @@ impl Observe for Velocity {
         for (d, &c) in dy.chunks_exact(2).zip(&self.cells) {
             v_bar[c] += DVec2::new(d[0], d[1]);
         }
-        velocity_adjoint(&self.grid, x, &v_bar, out);
+        let window = Window::around(&self.grid, &self.cells, 0);
+        velocity_adjoint(&self.grid, x, &v_bar, window, out);
     }
 }
 
@@ -307,10 +352,12 @@ impl Observe for Vorticity {
         self.cells.len()
     }
     fn observe(&self, x: &[f64], out: &mut [f64]) {
-        self.curl(&velocity_field(&self.grid, x).0, out);
+        let window = Window::around(&self.grid, &self.cells, 1);
+        self.curl(&velocity_field(&self.grid, x, window).0, out);
     }
     fn tangent(&self, x: &[f64], dx: &[f64], out: &mut [f64]) {
-        self.curl(&velocity_tangent(&self.grid, x, dx), out);
+        let window = Window::around(&self.grid, &self.cells, 1);
+        self.curl(&velocity_tangent(&self.grid, x, dx, window), out);
     }
     fn adjoint_add(&self, x: &[f64], dy: &[f64], out: &mut [f64]) {
         let mut v_bar = vec![DVec2::ZERO; self.grid.cells()];
@@ -322,6 +369,7 @@ impl Observe for Vorticity {
             v_bar[yh].x -= d * sy;
             v_bar[yl].x += d * sy;
         }
-        velocity_adjoint(&self.grid, x, &v_bar, out);
+        let window = Window::around(&self.grid, &self.cells, 1);
+        velocity_adjoint(&self.grid, x, &v_bar, window, out);
     }
 }

@@ -6,7 +6,7 @@
 
 use crowd_edit::cost::Objective;
 use crowd_edit::integrate::{Run, Timeline};
-use crowd_edit::model::{Character, Model, Repulsion};
+use crowd_edit::model::{Character, Linearisation, Model, Repulsion};
 use crowd_edit::neighbours::Pairs;
 use crowd_edit::observe::{Density, EulerGrid, Observe, Positions, Velocity, Vorticity};
 use crowd_edit::{Constraint, Covariances, Problem, Rect, World};
@@ -50,6 +50,7 @@ fn random_crowd(seed: u64, n: usize) -> (Model, Vec<f64>) {
         characters,
         world,
         repulsion: Repulsion::default(),
+        linearisation: Linearisation::Exact,
     };
     (model, x)
 }
@@ -118,8 +119,11 @@ fn the_tangent_linear_model_is_the_derivative_of_the_forces() {
 
 #[test]
 fn the_adjoint_model_is_the_transpose_of_the_tangent() {
-    for seed in 0..20 {
-        let (model, x) = random_crowd(seed, 8);
+    for (seed, linearisation) in
+        (0..20).flat_map(|s| [(s, Linearisation::Exact), (s, Linearisation::Radial)])
+    {
+        let (mut model, x) = random_crowd(seed, 8);
+        model.linearisation = linearisation;
         let mut rng = ChaCha8Rng::seed_from_u64(200 + seed);
         let (v, w) = (
             random_vector(&mut rng, x.len()),
@@ -130,7 +134,10 @@ fn the_adjoint_model_is_the_transpose_of_the_tangent() {
         model.jvp(&x, &v, &mut pairs, &mut jv);
         model.vjp(&x, &w, &mut pairs, &mut jtw);
         let err = agree_to(dot(&jv, &w), dot(&v, &jtw));
-        assert!(err < 1e-10, "seed {seed}: <J v, w> vs <v, J^T w> {err:e}");
+        assert!(
+            err < 1e-10,
+            "seed {seed}, {linearisation:?}: <J v, w> vs <v, J^T w> {err:e}"
+        );
     }
 }
 
@@ -170,17 +177,26 @@ fn a_runge_kutta_run_is_differentiated_exactly_by_its_tangent_and_adjoint() {
             err < 1e-5,
             "seed {seed}: run tangent vs finite differences {err:e}"
         );
-        // Adjoint identity with a random weight on every state of the run.
+        // Adjoint identity with a random weight on every state of the run, for the exact and
+        // the radial linearisation.
         let w = random_vector(&mut rng, (timeline.steps + 1) * n);
-        let (mu0, ebar) = run.adjoint(&model, |k, _, mu| {
-            for (m, v) in mu.iter_mut().zip(&w[k * n..(k + 1) * n]) {
-                *m += v;
-            }
-        });
-        let lhs = dot(&dx, &w);
-        let rhs = dot(&dx0, &mu0) + dot(&de, &ebar);
-        let err = agree_to(lhs, rhs);
-        assert!(err < 1e-10, "seed {seed}: run adjoint identity {err:e}");
+        let mut model = model;
+        for linearisation in [Linearisation::Exact, Linearisation::Radial] {
+            model.linearisation = linearisation;
+            let dx = run.tangent(&model, &dx0, &de);
+            let (mu0, ebar) = run.adjoint(&model, |k, _, mu| {
+                for (m, v) in mu.iter_mut().zip(&w[k * n..(k + 1) * n]) {
+                    *m += v;
+                }
+            });
+            let lhs = dot(&dx, &w);
+            let rhs = dot(&dx0, &mu0) + dot(&de, &ebar);
+            let err = agree_to(lhs, rhs);
+            assert!(
+                err < 1e-10,
+                "seed {seed}, {linearisation:?}: run adjoint identity {err:e}"
+            );
+        }
     }
 }
 

@@ -11,7 +11,7 @@ use crate::cost::{Constraint, Covariances, Objective, Problem};
 use crate::descent::Descent;
 use crate::error::EditError;
 use crate::integrate::Timeline;
-use crate::model::{Character, Model, Repulsion};
+use crate::model::{Character, Linearisation, Model, Repulsion};
 use crate::observe::{Density, EulerGrid};
 use crate::world::{Rect, World};
 use glam::DVec2;
@@ -21,7 +21,7 @@ const PEOPLE: usize = 64;
 const TARGET: f64 = 1.1;
 
 /// The areas' centres and times.
-const AREAS: [(f64, f64, f64); 3] = [(12.0, 9.0, 7.0), (20.0, 15.0, 14.5), (28.0, 9.0, 22.0)];
+const AREAS: [(f64, f64, f64); 3] = [(12.0, 7.0, 7.0), (20.0, 11.0, 14.5), (28.0, 7.0, 22.0)];
 
 pub fn setup(o: &Overrides) -> Result<Setup, EditError> {
     let mut rng = rng(3);
@@ -50,7 +50,7 @@ pub fn setup(o: &Overrides) -> Result<Setup, EditError> {
         cell: 1.0,
         nx: 40,
         ny: 30,
-        sigma: 0.8,
+        sigma: 1.5,
     };
     let r = o.r.unwrap_or(10.0);
     let mut constraints = Vec::new();
@@ -84,6 +84,7 @@ pub fn setup(o: &Overrides) -> Result<Setup, EditError> {
             characters,
             world,
             repulsion: Repulsion::default(),
+            linearisation: Linearisation::Radial,
         },
         timeline,
         initial: at_rest(&places),

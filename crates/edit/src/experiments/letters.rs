@@ -13,7 +13,7 @@ use crate::cost::{Constraint, Covariances, Objective, Problem};
 use crate::descent::Descent;
 use crate::error::EditError;
 use crate::integrate::Timeline;
-use crate::model::{Model, Repulsion};
+use crate::model::{Linearisation, Model, Repulsion};
 use crate::observe::Positions;
 use crate::world::{Rect, World};
 use glam::DVec2;
@@ -118,6 +118,7 @@ pub fn setup(o: &Overrides) -> Result<Setup, EditError> {
         characters,
         world,
         repulsion: Repulsion::default(),
+        linearisation: Linearisation::Radial,
     };
     let mut problem = Problem {
         model,

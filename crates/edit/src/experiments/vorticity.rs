@@ -10,7 +10,7 @@ use crate::cost::{Constraint, Covariances, Objective, Problem};
 use crate::descent::Descent;
 use crate::error::EditError;
 use crate::integrate::Timeline;
-use crate::model::{Model, Repulsion};
+use crate::model::{Linearisation, Model, Repulsion};
 use crate::observe::{EulerGrid, Vorticity};
 use crate::world::{Rect, World};
 use glam::DVec2;
@@ -96,6 +96,7 @@ pub fn setup(o: &Overrides) -> Result<Setup, EditError> {
             characters,
             world,
             repulsion: Repulsion::default(),
+            linearisation: Linearisation::Radial,
         },
         timeline,
         initial: at_rest(&places),
