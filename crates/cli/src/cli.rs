@@ -108,6 +108,7 @@ pub enum Command {
     },
     /// Run one of the optimal crowd editing paper's experiments (Allain et al. 2014) and write
     /// its per-iteration CSV, plots, trajectories before and after, and result.ron.
+    #[command(after_long_help = crate::edit_pictures::LEGEND)]
     Edit(EditArgs),
     /// The figures of a build folder (`--json` for one JSON object).
     Report {
@@ -138,8 +139,8 @@ pub struct EditArgs {
     /// Descent iterations (default: the experiment's, as in the paper).
     #[arg(long, value_name = "N")]
     pub iterations: Option<usize>,
-    /// local, global, or alternating (5 local iterations then 5 global, section 4.3) (default:
-    /// the paper's for the experiment).
+    /// local, global, quasi-newton (global along L-BFGS directions) or alternating (5 local
+    /// iterations then 5 global, section 4.3) (default: the experiment's).
     #[arg(long, value_name = "DESCENT", value_parser = parse_descent)]
     pub descent: Option<crowd_edit::Descent>,
     /// Every constraint's covariance R (default: the paper's for the experiment).
@@ -160,11 +161,12 @@ fn parse_descent(text: &str) -> Result<crowd_edit::Descent, String> {
     match text {
         "local" => Ok(crowd_edit::Descent::Local),
         "global" => Ok(crowd_edit::Descent::Global),
+        "quasi-newton" => Ok(crowd_edit::Descent::QuasiNewton),
         "alternating" => Ok(crowd_edit::Descent::Alternating {
             local: 5,
             global: 5,
         }),
-        _ => Err("expected local, global or alternating".to_string()),
+        _ => Err("expected local, global, quasi-newton or alternating".to_string()),
     }
 }
 

@@ -61,7 +61,7 @@ pub fn run(command: &EditCommand, ui: &Ui) -> Result<PathBuf> {
     for (k, v) in &f.extra {
         ui.say(format!("  {k}: {v:.3}"));
     }
-    ui.say(format!("  pictures: {}", crate::edit_pictures::LEGEND));
+    ui.say("  pictures: iterations.png, trajectories.png (what they show: crowd edit --help)");
     Ok(dir)
 }
 

@@ -25,7 +25,10 @@ use serde::{Deserialize, Serialize};
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub enum Descent {
     Local,
+    /// The paper's global descent: eq. 14-15 along d eps = Q lambda.
     Global,
+    /// The global descent along L-BFGS directions started from the paper's (`quasi_newton`).
+    QuasiNewton,
     /// `local` local iterations, then `global` global ones, and again.
     Alternating {
         local: usize,
@@ -37,7 +40,7 @@ impl Descent {
     fn kind(&self, iteration: usize) -> Kind {
         match *self {
             Descent::Local => Kind::Local,
-            Descent::Global => Kind::Global,
+            Descent::Global | Descent::QuasiNewton => Kind::Global,
             Descent::Alternating { local, global } => {
                 if iteration % (local + global).max(1) < local {
                     Kind::Local
@@ -91,8 +94,8 @@ struct Iterate {
     cost: CostParts,
 }
 
-/// Halvings before a line search gives up.
-const MAX_HALVINGS: usize = 40;
+/// Shorter steps tried before a line search gives up.
+const MAX_HALVINGS: usize = 30;
 const ARMIJO: f64 = 1e-4;
 
 /// Runs `iterations` descents; `each(iteration, states)` sees every iterate.
@@ -118,10 +121,11 @@ pub fn solve(
     let mut step = 1.0;
     let mut stalled_at = None;
     let mut memory = Memory::default();
+    let quasi_newton = descent == Descent::QuasiNewton;
     for index in 1..=iterations {
         let mut kind = descent.kind(index - 1);
         let mut taken = match kind {
-            Kind::Global => global(problem, &mut it, step, &mut memory),
+            Kind::Global => global(problem, &mut it, step, &mut memory, quasi_newton),
             _ => {
                 memory.clear();
                 local(problem, &mut it, step)
@@ -131,7 +135,7 @@ pub fn solve(
         // may jump to another solution (section 4.3).
         if taken.is_none() && kind == Kind::Local && descent != Descent::Local {
             kind = Kind::Global;
-            taken = global(problem, &mut it, step, &mut memory);
+            taken = global(problem, &mut it, step, &mut memory, false);
         }
         let Some(taken) = taken else {
             stalled_at = Some(index);
@@ -211,7 +215,10 @@ fn moved(a: &[f64], d: &[f64], rho: f64) -> Vec<f64> {
     a.iter().zip(d).map(|(a, d)| a + rho * d).collect()
 }
 
-/// Backtracks from `rho` until `trial(rho)` lowers J enough; `None` when no step does.
+/// Backtracks from `rho`, halving, until `trial(rho)` lowers J enough; `None` when no step
+/// does. (A parabolic step, Nocedal and Wright section 3.5, took fewer trials on `density` but
+/// on `letters`, whose cost jumps as trajectories swap sides, it ran 3,615 model runs to a
+/// worse result than halving's 300: BENCHMARKS.md.)
 fn line_search<T>(
     start: f64,
     slope: f64,
@@ -233,7 +240,16 @@ fn line_search<T>(
 }
 
 /// One global iteration (eq. 14-15): returns the step taken.
-fn global(problem: &Problem, it: &mut Iterate, rho: f64, memory: &mut Memory) -> Option<f64> {
+fn global(
+    problem: &Problem,
+    it: &mut Iterate,
+    rho: f64,
+    memory: &mut Memory,
+    quasi_newton: bool,
+) -> Option<f64> {
+    if !quasi_newton {
+        memory.clear();
+    }
     let run = match it.run.take() {
         Some(run) => run,
         None => {
@@ -265,7 +281,7 @@ fn global(problem: &Problem, it: &mut Iterate, rho: f64, memory: &mut Memory) ->
         }
         // The curvature pairs led nowhere: start again from the paper's direction.
         memory.clear();
-        return global(problem, it, rho, memory);
+        return global(problem, it, rho, memory, false);
     };
     it.shift = shift;
     it.controls = controls;

@@ -175,7 +175,7 @@ pub fn setup(o: &Overrides) -> Result<Setup, EditError> {
     Ok(Setup {
         name: "letters",
         problem,
-        descent: Descent::Global,
+        descent: Descent::QuasiNewton,
         iterations: 200,
         groups,
         marks,

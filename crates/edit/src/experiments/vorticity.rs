@@ -119,7 +119,7 @@ pub fn setup(o: &Overrides) -> Result<Setup, EditError> {
     Ok(Setup {
         name: "vorticity",
         problem,
-        descent: Descent::Global,
+        descent: Descent::QuasiNewton,
         iterations: 25,
         groups,
         marks: vec![Mark::Area {
