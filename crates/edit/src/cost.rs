@@ -236,6 +236,21 @@ impl Problem {
         Run::forward(&self.model, self.timeline, &x0, controls)
     }
 
+    /// The run up to the last constrained step: enough for the cost and its gradient.
+    pub fn run_to_horizon(&self, shift: &[f64], controls: &[f64]) -> Run {
+        let x0: Vec<f64> = self.initial.iter().zip(shift).map(|(a, b)| a + b).collect();
+        Run::forward_until(&self.model, self.timeline, &x0, controls, self.horizon())
+    }
+
+    /// The last step any constraint reads.
+    pub fn horizon(&self) -> usize {
+        self.constraints
+            .iter()
+            .flat_map(|c| c.samples.iter().map(|s| s.step))
+            .max()
+            .unwrap_or(0)
+    }
+
     /// J's three terms for a trajectory `states` reached with these errors.
     pub fn cost(&self, shift: &[f64], controls: &[f64], states: &[f64]) -> CostParts {
         let n = self.n();
@@ -273,7 +288,8 @@ impl Problem {
     /// its constraints' term alone.
     pub fn gradient(&self, run: &Run, shift: &[f64], controls: &[f64]) -> Gradient {
         let penalise = self.objective == Objective::Cost;
-        let (mu0, ebar) = run.adjoint(&self.model, |k, x, mu| self.observation_forcing(k, x, mu));
+        let forcing = |k: usize, x: &[f64], mu: &mut [f64]| self.observation_forcing(k, x, mu);
+        let (mu0, ebar) = run.adjoint_from(&self.model, self.horizon(), forcing);
         let n = self.n();
         let c = &self.covariances;
         let dt = self.timeline.dt;

@@ -267,7 +267,7 @@ fn global(
     let found = line_search(start, d.slope, rho, |rho| {
         let shift = moved(&it.shift, &d.shift, rho);
         let controls = moved(&it.controls, &d.controls, rho);
-        let run = problem.run(&shift, &controls);
+        let run = problem.run_to_horizon(&shift, &controls);
         let cost = problem.cost(&shift, &controls, &run.states);
         (
             cost.objective(problem.objective),
@@ -283,6 +283,8 @@ fn global(
         memory.clear();
         return global(problem, it, rho, memory, false);
     };
+    let mut run = run;
+    run.finish(&problem.model, &controls);
     it.shift = shift;
     it.controls = controls;
     it.states = run.states.clone();

@@ -35,6 +35,9 @@ pub struct Run {
     pub timeline: Timeline,
     pub states: Vec<f64>,
     stages: Vec<f64>,
+    /// The last step integrated (`timeline.steps` once the run is whole); the states after it
+    /// are zero until `finish`.
+    reached: usize,
 }
 
 impl Run {
@@ -52,17 +55,40 @@ impl Run {
 
     /// The run of the model from `x0` under `controls` (one state-sized block per step).
     pub fn forward(model: &Model, timeline: Timeline, x0: &[f64], controls: &[f64]) -> Run {
+        Run::forward_until(model, timeline, x0, controls, timeline.steps)
+    }
+
+    /// The run up to step `until` only: what a cost whose last constraint is there needs (a
+    /// line search's trials), `finish` doing the rest for the step it keeps.
+    pub fn forward_until(
+        model: &Model,
+        timeline: Timeline,
+        x0: &[f64],
+        controls: &[f64],
+        until: usize,
+    ) -> Run {
         let n = x0.len();
         let mut run = Run::blank(n, timeline);
         run.states[..n].copy_from_slice(x0);
+        run.integrate(model, controls, until.min(timeline.steps));
+        run
+    }
+
+    /// Integrates the rest of the timeline.
+    pub fn finish(&mut self, model: &Model, controls: &[f64]) {
+        self.integrate(model, controls, self.timeline.steps);
+    }
+
+    fn integrate(&mut self, model: &Model, controls: &[f64], until: usize) {
+        let n = self.n;
         let mut work = Work::new(n);
-        for k in 0..timeline.steps {
-            let (done, rest) = run.states.split_at_mut((k + 1) * n);
-            let stages = &mut run.stages[3 * k * n..3 * (k + 1) * n];
+        for k in self.reached..until {
+            let (done, rest) = self.states.split_at_mut((k + 1) * n);
+            let stages = &mut self.stages[3 * k * n..3 * (k + 1) * n];
             let e = &controls[k * n..(k + 1) * n];
             step(
                 model,
-                timeline.dt,
+                self.timeline.dt,
                 &done[k * n..],
                 e,
                 stages,
@@ -70,7 +96,7 @@ impl Run {
                 &mut work,
             );
         }
-        run
+        self.reached = self.reached.max(until);
     }
 
     /// The linearisation points of an arbitrary trajectory (the local descent's, which the
@@ -96,6 +122,7 @@ impl Run {
             }
         }
         run.states = states;
+        run.reached = timeline.steps;
         run
     }
 
@@ -105,6 +132,7 @@ impl Run {
             timeline,
             states: vec![0.0; (timeline.steps + 1) * n],
             stages: vec![0.0; 3 * timeline.steps * n],
+            reached: 0,
         }
     }
 
@@ -144,21 +172,33 @@ impl Run {
         out
     }
 
-    /// The adjoint model along this run, backwards from the end: `forcing(k, X_k, mu)` adds
-    /// d(cost)/dX_k to mu. Returns d(cost)/dX_0 and d(cost)/d(eps_k) for every step.
+    /// The adjoint model along this run, backwards from the last step it reached:
+    /// `forcing(k, X_k, mu)` adds d(cost)/dX_k to mu (a cost that reads no state after that
+    /// step has a zero adjoint there). Returns d(cost)/dX_0 and d(cost)/d(eps_k) for every step.
     pub fn adjoint(
         &self,
         model: &Model,
+        forcing: impl FnMut(usize, &[f64], &mut [f64]),
+    ) -> (Vec<f64>, Vec<f64>) {
+        self.adjoint_from(model, self.reached, forcing)
+    }
+
+    /// The adjoint from step `last` back (no forcing after it: the adjoint is zero there).
+    pub fn adjoint_from(
+        &self,
+        model: &Model,
+        last: usize,
         mut forcing: impl FnMut(usize, &[f64], &mut [f64]),
     ) -> (Vec<f64>, Vec<f64>) {
         let (n, dt, steps) = (self.n, self.timeline.dt, self.timeline.steps);
+        let last = last.min(self.reached);
         let mut mu = vec![0.0; n];
         let mut controls = vec![0.0; steps * n];
-        forcing(steps, self.state(steps), &mut mu);
+        forcing(last, self.state(last), &mut mu);
         let mut work = Work::new(n);
         let mut kbar = vec![vec![0.0; n]; 4];
         let mut zbar = vec![0.0; n];
-        for k in (0..steps).rev() {
+        for k in (0..last).rev() {
             let ebar = &mut controls[k * n..(k + 1) * n];
             for (s, w) in [1.0, 2.0, 2.0, 1.0].into_iter().enumerate() {
                 for m in 0..n {

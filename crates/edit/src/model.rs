@@ -61,6 +61,13 @@ impl Repulsion {
     fn negligible(&self) -> f64 {
         (self.strength / NEGLIGIBLE_FORCE).ln()
     }
+
+    /// How far apart two characters whose radii sum at most to `radii` still push each other
+    /// more than negligibly: the pair search looks no farther (3 m: 2.4 m for the paper's
+    /// radii, which halves the candidates).
+    fn reach(&self, radii: f64) -> f64 {
+        self.cutoff.min(radii + self.range * self.negligible())
+    }
 }
 
 impl Default for Repulsion {
@@ -143,6 +150,12 @@ impl Model {
         self.characters.len()
     }
 
+    /// The distance within which pairs are searched.
+    fn search_radius(&self) -> f64 {
+        let largest = self.characters.iter().map(|c| c.radius).fold(0.0, f64::max);
+        self.repulsion.reach(2.0 * largest)
+    }
+
     pub fn is_empty(&self) -> bool {
         self.characters.is_empty()
     }
@@ -220,7 +233,7 @@ impl Model {
 
     /// f(X): dy/dt = u, du/dt = F(y, u) / m (eq. 16-18, 26).
     pub fn rhs(&self, x: &[f64], pairs: &mut Pairs, out: &mut [f64]) {
-        pairs.near(x, self.repulsion.cutoff);
+        pairs.near(x, self.search_radius());
         for (i, c) in self.characters.iter().enumerate() {
             let (p, u) = (position(x, i), velocity(x, i));
             let f = self.field_force(i, p).force - u * c.fatigue;
@@ -246,7 +259,7 @@ impl Model {
 
     /// The tangent-linear model: J(X) v, J = [[0, I], [F_y / m, F_u / m]] (eq. 11).
     pub fn jvp(&self, x: &[f64], v: &[f64], pairs: &mut Pairs, out: &mut [f64]) {
-        pairs.near(x, self.repulsion.cutoff);
+        pairs.near(x, self.search_radius());
         for (i, c) in self.characters.iter().enumerate() {
             let (dp, du) = (position(v, i), velocity(v, i));
             let df = self.field_force(i, position(x, i)).jacobian.mul(dp) - du * c.fatigue;
@@ -266,7 +279,7 @@ impl Model {
 
     /// The adjoint model: J(X)^T w (eq. 27-29; the pair part is the symmetric Laplacian L).
     pub fn vjp(&self, x: &[f64], w: &[f64], pairs: &mut Pairs, out: &mut [f64]) {
-        pairs.near(x, self.repulsion.cutoff);
+        pairs.near(x, self.search_radius());
         // a = w_u / m is what the forces' derivatives are transposed against.
         let a = |i: usize| velocity(w, i) / self.characters[i].mass;
         for (i, c) in self.characters.iter().enumerate() {
