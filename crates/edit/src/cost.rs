@@ -274,12 +274,7 @@ impl Problem {
     pub fn observation_forcing(&self, k: usize, x: &[f64], mu: &mut [f64]) {
         for c in &self.constraints {
             for s in c.samples.iter().filter(|s| s.step == k) {
-                let mut out = vec![0.0; c.operator.len()];
-                c.operator.observe(x, &mut out);
-                for (o, y) in out.iter_mut().zip(&s.target) {
-                    *o = s.weight * (*o - y) / c.r;
-                }
-                c.operator.adjoint_add(x, &out, mu);
+                c.operator.misfit_adjoint(x, &s.target, s.weight / c.r, mu);
             }
         }
     }
@@ -287,9 +282,21 @@ impl Problem {
     /// The exact gradient of the objective along `run` (one adjoint integration): of J, or of
     /// its constraints' term alone.
     pub fn gradient(&self, run: &Run, shift: &[f64], controls: &[f64]) -> Gradient {
+        self.gradient_with(&self.model, run, shift, controls)
+    }
+
+    /// [`Problem::gradient`] with another linearisation of the same model (`model` differs
+    /// from `self.model` in `linearisation` only).
+    pub fn gradient_with(
+        &self,
+        model: &Model,
+        run: &Run,
+        shift: &[f64],
+        controls: &[f64],
+    ) -> Gradient {
         let penalise = self.objective == Objective::Cost;
         let forcing = |k: usize, x: &[f64], mu: &mut [f64]| self.observation_forcing(k, x, mu);
-        let (mu0, ebar) = run.adjoint_from(&self.model, self.horizon(), forcing);
+        let (mu0, ebar) = run.adjoint_from(model, self.horizon(), forcing);
         let n = self.n();
         let c = &self.covariances;
         let dt = self.timeline.dt;

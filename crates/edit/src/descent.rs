@@ -18,6 +18,7 @@
 
 use crate::cost::{CostParts, Problem};
 use crate::integrate::Run;
+use crate::model::{Linearisation, Model};
 use crate::quasi_newton::Memory;
 use serde::{Deserialize, Serialize};
 
@@ -97,6 +98,8 @@ struct Iterate {
 /// Shorter steps tried before a line search gives up.
 const MAX_HALVINGS: usize = 30;
 const ARMIJO: f64 = 1e-4;
+/// How much deeper than now a global step may push two characters into each other, m.
+const GLOBAL_OVERLAP: f64 = 0.02;
 
 /// Runs `iterations` descents; `each(iteration, states)` sees every iterate.
 pub fn solve(
@@ -179,8 +182,14 @@ struct Direction {
 
 /// The paper's direction d eps = Q lambda, d eps_0 = B lambda(t_0) / T (steepest descent in
 /// the metric of Q and B) or, given a memory, its L-BFGS correction.
-fn direction(problem: &Problem, run: &Run, it: &Iterate, memory: Option<&mut Memory>) -> Direction {
-    let g = problem.gradient(run, &it.shift, &it.controls);
+fn direction(
+    problem: &Problem,
+    model: &Model,
+    run: &Run,
+    it: &Iterate,
+    memory: Option<&mut Memory>,
+) -> Direction {
+    let g = problem.gradient_with(model, run, &it.shift, &it.controls);
     let n = problem.n();
     let c = &problem.covariances;
     let (dt, t) = (problem.timeline.dt, problem.timeline.duration());
@@ -239,7 +248,10 @@ fn line_search<T>(
     None
 }
 
-/// One global iteration (eq. 14-15): returns the step taken.
+/// One global iteration (eq. 14-15): returns the step taken. Tries, in turn, until one lowers
+/// the cost: the L-BFGS direction (when `quasi_newton` and it has curvature pairs), the paper's
+/// direction, and the paper's direction from the exact linearisation (always a way down for a
+/// short enough step, however short).
 fn global(
     problem: &Problem,
     it: &mut Iterate,
@@ -260,37 +272,62 @@ fn global(
             run
         }
     };
-    // With curvature pairs the direction is scaled: try its whole length first.
-    let rho = if memory.is_empty() { rho } else { 1.0 };
-    let d = direction(problem, &run, it, Some(memory));
-    let start = it.cost.objective(problem.objective);
-    let found = line_search(start, d.slope, rho, |rho| {
-        let shift = moved(&it.shift, &d.shift, rho);
-        let controls = moved(&it.controls, &d.controls, rho);
-        let run = problem.run_to_horizon(&shift, &controls);
-        let cost = problem.cost(&shift, &controls, &run.states);
-        (
-            cost.objective(problem.objective),
-            (shift, controls, run, cost),
-        )
-    });
-    let Some((rho, (shift, controls, run, cost))) = found else {
-        it.run = Some(run);
-        if memory.is_empty() {
-            return None;
-        }
-        // The curvature pairs led nowhere: start again from the paper's direction.
-        memory.clear();
-        return global(problem, it, rho, memory, false);
+    let n = problem.n();
+    let horizon = (problem.horizon() + 1) * n;
+    // A step may not push two characters into each other deeper than they already are
+    // (less 2 cm) before the last constraint: the model's repulsion is a force, not a
+    // guarantee, and a strong enough control overpowers it.
+    let floor = problem.model.clearance(&it.states[..horizon]).0.min(0.0) - GLOBAL_OVERLAP;
+    let exact = Model {
+        linearisation: Linearisation::Exact,
+        ..problem.model.clone()
     };
-    let mut run = run;
-    run.finish(&problem.model, &controls);
-    it.shift = shift;
-    it.controls = controls;
-    it.states = run.states.clone();
+    let mut tries: Vec<(&Model, bool)> = Vec::new();
+    if !memory.is_empty() {
+        tries.push((&problem.model, true));
+    }
+    tries.push((&problem.model, false));
+    if problem.model.linearisation != Linearisation::Exact {
+        tries.push((&exact, false));
+    }
+    for (model, with_memory) in tries {
+        // With curvature pairs the direction is scaled: try its whole length first.
+        let first = if with_memory { 1.0 } else { rho };
+        if !with_memory {
+            memory.clear();
+        }
+        let d = direction(
+            problem,
+            model,
+            &run,
+            it,
+            with_memory.then_some(&mut *memory),
+        );
+        let start = it.cost.objective(problem.objective);
+        let found = line_search(start, d.slope, first, |rho| {
+            let shift = moved(&it.shift, &d.shift, rho);
+            let controls = moved(&it.controls, &d.controls, rho);
+            let run = problem.run_to_horizon(&shift, &controls);
+            let cost = problem.cost(&shift, &controls, &run.states);
+            let value = if problem.model.clearance(&run.states[..horizon]).0 >= floor {
+                cost.objective(problem.objective)
+            } else {
+                f64::INFINITY
+            };
+            (value, (shift, controls, run, cost))
+        });
+        if let Some((rho, (shift, controls, mut run, cost))) = found {
+            run.finish(&problem.model, &controls);
+            it.shift = shift;
+            it.controls = controls;
+            it.states = run.states.clone();
+            it.run = Some(run);
+            it.cost = cost;
+            return Some(rho);
+        }
+    }
     it.run = Some(run);
-    it.cost = cost;
-    Some(rho)
+    None
 }
 
 /// One local iteration (eq. 11-13): returns the step taken.
@@ -299,7 +336,7 @@ fn local(problem: &Problem, it: &mut Iterate, rho: f64) -> Option<f64> {
         Some(run) => run,
         None => Run::along(problem.timeline, it.states.clone()),
     };
-    let d = direction(problem, &run, it, None);
+    let d = direction(problem, &problem.model, &run, it, None);
     let dx = run.tangent(&problem.model, &d.shift, &d.controls);
     let gap = problem.model.clearance(&it.states).0;
     let start = it.cost.objective(problem.objective);

@@ -28,6 +28,16 @@ pub trait Observe: Send + Sync {
     fn tangent(&self, x: &[f64], dx: &[f64], out: &mut [f64]);
     /// out += H'(X)^T dy.
     fn adjoint_add(&self, x: &[f64], dy: &[f64], out: &mut [f64]);
+    /// out += H'(X)^T (scale (H(X) - y)): a constraint's forcing of the adjoint at one step.
+    /// Operators whose H and H'^T share work (the kernel moments) do it once.
+    fn misfit_adjoint(&self, x: &[f64], y: &[f64], scale: f64, out: &mut [f64]) {
+        let mut h = vec![0.0; self.len()];
+        self.observe(x, &mut h);
+        for (h, y) in h.iter_mut().zip(y) {
+            *h = scale * (*h - y);
+        }
+        self.adjoint_add(x, &h, out);
+    }
 }
 
 /// The positions of chosen characters (eq. 31): two numbers each.
@@ -271,6 +281,18 @@ fn velocity_tangent(grid: &EulerGrid, x: &[f64], dx: &[f64], window: Window) -> 
 
 fn velocity_adjoint(grid: &EulerGrid, x: &[f64], v_bar: &[DVec2], window: Window, out: &mut [f64]) {
     let m = grid.moments(x, window);
+    velocity_adjoint_at(grid, x, &m, v_bar, window, out);
+}
+
+/// [`velocity_adjoint`] with the moments at `x` already made.
+fn velocity_adjoint_at(
+    grid: &EulerGrid,
+    x: &[f64],
+    m: &Moments,
+    v_bar: &[DVec2],
+    window: Window,
+    out: &mut [f64],
+) {
     let mut rho_bar = vec![0.0; grid.cells()];
     let mut mom_bar = vec![DVec2::ZERO; grid.cells()];
     for c in 0..grid.cells() {
@@ -317,6 +339,15 @@ impl Observe for Velocity {
         let window = Window::around(&self.grid, &self.cells, 0);
         velocity_adjoint(&self.grid, x, &v_bar, window, out);
     }
+    fn misfit_adjoint(&self, x: &[f64], y: &[f64], scale: f64, out: &mut [f64]) {
+        let window = Window::around(&self.grid, &self.cells, 0);
+        let (v, m) = velocity_field(&self.grid, x, window);
+        let mut v_bar = vec![DVec2::ZERO; self.grid.cells()];
+        for (y, &c) in y.chunks_exact(2).zip(&self.cells) {
+            v_bar[c] += (v[c] - DVec2::new(y[0], y[1])) * scale;
+        }
+        velocity_adjoint_at(&self.grid, x, &m, &v_bar, window, out);
+    }
 }
 
 /// The vorticity (curl) of the Eulerian velocity at chosen cells, 1/s.
@@ -360,6 +391,24 @@ impl Observe for Vorticity {
         self.curl(&velocity_tangent(&self.grid, x, dx, window), out);
     }
     fn adjoint_add(&self, x: &[f64], dy: &[f64], out: &mut [f64]) {
+        let window = Window::around(&self.grid, &self.cells, 1);
+        velocity_adjoint(&self.grid, x, &self.curl_transpose(dy), window, out);
+    }
+    fn misfit_adjoint(&self, x: &[f64], y: &[f64], scale: f64, out: &mut [f64]) {
+        let window = Window::around(&self.grid, &self.cells, 1);
+        let (v, m) = velocity_field(&self.grid, x, window);
+        let mut w = vec![0.0; self.cells.len()];
+        self.curl(&v, &mut w);
+        for (w, y) in w.iter_mut().zip(y) {
+            *w = scale * (*w - y);
+        }
+        velocity_adjoint_at(&self.grid, x, &m, &self.curl_transpose(&w), window, out);
+    }
+}
+
+impl Vorticity {
+    /// The differences' transpose: the velocity adjoint of a vorticity adjoint `dy`.
+    fn curl_transpose(&self, dy: &[f64]) -> Vec<DVec2> {
         let mut v_bar = vec![DVec2::ZERO; self.grid.cells()];
         for (d, &c) in dy.iter().zip(&self.cells) {
             let (xl, xh, sx) = self.stencil(c, true);
@@ -369,7 +418,6 @@ impl Observe for Vorticity {
             v_bar[yh].x -= d * sy;
             v_bar[yl].x += d * sy;
         }
-        let window = Window::around(&self.grid, &self.cells, 1);
-        velocity_adjoint(&self.grid, x, &v_bar, window, out);
+        v_bar
     }
 }

@@ -264,6 +264,15 @@ fn every_observation_operator_has_an_exact_tangent_and_adjoint() {
             op.adjoint_add(&x, &dy, &mut adjoint);
             let err = agree_to(dot(&tangent, &dy), dot(&dx, &adjoint));
             assert!(err < 1e-10, "seed {seed}, {name}: adjoint identity {err:e}");
+            // A constraint's forcing, made in one pass, is the adjoint of its misfit.
+            let mut h = vec![0.0; op.len()];
+            op.observe(&x, &mut h);
+            let scaled: Vec<f64> = h.iter().zip(&dy).map(|(h, y)| 0.3 * (h - y)).collect();
+            let (mut apart, mut together) = (vec![0.0; x.len()], vec![0.0; x.len()]);
+            op.adjoint_add(&x, &scaled, &mut apart);
+            op.misfit_adjoint(&x, &dy, 0.3, &mut together);
+            let err = relative(&together, &apart);
+            assert!(err < 1e-12, "seed {seed}, {name}: misfit adjoint {err:e}");
         }
     }
 }
