@@ -2,11 +2,11 @@
 //! walkers' positions pulls them to the point asked (section 6.1), the cost never rises along
 //! a descent, and the edit pushes no one into anyone deeper than the unedited crowd.
 
-use crowd_edit::cost::Objective;
+use crowd_edit::experiments::paper_problem;
 use crowd_edit::integrate::Timeline;
-use crowd_edit::model::{Character, Linearisation, Model, Repulsion, position};
+use crowd_edit::model::{Character, position};
 use crowd_edit::observe::Positions;
-use crowd_edit::{Constraint, Covariances, Descent, Problem, Rect, World, solve};
+use crowd_edit::{Constraint, Descent, Problem, Rect, World, solve};
 use glam::DVec2;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -18,12 +18,12 @@ fn meeting(seed: u64) -> (Problem, DVec2, [usize; 2]) {
     let bounds = Rect::new(DVec2::ZERO, DVec2::new(30.0, 12.0));
     let goal = Rect::new(DVec2::new(29.5, 0.0), DVec2::new(30.0, 12.0));
     let world = World::new(bounds, vec![], vec![goal]);
-    let mut x = Vec::new();
+    let mut places = Vec::new();
     let mut characters = Vec::new();
     for k in 0..12 {
         let p = DVec2::new(3.0 + (k % 4) as f64 * 1.1, 4.5 + (k / 4) as f64 * 1.1)
             + DVec2::new(rng.random_range(-0.15..0.15), rng.random_range(-0.15..0.15));
-        x.extend_from_slice(&[p.x, p.y, 0.0, 0.0]);
+        places.push(p);
         characters.push(Character::standard(rng.random_range(0.25..0.35), 0));
     }
     let timeline = Timeline {
@@ -42,19 +42,14 @@ fn meeting(seed: u64) -> (Problem, DVec2, [usize; 2]) {
         |_| flat.clone(),
     )
     .unwrap();
-    let problem = Problem {
-        model: Model {
-            characters,
-            world,
-            repulsion: Repulsion::default(),
-            linearisation: Linearisation::Radial,
-        },
+    let problem = paper_problem(
+        characters,
+        world,
         timeline,
-        initial: x,
-        covariances: Covariances::velocity_only(100.0),
-        constraints: vec![constraint],
-        objective: Objective::Constraints,
-    };
+        &places,
+        100.0,
+        vec![constraint],
+    );
     (problem, target, who)
 }
 

@@ -5,13 +5,13 @@
 //! give: the paper over-constrains on purpose). Q_u = 0.1 m^2/s^4, R = 10 people^2/m^4, global
 //! descent, 200 iterations.
 
-use super::scenes::{at_rest, block, check_place, rng};
+use super::scenes::{block, check_place, paper_problem, rng};
 use super::{Mark, Overrides, Setup};
-use crate::cost::{Constraint, Covariances, Objective, Problem};
+use crate::cost::Constraint;
 use crate::descent::Descent;
 use crate::error::EditError;
 use crate::integrate::Timeline;
-use crate::model::{Character, Linearisation, Model, Repulsion};
+use crate::model::Character;
 use crate::observe::{Density, EulerGrid};
 use crate::world::{Rect, World};
 use glam::DVec2;
@@ -79,19 +79,7 @@ pub fn setup(o: &Overrides) -> Result<Setup, EditError> {
             to: window.1,
         });
     }
-    let problem = Problem {
-        model: Model {
-            characters,
-            world,
-            repulsion: Repulsion::default(),
-            linearisation: Linearisation::Radial,
-        },
-        timeline,
-        initial: at_rest(&places),
-        covariances: Covariances::velocity_only(0.1),
-        objective: Objective::Constraints,
-        constraints,
-    };
+    let problem = paper_problem(characters, world, timeline, &places, 0.1, constraints);
     Ok(Setup {
         name: "density",
         problem,

@@ -12,13 +12,13 @@
 //! field (Courty and Corpetti 2007), and the simulation with the field added to the velocity in
 //! eq. 16.
 
-use super::scenes::{at_rest, block, drawn, rng};
+use super::scenes::{block, drawn, paper_problem, rng};
 use super::{Overrides, Series, Setup};
-use crate::cost::{Constraint, Covariances, Objective, Problem};
+use crate::cost::{Constraint, Problem};
 use crate::descent::{Descent, Outcome};
 use crate::error::EditError;
 use crate::integrate::Timeline;
-use crate::model::{Linearisation, Model, Repulsion, position};
+use crate::model::position;
 use crate::neighbours::Pairs;
 use crate::observe::{EulerGrid, Observe, Velocity};
 use crate::world::{Rect, World};
@@ -110,19 +110,14 @@ pub fn setup(o: &Overrides) -> Result<Setup, EditError> {
     let r = o.r.unwrap_or(0.05);
     let window = (0.0, timeline.duration());
     let constraint = Constraint::over_window("video flow", operator, timeline, window, r, target)?;
-    let problem = Problem {
-        model: Model {
-            characters,
-            world,
-            repulsion: Repulsion::default(),
-            linearisation: Linearisation::Radial,
-        },
+    let problem = paper_problem(
+        characters,
+        world,
         timeline,
-        initial: at_rest(&places),
-        covariances: Covariances::velocity_only(100.0),
-        objective: Objective::Constraints,
-        constraints: vec![constraint],
-    };
+        &places,
+        100.0,
+        vec![constraint],
+    );
     Ok(Setup {
         name: "flow",
         problem,

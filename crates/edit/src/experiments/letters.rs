@@ -7,13 +7,12 @@
 //! member nearest to it in the unedited run (greedily, the closest remaining couple first), so
 //! the edit moves people as little as the letter allows.
 
-use super::scenes::{at_rest, block, check_place, drawn, positions_at, rng};
+use super::scenes::{block, check_place, drawn, paper_problem, positions_at, rng};
 use super::{Mark, Overrides, Setup};
-use crate::cost::{Constraint, Covariances, Objective, Problem};
+use crate::cost::Constraint;
 use crate::descent::Descent;
 use crate::error::EditError;
 use crate::integrate::Timeline;
-use crate::model::{Linearisation, Model, Repulsion};
 use crate::observe::Positions;
 use crate::world::{Rect, World};
 use glam::DVec2;
@@ -114,20 +113,7 @@ pub fn setup(o: &Overrides) -> Result<Setup, EditError> {
         dt: 0.1,
         steps: 280,
     };
-    let model = Model {
-        characters,
-        world,
-        repulsion: Repulsion::default(),
-        linearisation: Linearisation::Radial,
-    };
-    let mut problem = Problem {
-        model,
-        timeline,
-        initial: at_rest(&places),
-        covariances: Covariances::velocity_only(100.0),
-        objective: Objective::Constraints,
-        constraints: vec![],
-    };
+    let mut problem = paper_problem(characters, world, timeline, &places, 100.0, vec![]);
     // Where each group would be, unedited, when the letters are asked for.
     let free = problem.run(
         &vec![0.0; problem.n()],

@@ -18,7 +18,7 @@ use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::time::Instant;
 
-pub use scenes::{clearance, positions_at};
+pub use scenes::{clearance, paper_problem, positions_at};
 
 /// The experiments' names, in the paper's order.
 pub const NAMES: [&str; 5] = ["rendez-vous", "letters", "density", "vorticity", "flow"];

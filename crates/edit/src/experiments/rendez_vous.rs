@@ -5,13 +5,12 @@
 //! exact one the pressed group's linearised dynamics grow without bound and the local descent
 //! stalls 8.6 m short).
 
-use super::scenes::{at_rest, block, check_place, drawn, positions_at, rng};
+use super::scenes::{block, check_place, drawn, paper_problem, positions_at, rng};
 use super::{Mark, Overrides, Setup};
-use crate::cost::{Constraint, Covariances, Objective, Problem};
+use crate::cost::Constraint;
 use crate::descent::{Descent, Outcome};
 use crate::error::EditError;
 use crate::integrate::Timeline;
-use crate::model::{Linearisation, Model, Repulsion};
 use crate::observe::Positions;
 use crate::world::{Rect, World};
 use glam::DVec2;
@@ -49,19 +48,14 @@ pub fn setup(o: &Overrides) -> Result<Setup, EditError> {
     let constraint = Constraint::over_window("meet", operator, timeline, (time, time), r, |_| {
         target.clone()
     })?;
-    let problem = Problem {
-        model: Model {
-            characters,
-            world,
-            repulsion: Repulsion::default(),
-            linearisation: Linearisation::Radial,
-        },
+    let problem = paper_problem(
+        characters,
+        world,
         timeline,
-        initial: at_rest(&places),
-        covariances: Covariances::velocity_only(100.0),
-        objective: Objective::Constraints,
-        constraints: vec![constraint],
-    };
+        &places,
+        100.0,
+        vec![constraint],
+    );
     let others = (0..PEOPLE).filter(|i| !who.contains(i)).collect();
     Ok(Setup {
         name: "rendez-vous",

@@ -2,9 +2,11 @@
 //! (radii drawn in [0.25, 0.35] m), the check that a constraint lies in the walkable world, and
 //! the project's collision measure.
 
-use crate::cost::Problem;
+use crate::Timeline;
+use crate::cost::{Constraint, Covariances, Objective, Problem};
 use crate::error::EditError;
 use crate::model::{Character, position};
+use crate::model::{Linearisation, Model, Repulsion};
 use crate::world::World;
 use glam::DVec2;
 use rand::{Rng, SeedableRng};
@@ -56,6 +58,33 @@ pub fn drawn(rng: &mut ChaCha8Rng, goal: usize) -> Character {
 /// A state with everyone standing at `places`.
 pub fn at_rest(places: &[DVec2]) -> Vec<f64> {
     places.iter().flat_map(|p| [p.x, p.y, 0.0, 0.0]).collect()
+}
+
+/// The editing problem as the paper's section 6 poses it: everyone standing at `places` at
+/// t = 0, the paper's repulsion, the model error on velocities only (Q_y = 0, Q_u =
+/// `q_velocity`, B = 0), the paper's updates (`Objective::Constraints`), and the radial
+/// linearisation that keeps crossings tractable (`model::Linearisation`).
+pub fn paper_problem(
+    characters: Vec<Character>,
+    world: World,
+    timeline: Timeline,
+    places: &[DVec2],
+    q_velocity: f64,
+    constraints: Vec<Constraint>,
+) -> Problem {
+    Problem {
+        model: Model {
+            characters,
+            world,
+            repulsion: Repulsion::default(),
+            linearisation: Linearisation::Radial,
+        },
+        timeline,
+        initial: at_rest(places),
+        covariances: Covariances::velocity_only(q_velocity),
+        objective: Objective::Constraints,
+        constraints,
+    }
 }
 
 /// Refuses a constraint place outside the walkable world.

@@ -4,13 +4,12 @@
 //! the scene (R = 0.2 s^-2, Q_u = 100 m^2/s^4, global descent; the paper shows 25 iterations).
 //! Figure 9's measure, the mean arrival time per group, is computed at every iteration.
 
-use super::scenes::{at_rest, block, drawn, positions_at, rng};
+use super::scenes::{block, drawn, paper_problem, positions_at, rng};
 use super::{Mark, Overrides, PerIteration, Setup};
-use crate::cost::{Constraint, Covariances, Objective, Problem};
+use crate::cost::{Constraint, Problem};
 use crate::descent::Descent;
 use crate::error::EditError;
 use crate::integrate::Timeline;
-use crate::model::{Linearisation, Model, Repulsion};
 use crate::observe::{EulerGrid, Vorticity};
 use crate::world::{Rect, World};
 use glam::DVec2;
@@ -91,19 +90,14 @@ pub fn setup(o: &Overrides) -> Result<Setup, EditError> {
         r,
         |_| target.clone(),
     )?;
-    let problem = Problem {
-        model: Model {
-            characters,
-            world,
-            repulsion: Repulsion::default(),
-            linearisation: Linearisation::Radial,
-        },
+    let problem = paper_problem(
+        characters,
+        world,
         timeline,
-        initial: at_rest(&places),
-        covariances: Covariances::velocity_only(100.0),
-        objective: Objective::Constraints,
-        constraints: vec![constraint],
-    };
+        &places,
+        100.0,
+        vec![constraint],
+    );
     let per_iteration = groups
         .iter()
         .enumerate()
