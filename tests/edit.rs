@@ -36,7 +36,15 @@ fn bad_input_to_crowd_edit_names_what_is_wrong_and_writes_nothing() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("out");
     let o = out.to_str().unwrap();
-    let cases: [(&[&str], &str); 6] = [
+    let cases: [(&[&str], &str); 8] = [
+        (
+            &["--experiment", "density", "--iterations", "100000000"],
+            "--iterations is 100000000; expected 1 to 10000",
+        ),
+        (
+            &["--experiment", "density", "--r", "1e-300"],
+            "the descent found no step that lowers the cost from the unedited crowd",
+        ),
         (
             &["--experiment", "dance"],
             "unknown experiment `dance`; expected one of: rendez-vous",

@@ -38,8 +38,17 @@ pub fn run(command: &EditCommand, ui: &Ui) -> Result<PathBuf> {
         }
     })?;
     drop(bar);
-    write(&report, &dir)?;
     let f = &report.figures;
+    if f.iterations == 0 {
+        // Writing the unedited crowd as the edit would be an empty result that looks like one.
+        anyhow::bail!(
+            "experiment `{name}`: the descent found no step that lowers the cost from the \
+             unedited crowd (cost {:.4e}), so nothing was edited and nothing written; R or Q \
+             is likely out of scale (the experiment's own values work: drop --r and --q)",
+            f.cost_before
+        );
+    }
+    write(&report, &dir)?;
     ui.say(format!(
         "{name}: {} characters, {} iterations in {:.2} s; cost {:.4e} -> {:.4e}; closest gap {:.3} m ({} overlaps) -> {:.3} m ({} overlaps)",
         f.characters,
@@ -60,6 +69,11 @@ pub fn run(command: &EditCommand, ui: &Ui) -> Result<PathBuf> {
     }
     for (k, v) in &f.extra {
         ui.say(format!("  {k}: {v:.3}"));
+    }
+    if let Some(at) = f.stalled_at {
+        ui.say(format!(
+            "  note: the descent stopped at iteration {at}: no step along any direction lowered the cost"
+        ));
     }
     ui.say("  pictures: iterations.png, trajectories.png (what they show: crowd edit --help)");
     Ok(dir)

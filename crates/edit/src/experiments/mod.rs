@@ -23,6 +23,10 @@ pub use scenes::{clearance, paper_problem, positions_at};
 /// The experiments' names, in the paper's order.
 pub const NAMES: [&str; 5] = ["rendez-vous", "letters", "density", "vorticity", "flow"];
 
+/// The most descent iterations `--iterations` accepts: 50 times the paper's 200, a few minutes
+/// for the largest experiment, where more would look like a hang.
+pub const MAX_ITERATIONS: usize = 10_000;
+
 /// What a user may change from the command line; `None` keeps the experiment's own value.
 #[derive(Clone, Debug, Default)]
 pub struct Overrides {
@@ -127,11 +131,14 @@ pub fn setup(name: &str, overrides: &Overrides) -> Result<Setup, EditError> {
             experiment: name.to_string(),
         });
     }
-    if let Some(0) = overrides.iterations {
+    if let Some(n) = overrides
+        .iterations
+        .filter(|n| !(1..=MAX_ITERATIONS).contains(n))
+    {
         return Err(EditError::Setting {
             what: "--iterations".to_string(),
-            value: 0.0,
-            expected: "at least 1".to_string(),
+            value: n as f64,
+            expected: format!("1 to {MAX_ITERATIONS} (the paper runs 200)"),
         });
     }
     let mut setup = match name {
