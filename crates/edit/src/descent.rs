@@ -21,6 +21,7 @@ use crate::integrate::Run;
 use crate::model::{Linearisation, Model};
 use crate::quasi_newton::Memory;
 use serde::{Deserialize, Serialize};
+use std::cell::OnceCell;
 
 /// Which descent each iteration takes.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -278,19 +279,26 @@ fn global(
     // (less 2 cm) before the last constraint: the model's repulsion is a force, not a
     // guarantee, and a strong enough control overpowers it.
     let floor = problem.model.clearance(&it.states[..horizon]).0.min(0.0) - GLOBAL_OVERLAP;
-    let exact = Model {
-        linearisation: Linearisation::Exact,
-        ..problem.model.clone()
-    };
-    let mut tries: Vec<(&Model, bool)> = Vec::new();
+    // The exact linearisation's model (a copy of the world's fields) is made only when the
+    // cheaper directions have failed.
+    let exact: OnceCell<Model> = OnceCell::new();
+    let mut tries: Vec<(bool, bool)> = Vec::new();
     if !memory.is_empty() {
-        tries.push((&problem.model, true));
+        tries.push((false, true));
     }
-    tries.push((&problem.model, false));
+    tries.push((false, false));
     if problem.model.linearisation != Linearisation::Exact {
-        tries.push((&exact, false));
+        tries.push((true, false));
     }
-    for (model, with_memory) in tries {
+    for (use_exact, with_memory) in tries {
+        let model = if use_exact {
+            exact.get_or_init(|| Model {
+                linearisation: Linearisation::Exact,
+                ..problem.model.clone()
+            })
+        } else {
+            &problem.model
+        };
         // With curvature pairs the direction is scaled: try its whole length first.
         let first = if with_memory { 1.0 } else { rho };
         if !with_memory {
