@@ -8,6 +8,7 @@ use anyhow::{Context, Result};
 use crowd_core::Progress;
 use crowd_core::files::write_atomic;
 use crowd_edit::experiments::{self, Overrides, Report};
+use crowd_edit::{CONVERGED, CONVERGED_OVER, Stop};
 use std::path::{Path, PathBuf};
 
 /// What `crowd edit` was asked for.
@@ -70,10 +71,14 @@ pub fn run(command: &EditCommand, ui: &Ui) -> Result<PathBuf> {
     for (k, v) in &f.extra {
         ui.say(format!("  {k}: {v:.3}"));
     }
-    if let Some(at) = f.stalled_at {
-        ui.say(format!(
+    match f.stop {
+        Stop::Iterations => {}
+        Stop::Converged { at } => ui.say(format!(
+            "  converged at iteration {at}: the cost fell by less than {CONVERGED:e} over the last {CONVERGED_OVER}"
+        )),
+        Stop::Stalled { at } => ui.say(format!(
             "  note: the descent stopped at iteration {at}: no step along any direction lowered the cost"
-        ));
+        )),
     }
     ui.say("  pictures: iterations.png, trajectories.png (what they show: crowd edit --help)");
     Ok(dir)

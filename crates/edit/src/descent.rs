@@ -82,9 +82,26 @@ pub struct Outcome {
     pub controls: Vec<f64>,
     pub shift: Vec<f64>,
     pub log: Vec<Iteration>,
-    /// Set when a line search found no step that lowers J: the descent stopped there.
-    pub stalled_at: Option<usize>,
+    /// Why the descent ended.
+    pub stop: Stop,
 }
+
+/// Why a descent ended.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Stop {
+    /// It ran every iteration it was given.
+    Iterations,
+    /// The objective fell by less than [`CONVERGED`] (relative) over the last
+    /// [`CONVERGED_OVER`] iterations: a minimum, or a tangle no direction leads out of
+    /// (section 4.3); more iterations would only repeat steps of 1e-13.
+    Converged { at: usize },
+    /// At this iteration no step along any direction lowered the objective.
+    Stalled { at: usize },
+}
+
+/// See [`Stop::Converged`].
+pub const CONVERGED: f64 = 1e-6;
+pub const CONVERGED_OVER: usize = 3;
 
 /// The current errors and the trajectory they give.
 struct Iterate {
@@ -98,8 +115,17 @@ struct Iterate {
 
 /// Shorter steps tried before a line search gives up.
 const MAX_HALVINGS: usize = 30;
+/// Shorter steps an L-BFGS direction gets before the paper's direction is tried instead: a
+/// quasi-Newton step that must be cut to under 1/16 of its length is off, and every trial is
+/// a model run.
+const MEMORY_HALVINGS: usize = 5;
+/// Shorter steps the radial linearisation's direction gets when the exact one is tried after
+/// it: a factor 4,096 below twice the last step. Past that the radial gradient has stopped
+/// leading down (a tangle), and each further halving would be one more model run.
+const RADIAL_HALVINGS: usize = 12;
 const ARMIJO: f64 = 1e-4;
-/// How much deeper than now a global step may push two characters into each other, m.
+/// How much deeper than the unedited crowd a global step may push two characters into each
+/// other, m.
 const GLOBAL_OVERLAP: f64 = 0.02;
 
 /// Runs `iterations` descents; `each(iteration, states)` sees every iterate.
@@ -123,13 +149,18 @@ pub fn solve(
     let mut log = vec![record(problem, 0, Kind::Start, &it, 0.0)];
     each(&log[0], &it.states);
     let mut step = 1.0;
-    let mut stalled_at = None;
+    let mut stop = Stop::Iterations;
+    // No global step may push two characters into each other deeper than the unedited crowd
+    // has them (less 2 cm): the model's repulsion is a force, not a guarantee, and a strong
+    // enough control overpowers it. (Measured from the unedited run, not from each iterate, or
+    // the 2 cm would add up over the iterations.)
+    let floor = before.smallest_gap(problem.timeline.steps).min(0.0) - GLOBAL_OVERLAP;
     let mut memory = Memory::default();
     let quasi_newton = descent == Descent::QuasiNewton;
     for index in 1..=iterations {
         let mut kind = descent.kind(index - 1);
         let mut taken = match kind {
-            Kind::Global => global(problem, &mut it, step, &mut memory, quasi_newton),
+            Kind::Global => global(problem, &mut it, floor, step, &mut memory, quasi_newton),
             _ => {
                 memory.clear();
                 local(problem, &mut it, step)
@@ -139,15 +170,19 @@ pub fn solve(
         // may jump to another solution (section 4.3).
         if taken.is_none() && kind == Kind::Local && descent != Descent::Local {
             kind = Kind::Global;
-            taken = global(problem, &mut it, step, &mut memory, false);
+            taken = global(problem, &mut it, floor, step, &mut memory, false);
         }
         let Some(taken) = taken else {
-            stalled_at = Some(index);
+            stop = Stop::Stalled { at: index };
             break;
         };
         step = 2.0 * taken;
         log.push(record(problem, index, kind, &it, taken));
         each(log.last().unwrap(), &it.states);
+        if converged(&log, problem) {
+            stop = Stop::Converged { at: index };
+            break;
+        }
     }
     Outcome {
         before,
@@ -155,8 +190,19 @@ pub fn solve(
         controls: it.controls,
         shift: it.shift,
         log,
-        stalled_at,
+        stop,
     }
+}
+
+/// Whether the objective fell by less than [`CONVERGED`] over the last [`CONVERGED_OVER`]
+/// iterations.
+fn converged(log: &[Iteration], problem: &Problem) -> bool {
+    let Some(then) = log.len().checked_sub(CONVERGED_OVER + 1) else {
+        return false;
+    };
+    let objective = |k: usize| log[k].cost.objective(problem.objective);
+    let now = objective(log.len() - 1);
+    objective(then) - now <= CONVERGED * now.abs()
 }
 
 fn record(problem: &Problem, index: usize, kind: Kind, it: &Iterate, step: f64) -> Iteration {
@@ -233,20 +279,33 @@ fn line_search<T>(
     start: f64,
     slope: f64,
     rho: f64,
-    mut trial: impl FnMut(f64) -> (f64, T),
+    halvings: usize,
+    mut trial: impl FnMut(f64, f64) -> (f64, T),
 ) -> Option<(f64, T)> {
     if slope >= 0.0 || !slope.is_finite() {
         return None;
     }
     let mut rho = rho;
-    for _ in 0..MAX_HALVINGS {
-        let (value, extra) = trial(rho);
-        if value.is_finite() && value <= start + ARMIJO * rho * slope {
+    for _ in 0..halvings {
+        let enough = start + ARMIJO * rho * slope;
+        let (value, extra) = trial(rho, enough);
+        if value.is_finite() && value <= enough {
             return Some((rho, extra));
         }
         rho *= 0.5;
     }
     None
+}
+
+/// The directions a global iteration tries, in turn.
+#[derive(Clone, Copy)]
+enum Try {
+    /// L-BFGS from the curvature pairs so far (the paper's direction while there are none).
+    Memory,
+    /// The paper's direction, d eps = Q lambda.
+    Paper,
+    /// The paper's direction from the exact linearisation's gradient.
+    Exact,
 }
 
 /// One global iteration (eq. 14-15): returns the step taken. Tries, in turn, until one lowers
@@ -256,13 +315,11 @@ fn line_search<T>(
 fn global(
     problem: &Problem,
     it: &mut Iterate,
+    floor: f64,
     rho: f64,
     memory: &mut Memory,
     quasi_newton: bool,
 ) -> Option<f64> {
-    if !quasi_newton {
-        memory.clear();
-    }
     let run = match it.run.take() {
         Some(run) => run,
         None => {
@@ -273,55 +330,78 @@ fn global(
             run
         }
     };
-    let n = problem.n();
-    let horizon = (problem.horizon() + 1) * n;
-    // A step may not push two characters into each other deeper than they already are
-    // (less 2 cm) before the last constraint: the model's repulsion is a force, not a
-    // guarantee, and a strong enough control overpowers it.
-    let floor = problem.model.clearance(&it.states[..horizon]).0.min(0.0) - GLOBAL_OVERLAP;
+    let (horizon, steps) = (problem.horizon(), problem.timeline.steps);
     // The exact linearisation's model (a copy of the world's fields) is made only when the
     // cheaper directions have failed.
     let exact: OnceCell<Model> = OnceCell::new();
-    let mut tries: Vec<(bool, bool)> = Vec::new();
-    if !memory.is_empty() {
-        tries.push((false, true));
+    let mut tries = Vec::new();
+    if quasi_newton {
+        tries.push(Try::Memory);
+    } else {
+        memory.clear();
     }
-    tries.push((false, false));
+    tries.push(Try::Paper);
     if problem.model.linearisation != Linearisation::Exact {
-        tries.push((true, false));
+        tries.push(Try::Exact);
     }
-    for (use_exact, with_memory) in tries {
-        let model = if use_exact {
-            exact.get_or_init(|| Model {
+    let paper_halvings = match problem.model.linearisation {
+        Linearisation::Exact => MAX_HALVINGS,
+        Linearisation::Radial => RADIAL_HALVINGS,
+    };
+    // Set when the memory's direction was the paper's (no curvature pairs yet).
+    let mut paper_tried = false;
+    for attempt in tries {
+        let model = match attempt {
+            Try::Exact => exact.get_or_init(|| Model {
                 linearisation: Linearisation::Exact,
                 ..problem.model.clone()
-            })
-        } else {
-            &problem.model
+            }),
+            _ => &problem.model,
         };
-        // With curvature pairs the direction is scaled: try its whole length first.
-        let first = if with_memory { 1.0 } else { rho };
-        if !with_memory {
-            memory.clear();
-        }
-        let d = direction(
-            problem,
-            model,
-            &run,
-            it,
-            with_memory.then_some(&mut *memory),
-        );
+        let (d, first, halvings) = match attempt {
+            Try::Memory => {
+                let d = direction(problem, model, &run, it, Some(&mut *memory));
+                // With curvature pairs the direction is scaled: its whole length comes first.
+                paper_tried = memory.is_empty();
+                match paper_tried {
+                    true => (d, rho, paper_halvings),
+                    false => (d, 1.0, MEMORY_HALVINGS),
+                }
+            }
+            Try::Paper if paper_tried => continue,
+            Try::Paper => {
+                memory.clear();
+                (
+                    direction(problem, model, &run, it, None),
+                    rho,
+                    paper_halvings,
+                )
+            }
+            Try::Exact => {
+                memory.clear();
+                (direction(problem, model, &run, it, None), rho, MAX_HALVINGS)
+            }
+        };
         let start = it.cost.objective(problem.objective);
-        let found = line_search(start, d.slope, first, |rho| {
+        let found = line_search(start, d.slope, first, halvings, |rho, enough| {
             let shift = moved(&it.shift, &d.shift, rho);
             let controls = moved(&it.controls, &d.controls, rho);
-            let run = problem.run_to_horizon(&shift, &controls);
+            let mut run = problem.run_to_horizon(&shift, &controls);
             let cost = problem.cost(&shift, &controls, &run.states);
-            let value = if problem.model.clearance(&run.states[..horizon]).0 >= floor {
+            let mut value = if run.smallest_gap(horizon) >= floor {
                 cost.objective(problem.objective)
             } else {
                 f64::INFINITY
             };
+            if value <= enough {
+                // A step the search would take: after the last constraint the model alone
+                // moves everyone, and the velocities the edit left may still carry two into
+                // each other.
+                run.finish(&problem.model, &controls);
+                if run.smallest_gap(steps) < floor {
+                    value = f64::INFINITY;
+                }
+            }
             (value, (shift, controls, run, cost))
         });
         if let Some((rho, (shift, controls, mut run, cost))) = found {
@@ -340,6 +420,7 @@ fn global(
 
 /// One local iteration (eq. 11-13): returns the step taken.
 fn local(problem: &Problem, it: &mut Iterate, rho: f64) -> Option<f64> {
+    let from_model = it.run.is_some();
     let run = match it.run.take() {
         Some(run) => run,
         None => Run::along(problem.timeline, it.states.clone()),
@@ -348,7 +429,7 @@ fn local(problem: &Problem, it: &mut Iterate, rho: f64) -> Option<f64> {
     let dx = run.tangent(&problem.model, &d.shift, &d.controls);
     let gap = problem.model.clearance(&it.states).0;
     let start = it.cost.objective(problem.objective);
-    let found = line_search(start, d.slope, rho, |rho| {
+    let found = line_search(start, d.slope, rho, MAX_HALVINGS, |rho, _| {
         let shift = moved(&it.shift, &d.shift, rho);
         let controls = moved(&it.controls, &d.controls, rho);
         let states = moved(&it.states, &dx, rho);
@@ -366,7 +447,10 @@ fn local(problem: &Problem, it: &mut Iterate, rho: f64) -> Option<f64> {
         (value, (shift, controls, states, cost))
     });
     let Some((rho, (shift, controls, states, cost))) = found else {
-        it.run = Some(run);
+        // Only the model's own run is kept: a global step after this one needs it.
+        if from_model {
+            it.run = Some(run);
+        }
         return None;
     };
     it.shift = shift;

@@ -35,6 +35,9 @@ pub struct Run {
     pub timeline: Timeline,
     pub states: Vec<f64>,
     stages: Vec<f64>,
+    /// Per state, the smallest gap between two characters (`Model::rhs_and_gap`), minus
+    /// infinity for a state that is not finite; NaN where unknown (a run `along` states).
+    gaps: Vec<f64>,
     /// The last step integrated (`timeline.steps` once the run is whole); the states after it
     /// are zero until `finish`.
     reached: usize,
@@ -86,17 +89,32 @@ impl Run {
             let (done, rest) = self.states.split_at_mut((k + 1) * n);
             let stages = &mut self.stages[3 * k * n..3 * (k + 1) * n];
             let e = &controls[k * n..(k + 1) * n];
-            step(
+            let x = &done[k * n..];
+            let gap = step(
                 model,
                 self.timeline.dt,
-                &done[k * n..],
+                x,
                 e,
                 stages,
                 Some(&mut rest[..n]),
                 &mut work,
             );
+            self.gaps[k] = finite_or(x, gap);
         }
+        let last = self.state(until);
+        self.gaps[until] = finite_or(last, model.smallest_gap(last, &mut work.pairs));
         self.reached = self.reached.max(until);
+    }
+
+    /// The smallest gap between two characters at any state up to step `last`: the project's
+    /// collision measure (below zero, two discs overlap), minus infinity when a state is not
+    /// finite. Pairs farther apart than the repulsion's reach are not measured, so a gap above
+    /// about 1.6 m means only "more than that".
+    pub fn smallest_gap(&self, last: usize) -> f64 {
+        self.gaps[..=last.min(self.reached)]
+            .iter()
+            .map(|g| if g.is_nan() { f64::NEG_INFINITY } else { *g })
+            .fold(f64::INFINITY, f64::min)
     }
 
     /// The linearisation points of an arbitrary trajectory (the local descent's, which the
@@ -132,6 +150,7 @@ impl Run {
             timeline,
             states: vec![0.0; (timeline.steps + 1) * n],
             stages: vec![0.0; 3 * timeline.steps * n],
+            gaps: vec![f64::NAN; timeline.steps + 1],
             reached: 0,
         }
     }
@@ -241,8 +260,17 @@ impl Work {
     }
 }
 
+/// `gap`, or minus infinity when `x` is not finite (the pair search skips such states).
+fn finite_or(x: &[f64], gap: f64) -> f64 {
+    if x.iter().all(|v| v.is_finite()) {
+        gap
+    } else {
+        f64::NEG_INFINITY
+    }
+}
+
 /// One step from `x` under control `e`: writes Z2, Z3, Z4 into `stages` and, when asked, the
-/// next state.
+/// next state; returns the smallest gap between two characters at `x`.
 fn step(
     model: &Model,
     dt: f64,
@@ -251,10 +279,10 @@ fn step(
     stages: &mut [f64],
     next: Option<&mut [f64]>,
     work: &mut Work,
-) {
+) -> f64 {
     let n = x.len();
     let weights = [0.5, 0.5, 1.0];
-    model.rhs(x, &mut work.pairs, &mut work.k[0]);
+    let gap = model.rhs_and_gap(x, &mut work.pairs, &mut work.k[0]);
     add_into(&mut work.k[0], e);
     for s in 0..3 {
         let z = &mut stages[s * n..(s + 1) * n];
@@ -270,6 +298,7 @@ fn step(
             next[m] = x[m] + dt / 6.0 * (k[0][m] + 2.0 * k[1][m] + 2.0 * k[2][m] + k[3][m]);
         }
     }
+    gap
 }
 
 fn add_into(a: &mut [f64], b: &[f64]) {

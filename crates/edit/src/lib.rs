@@ -21,7 +21,7 @@ pub mod quasi_newton;
 pub mod world;
 
 pub use cost::{Constraint, CostParts, Covariances, Objective, Problem};
-pub use descent::{Descent, Iteration, Outcome, solve};
+pub use descent::{CONVERGED, CONVERGED_OVER, Descent, Iteration, Outcome, Stop, solve};
 pub use error::EditError;
 pub use integrate::{Run, Timeline};
 pub use model::{Character, Linearisation, Model, Repulsion};

@@ -197,14 +197,22 @@ impl Model {
         }
     }
 
+    /// The distance of a pair whose offset is `d`, when they are connected (closer than the
+    /// cutoff, and not at the same spot, where the push has no direction).
+    fn connected(&self, d: DVec2) -> Option<f64> {
+        let n2 = d.length_squared();
+        let cutoff = self.repulsion.cutoff;
+        (n2 < cutoff * cutoff && n2 != 0.0).then(|| n2.sqrt())
+    }
+
     /// Social repulsion (eq. 21) on the first of a pair whose offset is `d` = y_j - y_i.
     fn pair_force(&self, d: DVec2, radii: f64) -> Option<PairForce> {
+        self.pair_force_at(d, self.connected(d)?, radii)
+    }
+
+    /// [`Model::pair_force`] of a connected pair `n` = |d| apart.
+    fn pair_force_at(&self, d: DVec2, n: f64, radii: f64) -> Option<PairForce> {
         let r = &self.repulsion;
-        let n2 = d.length_squared();
-        if n2 >= r.cutoff * r.cutoff || n2 == 0.0 {
-            return None;
-        }
-        let n = n2.sqrt();
         let reach = (n - radii) / r.range;
         if reach >= r.negligible() {
             return None;
@@ -233,6 +241,13 @@ impl Model {
 
     /// f(X): dy/dt = u, du/dt = F(y, u) / m (eq. 16-18, 26).
     pub fn rhs(&self, x: &[f64], pairs: &mut Pairs, out: &mut [f64]) {
+        self.rhs_and_gap(x, pairs, out);
+    }
+
+    /// f(X), and the smallest gap d - (r_i + r_j) at X between two connected characters
+    /// (infinite when none is): the integration reads the project's collision measure off the
+    /// distances the forces need anyway, rather than searching pairs again (`clearance`).
+    pub fn rhs_and_gap(&self, x: &[f64], pairs: &mut Pairs, out: &mut [f64]) -> f64 {
         pairs.near(x, self.search_radius());
         for (i, c) in self.characters.iter().enumerate() {
             let (p, u) = (position(x, i), velocity(x, i));
@@ -240,14 +255,42 @@ impl Model {
             out[4 * i..4 * i + 2].copy_from_slice(&[u.x, u.y]);
             out[4 * i + 2..4 * i + 4].copy_from_slice(&[f.x, f.y]);
         }
+        let mut gap = f64::INFINITY;
         for &(i, j) in pairs.list() {
             let d = position(x, j) - position(x, i);
-            if let Some(pf) = self.pair_force(d, self.radii(i, j)) {
+            let radii = self.radii(i, j);
+            if d == DVec2::ZERO {
+                gap = gap.min(-radii);
+            }
+            let Some(n) = self.connected(d) else {
+                continue;
+            };
+            gap = gap.min(n - radii);
+            if let Some(pf) = self.pair_force_at(d, n, radii) {
                 add(out, 4 * i + 2, pf.force);
                 add(out, 4 * j + 2, -pf.force);
             }
         }
         self.divide_forces_by_mass(out);
+        gap
+    }
+
+    /// The smallest gap at X between two connected characters (as [`Model::rhs_and_gap`]).
+    pub fn smallest_gap(&self, x: &[f64], pairs: &mut Pairs) -> f64 {
+        pairs.near(x, self.search_radius());
+        pairs
+            .list()
+            .iter()
+            .map(|&(i, j)| {
+                let d = position(x, j) - position(x, i);
+                let n = if d == DVec2::ZERO {
+                    Some(0.0)
+                } else {
+                    self.connected(d)
+                };
+                n.map_or(f64::INFINITY, |n| n - self.radii(i, j))
+            })
+            .fold(f64::INFINITY, f64::min)
     }
 
     fn divide_forces_by_mass(&self, out: &mut [f64]) {

@@ -145,17 +145,24 @@ impl EulerGrid {
             a.max(first)..b.min(end)
         };
         let local = p - self.origin;
+        // The kernel is the product of one Gaussian per axis: one exponential per column and
+        // per row the character reaches, rather than one per cell.
+        let axis = |k: usize, at: f64| {
+            let d = (k as f64 + 0.5) * self.cell - at;
+            let q = d * d / (2.0 * s2);
+            (d, q, (-q).exp())
+        };
+        let cols = range(local.x, window.cols);
+        let across: Vec<(f64, f64, f64)> = cols.clone().map(|i| axis(i, local.x)).collect();
         for j in range(local.y, window.rows) {
-            for i in range(local.x, window.cols) {
-                let c = j * self.nx + i;
-                let d = self.centre(c) - p;
-                let q = d.length_squared() / (2.0 * s2);
-                if q > KERNEL_REACH {
+            let (dy, qy, gy) = axis(j, local.y);
+            for (i, &(dx, qx, gx)) in cols.clone().zip(&across) {
+                if qx + qy > KERNEL_REACH {
                     continue;
                 }
-                let g = norm * (-q).exp();
+                let g = norm * gx * gy;
                 // d/dy of G(x_c - y) = G (x_c - y) / s^2.
-                visit(c, g, d * (g / s2));
+                visit(j * self.nx + i, g, DVec2::new(dx, dy) * (g / s2));
             }
         }
     }

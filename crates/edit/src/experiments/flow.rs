@@ -2,7 +2,7 @@
 //! field on a 32 x 16 grid is the constraint at every step (R = 0.05 m^2/s^2, Q_u =
 //! 100 m^2/s^4). The paper uses the local descent; here it stalls after about 30 iterations at
 //! a normalised RMS of 0.79 where the global one reaches 0.47 (BENCHMARKS.md), so the
-//! experiment runs the quasi-Newton global descent (`--descent local` shows the other). The
+//! experiment runs the global descent (`--descent local` shows the other). The
 //! paper's field came from a video of moving shapes through an optical-flow estimator; here a
 //! synthetic field of moving shapes stands in for it: each cell a shape covers moves with the
 //! shape, the others are still.
@@ -121,7 +121,7 @@ pub fn setup(o: &Overrides) -> Result<Setup, EditError> {
     Ok(Setup {
         name: "flow",
         problem,
-        descent: Descent::QuasiNewton,
+        descent: Descent::Global,
         iterations: 60,
         groups: vec![("crowd".into(), (0..PEOPLE).collect())],
         marks: vec![],

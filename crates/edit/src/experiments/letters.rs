@@ -1,7 +1,9 @@
 //! Letter constraints (Allain section 6.1, Figure 4): two groups walk towards each other, cross,
 //! and are asked to stand as the letters "S" and "G" once past each other (positions observed
-//! as in eq. 31-32, R = 10 m^2, Q_u = 100 m^2/s^4, global descent, 200 iterations; the RMS per
-//! group per iteration is Figure 4c).
+//! as in eq. 31-32, R = 10 m^2, Q_u = 100 m^2/s^4, global descent, at most 200 iterations; the
+//! RMS per group per iteration is Figure 4c). The global descent runs along L-BFGS directions:
+//! it reaches the lowest RMS of the descents tried, before the crossing tangles and no
+//! direction leads down (BENCHMARKS.md).
 //!
 //! Who stands where on a letter: the paper does not say. Each letter point goes to the group
 //! member nearest to it in the unedited run (greedily, the closest remaining couple first), so

@@ -10,7 +10,7 @@ mod scenes;
 mod vorticity;
 
 use crate::cost::Problem;
-use crate::descent::{Descent, Iteration, Kind, solve};
+use crate::descent::{Descent, Iteration, Kind, Stop, solve};
 use crate::error::EditError;
 use crate::world::Rect;
 use glam::DVec2;
@@ -74,8 +74,8 @@ pub struct Figures {
     pub dt: f64,
     pub descent: Descent,
     pub iterations: usize,
-    /// Set when a line search found no lower cost before the last iteration.
-    pub stalled_at: Option<usize>,
+    /// Why the descent ended before its last iteration (converged, or stalled), if it did.
+    pub stop: Stop,
     pub seconds: f64,
     pub cost_before: f64,
     pub cost_after: f64,
@@ -223,7 +223,7 @@ pub fn run(
         dt: p.timeline.dt,
         descent: setup.descent,
         iterations: last.index,
-        stalled_at: outcome.stalled_at,
+        stop: outcome.stop,
         seconds,
         cost_before: first.cost.total(),
         cost_after: last.cost.total(),

@@ -113,7 +113,7 @@ pub fn setup(o: &Overrides) -> Result<Setup, EditError> {
     Ok(Setup {
         name: "vorticity",
         problem,
-        descent: Descent::QuasiNewton,
+        descent: Descent::Global,
         iterations: 25,
         groups,
         marks: vec![Mark::Area {
