@@ -6,7 +6,7 @@
 //! (rather than discretising the continuous adjoint, eq. 8) makes the gradient the exact
 //! gradient of the cost the descent evaluates, which the finite-difference tests check.
 
-use crate::model::Model;
+use crate::model::{Instant, Model};
 use crate::neighbours::Pairs;
 
 /// Step length and count: states at t_k = k dt, k = 0..=steps.
@@ -92,17 +92,20 @@ impl Run {
             let x = &done[k * n..];
             let gap = step(
                 model,
-                self.timeline.dt,
+                (k, self.timeline.dt),
                 x,
                 e,
                 stages,
-                Some(&mut rest[..n]),
+                &mut rest[..n],
                 &mut work,
             );
             self.gaps[k] = finite_or(x, gap);
         }
         let last = self.state(until);
-        self.gaps[until] = finite_or(last, model.smallest_gap(last, &mut work.pairs));
+        self.gaps[until] = finite_or(
+            last,
+            model.smallest_gap(Instant::state(until), last, &mut work.pairs),
+        );
         self.reached = self.reached.max(until);
     }
 
@@ -177,10 +180,9 @@ impl Run {
                         dz[m] = dx[m] + weights[s] * dt * dk[s - 1][m];
                     }
                 }
-                model.jvp(self.stage(k, s), &dz, &mut work.pairs, &mut dk[s]);
-                for m in 0..n {
-                    dk[s][m] += de[m];
-                }
+                let at = Instant::stage(k, s);
+                model.jvp(at, self.stage(k, s), &dz, &mut work.pairs, &mut dk[s]);
+                add_control(model, k, &mut dk[s], de);
             }
             let next = &mut rest[..n];
             for m in 0..n {
@@ -227,9 +229,10 @@ impl Run {
             // Stages in reverse: Z_s = X + c_s dt k_{s-1}, k_s = f(Z_s) + eps.
             let weights = [0.0, 0.5, 0.5, 1.0];
             for s in (0..4).rev() {
-                model.vjp(self.stage(k, s), &kbar[s], &mut work.pairs, &mut zbar);
+                let at = Instant::stage(k, s);
+                model.vjp(at, self.stage(k, s), &kbar[s], &mut work.pairs, &mut zbar);
+                add_control(model, k, ebar, &kbar[s]);
                 for m in 0..n {
-                    ebar[m] += kbar[s][m];
                     mu[m] += zbar[m];
                 }
                 if s > 0 {
@@ -269,40 +272,55 @@ fn finite_or(x: &[f64], gap: f64) -> f64 {
     }
 }
 
-/// One step from `x` under control `e`: writes Z2, Z3, Z4 into `stages` and, when asked, the
-/// next state; returns the smallest gap between two characters at `x`.
+/// Step `k` (of length `dt`) from `x` under control `e`: writes Z2, Z3, Z4 into `stages` and
+/// the next state into `next`; returns the smallest gap between two characters at `x`.
 fn step(
     model: &Model,
-    dt: f64,
+    (k, dt): (usize, f64),
     x: &[f64],
     e: &[f64],
     stages: &mut [f64],
-    next: Option<&mut [f64]>,
+    next: &mut [f64],
     work: &mut Work,
 ) -> f64 {
     let n = x.len();
     let weights = [0.5, 0.5, 1.0];
-    let gap = model.rhs_and_gap(x, &mut work.pairs, &mut work.k[0]);
-    add_into(&mut work.k[0], e);
+    let gap = model.rhs_and_gap(Instant::state(k), x, &mut work.pairs, &mut work.k[0]);
+    add_control(model, k, &mut work.k[0], e);
     for s in 0..3 {
         let z = &mut stages[s * n..(s + 1) * n];
         for m in 0..n {
             z[m] = x[m] + weights[s] * dt * work.k[s][m];
         }
-        model.rhs(z, &mut work.pairs, &mut work.k[s + 1]);
-        add_into(&mut work.k[s + 1], e);
+        model.rhs(
+            Instant::stage(k, s + 1),
+            z,
+            &mut work.pairs,
+            &mut work.k[s + 1],
+        );
+        add_control(model, k, &mut work.k[s + 1], e);
     }
-    if let Some(next) = next {
-        let k = &work.k;
-        for m in 0..n {
-            next[m] = x[m] + dt / 6.0 * (k[0][m] + 2.0 * k[1][m] + 2.0 * k[2][m] + k[3][m]);
-        }
+    let k = &work.k;
+    for m in 0..n {
+        next[m] = x[m] + dt / 6.0 * (k[0][m] + 2.0 * k[1][m] + 2.0 * k[2][m] + k[3][m]);
     }
     gap
 }
 
-fn add_into(a: &mut [f64], b: &[f64]) {
-    for (a, b) in a.iter_mut().zip(b) {
-        *a += b;
+/// k += e for the characters whose model error may be non-zero in step `step`
+/// (`Model::controlled`); also the adjoint's e_bar += k_bar, the same mask transposed.
+fn add_control(model: &Model, step: usize, k: &mut [f64], e: &[f64]) {
+    if model.tracks.is_none() {
+        for (a, b) in k.iter_mut().zip(e) {
+            *a += b;
+        }
+        return;
+    }
+    for (i, (k, e)) in k.chunks_exact_mut(4).zip(e.chunks_exact(4)).enumerate() {
+        if model.controlled(step, i) {
+            for (a, b) in k.iter_mut().zip(e) {
+                *a += b;
+            }
+        }
     }
 }

@@ -88,6 +88,83 @@ pub struct Model {
     pub repulsion: Repulsion,
     /// Which Jacobian `jvp` and `vjp` use (the forces are the same either way).
     pub linearisation: Linearisation,
+    /// Set when the characters follow planned motions rather than head for goals
+    /// ([`Tracks`]: stage 7's walkers); the experiments' crowds have none.
+    pub tracks: Option<Tracks>,
+}
+
+/// Where in the timeline a model evaluation is: in Runge-Kutta step `step`, at half step
+/// `half` (time half dt / 2), one of 2 step, 2 step + 1 (the two middle stages) and
+/// 2 step + 2. Only tracked characters' forces depend on it: their plans are read at `half`,
+/// and who is present or controlled at the step's start, so that a character enters or
+/// leaves between steps, never inside one.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Instant {
+    pub step: usize,
+    pub half: usize,
+}
+
+impl Instant {
+    /// Runge-Kutta stage `s` (0-3) of step `k`.
+    pub fn stage(k: usize, s: usize) -> Instant {
+        Instant {
+            step: k,
+            half: 2 * k + [0, 1, 1, 2][s],
+        }
+    }
+
+    /// The state at step `k` (the first stage of step k).
+    pub fn state(k: usize) -> Instant {
+        Instant::stage(k, 0)
+    }
+}
+
+/// What a tracked character should do at one half step.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Plan {
+    pub pos: DVec2,
+    pub vel: DVec2,
+    pub acc: DVec2,
+    /// In the scene at all: an absent character feels and exerts nothing, is counted by no
+    /// operator, and stands still in the state until it enters.
+    pub present: bool,
+    /// Its model error may be non-zero here (stage 7: inside the patch, off the border
+    /// bands); elsewhere the control is held at zero.
+    pub editable: bool,
+}
+
+/// Characters that follow planned motions (stage 7: the walkers of a patch, as stages 4-6
+/// made them). The will of eq. 19 becomes a critically damped pull towards the plan,
+///
+///   F_will = m (a_plan + 2 w (v_plan - u) + w^2 (p_plan - y)),
+///
+/// which replaces the fatigue term too, and the repulsions count only as far as they differ
+/// from those the plan itself feels (its walkers pass each other closer than the repulsion's
+/// range, as stage 5 allows), so that the unedited model walks the plan and an edit meets the
+/// repulsion only where it brings people closer than planned.
+#[derive(Clone, Debug)]
+pub struct Tracks {
+    /// `plans[h * n + i]` for character i at half step h.
+    plans: Vec<Plan>,
+    n: usize,
+    /// w, 1/s.
+    pub rate: f64,
+    /// The repulsion (social and obstacle) the plan feels, per character at each of step k's
+    /// half steps 2k, 2k + 1, 2k + 2 (slots 3k, 3k + 1, 3k + 2: half step 2k + 2 is both the
+    /// end of step k and the start of step k + 1, whose characters may differ).
+    planned_push: Vec<DVec2>,
+}
+
+impl Tracks {
+    /// Character `i`'s plan at half step `half`.
+    pub fn plan(&self, half: usize, i: usize) -> &Plan {
+        &self.plans[half * self.n + i]
+    }
+
+    /// Half steps planned (2 steps + 1).
+    pub fn half_steps(&self) -> usize {
+        self.plans.len() / self.n.max(1)
+    }
 }
 
 /// The Jacobian the tangent-linear and adjoint models use.
@@ -150,6 +227,74 @@ impl Model {
         self.characters.len()
     }
 
+    /// This model with its characters following `plans` (`plans[h * n + i]`, one per half
+    /// step of the timeline) at pull rate `rate` (1/s). The plans' own repulsions are measured
+    /// here, once.
+    pub fn tracking(mut self, plans: Vec<Plan>, rate: f64) -> Model {
+        let n = self.len();
+        assert!(
+            n > 0 && plans.len().is_multiple_of(n),
+            "plans must hold one plan per character and half step"
+        );
+        self.tracks = None;
+        let steps = plans.len() / n / 2;
+        let mut planned_push = vec![DVec2::ZERO; (3 * steps + 1) * n];
+        let mut pairs = Pairs::default();
+        let mut x = vec![0.0; self.state_len()];
+        for (slot, push) in planned_push.chunks_exact_mut(n).enumerate() {
+            let (step, half) = (slot / 3, 2 * (slot / 3) + slot % 3);
+            let plan = &plans[half * n..(half + 1) * n];
+            // Who is there is read at the step's start, as the model reads it.
+            let present = |i: usize| plans[2 * step * n + i].present;
+            for (i, p) in plan.iter().enumerate() {
+                x[4 * i..4 * i + 2].copy_from_slice(&[p.pos.x, p.pos.y]);
+            }
+            for (i, p) in plan.iter().enumerate().filter(|(i, _)| present(*i)) {
+                push[i] = self.obstacle_force(i, p.pos).force;
+            }
+            pairs.near(&x, self.search_radius());
+            for &(i, j) in pairs.list() {
+                if !(present(i) && present(j)) {
+                    continue;
+                }
+                let d = position(&x, j) - position(&x, i);
+                if let Some(pf) = self.pair_force(d, self.radii(i, j)) {
+                    push[i] += pf.force;
+                    push[j] -= pf.force;
+                }
+            }
+        }
+        self.tracks = Some(Tracks {
+            plans,
+            n,
+            rate,
+            planned_push,
+        });
+        self
+    }
+
+    /// The plan of character `i` at the start of step `step`, when the characters follow
+    /// plans.
+    fn plan_at_step(&self, step: usize, i: usize) -> Option<&Plan> {
+        self.tracks.as_ref().map(|t| t.plan(2 * step, i))
+    }
+
+    /// Whether character `i` is in the scene during `at`'s step (always, without plans).
+    pub fn present(&self, at: Instant, i: usize) -> bool {
+        self.plan_at_step(at.step, i).is_none_or(|p| p.present)
+    }
+
+    /// Whether character `i`'s model error may be non-zero in step `step`.
+    pub fn controlled(&self, step: usize, i: usize) -> bool {
+        self.plan_at_step(step, i)
+            .is_none_or(|p| p.present && p.editable)
+    }
+
+    /// Whether both of a pair are in the scene at `at`.
+    fn both_present(&self, at: Instant, i: usize, j: usize) -> bool {
+        self.tracks.is_none() || (self.present(at, i) && self.present(at, j))
+    }
+
     /// The distance within which pairs are searched.
     fn search_radius(&self) -> f64 {
         let largest = self.characters.iter().map(|c| c.radius).fold(0.0, f64::max);
@@ -168,8 +313,21 @@ impl Model {
     fn field_force(&self, i: usize, p: DVec2) -> FieldForce {
         let c = &self.characters[i];
         let (w, jw) = self.world.will[c.goal].sample(p);
-        let mut force = w * c.will;
-        let mut rows = [jw[0] * c.will, jw[1] * c.will];
+        let obstacle = self.obstacle_force(i, p);
+        FieldForce {
+            force: w * c.will + obstacle.force,
+            jacobian: Mat2([
+                jw[0] * c.will + obstacle.jacobian.0[0],
+                jw[1] * c.will + obstacle.jacobian.0[1],
+            ]),
+        }
+    }
+
+    /// Obstacle repulsion (eq. 25) on character `i` at `p`.
+    fn obstacle_force(&self, i: usize, p: DVec2) -> FieldForce {
+        let c = &self.characters[i];
+        let mut force = DVec2::ZERO;
+        let mut rows = [DVec2::ZERO; 2];
         if self.world.obstacles.is_empty() {
             return FieldForce {
                 force,
@@ -239,24 +397,65 @@ impl Model {
         self.characters[i].radius + self.characters[j].radius
     }
 
-    /// f(X): dy/dt = u, du/dt = F(y, u) / m (eq. 16-18, 26).
-    pub fn rhs(&self, x: &[f64], pairs: &mut Pairs, out: &mut [f64]) {
-        self.rhs_and_gap(x, pairs, out);
+    /// f(X): dy/dt = u, du/dt = F(y, u) / m (eq. 16-18, 26), at half step `at`.
+    pub fn rhs(&self, at: Instant, x: &[f64], pairs: &mut Pairs, out: &mut [f64]) {
+        self.rhs_and_gap(at, x, pairs, out);
+    }
+
+    /// The force on character `i` from the fields, or from its plan: F_will + F_obstacle -
+    /// fatigue, or [`Tracks`]' pull + F_obstacle - the plan's own repulsion. `None` when it is
+    /// absent.
+    fn own_force(&self, at: Instant, i: usize, p: DVec2, u: DVec2) -> Option<DVec2> {
+        let c = &self.characters[i];
+        let Some(tracks) = &self.tracks else {
+            return Some(self.field_force(i, p).force - u * c.fatigue);
+        };
+        if !self.present(at, i) {
+            return None;
+        }
+        let plan = tracks.plan(at.half, i);
+        let w = tracks.rate;
+        let pull = (plan.acc + (plan.vel - u) * (2.0 * w) + (plan.pos - p) * (w * w)) * c.mass;
+        Some(
+            pull + self.obstacle_force(i, p).force
+                - tracks.planned_push[(at.step + at.half) * tracks.n + i],
+        )
+    }
+
+    /// The Jacobian of [`Model::own_force`] by position and the coefficient of u (-k, or
+    /// -2 m w for a tracked character).
+    fn own_jacobian(&self, i: usize, p: DVec2) -> (Mat2, f64) {
+        let c = &self.characters[i];
+        match &self.tracks {
+            None => (self.field_force(i, p).jacobian, -c.fatigue),
+            Some(tracks) => {
+                let w = tracks.rate;
+                let mut j = self.obstacle_force(i, p).jacobian;
+                j.0[0].x -= c.mass * w * w;
+                j.0[1].y -= c.mass * w * w;
+                (j, -2.0 * c.mass * w)
+            }
+        }
     }
 
     /// f(X), and the smallest gap d - (r_i + r_j) at X between two connected characters
     /// (infinite when none is): the integration reads the project's collision measure off the
     /// distances the forces need anyway, rather than searching pairs again (`clearance`).
-    pub fn rhs_and_gap(&self, x: &[f64], pairs: &mut Pairs, out: &mut [f64]) -> f64 {
+    pub fn rhs_and_gap(&self, at: Instant, x: &[f64], pairs: &mut Pairs, out: &mut [f64]) -> f64 {
         pairs.near(x, self.search_radius());
-        for (i, c) in self.characters.iter().enumerate() {
+        for i in 0..self.len() {
             let (p, u) = (position(x, i), velocity(x, i));
-            let f = self.field_force(i, p).force - u * c.fatigue;
-            out[4 * i..4 * i + 2].copy_from_slice(&[u.x, u.y]);
-            out[4 * i + 2..4 * i + 4].copy_from_slice(&[f.x, f.y]);
+            let row = match self.own_force(at, i, p, u) {
+                Some(f) => [u.x, u.y, f.x, f.y],
+                None => [0.0; 4],
+            };
+            out[4 * i..4 * i + 4].copy_from_slice(&row);
         }
         let mut gap = f64::INFINITY;
         for &(i, j) in pairs.list() {
+            if !self.both_present(at, i, j) {
+                continue;
+            }
             let d = position(x, j) - position(x, i);
             let radii = self.radii(i, j);
             if d == DVec2::ZERO {
@@ -276,11 +475,12 @@ impl Model {
     }
 
     /// The smallest gap at X between two connected characters (as [`Model::rhs_and_gap`]).
-    pub fn smallest_gap(&self, x: &[f64], pairs: &mut Pairs) -> f64 {
+    pub fn smallest_gap(&self, at: Instant, x: &[f64], pairs: &mut Pairs) -> f64 {
         pairs.near(x, self.search_radius());
         pairs
             .list()
             .iter()
+            .filter(|&&(i, j)| self.both_present(at, i, j))
             .map(|&(i, j)| {
                 let d = position(x, j) - position(x, i);
                 let n = if d == DVec2::ZERO {
@@ -301,15 +501,22 @@ impl Model {
     }
 
     /// The tangent-linear model: J(X) v, J = [[0, I], [F_y / m, F_u / m]] (eq. 11).
-    pub fn jvp(&self, x: &[f64], v: &[f64], pairs: &mut Pairs, out: &mut [f64]) {
+    pub fn jvp(&self, at: Instant, x: &[f64], v: &[f64], pairs: &mut Pairs, out: &mut [f64]) {
         pairs.near(x, self.search_radius());
-        for (i, c) in self.characters.iter().enumerate() {
+        for i in 0..self.len() {
+            if !self.present(at, i) {
+                out[4 * i..4 * i + 4].fill(0.0);
+                continue;
+            }
             let (dp, du) = (position(v, i), velocity(v, i));
-            let df = self.field_force(i, position(x, i)).jacobian.mul(dp) - du * c.fatigue;
-            out[4 * i..4 * i + 2].copy_from_slice(&[du.x, du.y]);
-            out[4 * i + 2..4 * i + 4].copy_from_slice(&[df.x, df.y]);
+            let (jy, ju) = self.own_jacobian(i, position(x, i));
+            let df = jy.mul(dp) + du * ju;
+            out[4 * i..4 * i + 4].copy_from_slice(&[du.x, du.y, df.x, df.y]);
         }
         for &(i, j) in pairs.list() {
+            if !self.both_present(at, i, j) {
+                continue;
+            }
             let d = position(x, j) - position(x, i);
             if let Some(pf) = self.pair_force(d, self.radii(i, j)) {
                 let dd = pf.k.mul(position(v, j) - position(v, i));
@@ -321,20 +528,25 @@ impl Model {
     }
 
     /// The adjoint model: J(X)^T w (eq. 27-29; the pair part is the symmetric Laplacian L).
-    pub fn vjp(&self, x: &[f64], w: &[f64], pairs: &mut Pairs, out: &mut [f64]) {
+    pub fn vjp(&self, at: Instant, x: &[f64], w: &[f64], pairs: &mut Pairs, out: &mut [f64]) {
         pairs.near(x, self.search_radius());
         // a = w_u / m is what the forces' derivatives are transposed against.
         let a = |i: usize| velocity(w, i) / self.characters[i].mass;
-        for (i, c) in self.characters.iter().enumerate() {
+        for i in 0..self.len() {
+            if !self.present(at, i) {
+                out[4 * i..4 * i + 4].fill(0.0);
+                continue;
+            }
             let ai = a(i);
-            let dp = self
-                .field_force(i, position(x, i))
-                .jacobian
-                .mul_transpose(ai);
-            let du = position(w, i) - ai * c.fatigue;
+            let (jy, ju) = self.own_jacobian(i, position(x, i));
+            let dp = jy.mul_transpose(ai);
+            let du = position(w, i) + ai * ju;
             out[4 * i..4 * i + 4].copy_from_slice(&[dp.x, dp.y, du.x, du.y]);
         }
         for &(i, j) in pairs.list() {
+            if !self.both_present(at, i, j) {
+                continue;
+            }
             let d = position(x, j) - position(x, i);
             if let Some(pf) = self.pair_force(d, self.radii(i, j)) {
                 let dd = pf.k.mul_transpose(a(i) - a(j));
@@ -350,12 +562,15 @@ impl Model {
     pub fn clearance(&self, states: &[f64]) -> (f64, usize) {
         let mut pairs = Pairs::default();
         let (mut smallest, mut overlaps) = (f64::INFINITY, 0);
-        for x in states.chunks_exact(self.state_len()) {
+        for (k, x) in states.chunks_exact(self.state_len()).enumerate() {
             if !x.iter().all(|v| v.is_finite()) {
                 return (f64::NEG_INFINITY, overlaps + 1);
             }
             pairs.find(x, 1.0);
             for &(i, j) in pairs.list() {
+                if !self.both_present(Instant::state(k), i, j) {
+                    continue;
+                }
                 let gap = (position(x, i) - position(x, j)).length() - self.radii(i, j);
                 smallest = smallest.min(gap);
                 if gap < 0.0 {

@@ -66,6 +66,25 @@ impl Observe for Positions {
     }
 }
 
+/// Which characters an Eulerian operator counts: everyone, or those listed (stage 7: the
+/// walkers in the patch at the observed step; one operator per step).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub enum Counted {
+    #[default]
+    All,
+    Only(Vec<usize>),
+}
+
+impl Counted {
+    /// The characters counted among `n`.
+    fn each(&self, n: usize) -> Box<dyn Iterator<Item = usize> + '_> {
+        match self {
+            Counted::All => Box::new(0..n),
+            Counted::Only(who) => Box::new(who.iter().copied().filter(move |&i| i < n)),
+        }
+    }
+}
+
 /// Kernel contributions below exp(-18) of the peak are skipped: the jump this leaves is
 /// 1.5e-8 of a character's weight, far below what any constraint or test resolves.
 const KERNEL_REACH: f64 = 18.0;
@@ -167,12 +186,12 @@ impl EulerGrid {
         }
     }
 
-    fn moments(&self, x: &[f64], window: Window) -> Moments {
+    fn moments(&self, x: &[f64], counted: &Counted, window: Window) -> Moments {
         let mut m = Moments {
             rho: vec![0.0; self.cells()],
             momentum: vec![DVec2::ZERO; self.cells()],
         };
-        for i in 0..x.len() / 4 {
+        for i in counted.each(x.len() / 4) {
             let u = velocity(x, i);
             self.around(position(x, i), window, |c, g, _| {
                 m.rho[c] += g;
@@ -182,12 +201,12 @@ impl EulerGrid {
         m
     }
 
-    fn moments_tangent(&self, x: &[f64], dx: &[f64], window: Window) -> Moments {
+    fn moments_tangent(&self, x: &[f64], dx: &[f64], counted: &Counted, window: Window) -> Moments {
         let mut m = Moments {
             rho: vec![0.0; self.cells()],
             momentum: vec![DVec2::ZERO; self.cells()],
         };
-        for i in 0..x.len() / 4 {
+        for i in counted.each(x.len() / 4) {
             let (u, dp, du) = (velocity(x, i), position(dx, i), velocity(dx, i));
             self.around(position(x, i), window, |c, g, dg| {
                 let dgi = dg.dot(dp);
@@ -202,12 +221,13 @@ impl EulerGrid {
     fn moments_adjoint(
         &self,
         x: &[f64],
+        counted: &Counted,
         rho_bar: &[f64],
         mom_bar: &[DVec2],
         window: Window,
         out: &mut [f64],
     ) {
-        for i in 0..x.len() / 4 {
+        for i in counted.each(x.len() / 4) {
             let u = velocity(x, i);
             let (mut dp, mut du) = (DVec2::ZERO, DVec2::ZERO);
             self.around(position(x, i), window, |c, g, dg| {
@@ -226,6 +246,7 @@ impl EulerGrid {
 pub struct Density {
     pub grid: EulerGrid,
     pub cells: Vec<usize>,
+    pub counted: Counted,
 }
 
 impl Observe for Density {
@@ -235,14 +256,14 @@ impl Observe for Density {
     fn observe(&self, x: &[f64], out: &mut [f64]) {
         let m = self
             .grid
-            .moments(x, Window::around(&self.grid, &self.cells, 0));
+            .moments(x, &self.counted, Window::around(&self.grid, &self.cells, 0));
         for (o, &c) in out.iter_mut().zip(&self.cells) {
             *o = m.rho[c];
         }
     }
     fn tangent(&self, x: &[f64], dx: &[f64], out: &mut [f64]) {
         let window = Window::around(&self.grid, &self.cells, 0);
-        let m = self.grid.moments_tangent(x, dx, window);
+        let m = self.grid.moments_tangent(x, dx, &self.counted, window);
         for (o, &c) in out.iter_mut().zip(&self.cells) {
             *o = m.rho[c];
         }
@@ -255,7 +276,7 @@ impl Observe for Density {
         let mom_bar = vec![DVec2::ZERO; self.grid.cells()];
         let window = Window::around(&self.grid, &self.cells, 0);
         self.grid
-            .moments_adjoint(x, &rho_bar, &mom_bar, window, out);
+            .moments_adjoint(x, &self.counted, &rho_bar, &mom_bar, window, out);
     }
 }
 
@@ -264,8 +285,13 @@ pub const VELOCITY_FLOOR: f64 = 0.05;
 
 /// The Eulerian velocity of every cell of a grid (the fields both velocity and vorticity
 /// constraints read).
-fn velocity_field(grid: &EulerGrid, x: &[f64], window: Window) -> (Vec<DVec2>, Moments) {
-    let m = grid.moments(x, window);
+fn velocity_field(
+    grid: &EulerGrid,
+    x: &[f64],
+    counted: &Counted,
+    window: Window,
+) -> (Vec<DVec2>, Moments) {
+    let m = grid.moments(x, counted, window);
     let v = m
         .rho
         .iter()
@@ -275,9 +301,15 @@ fn velocity_field(grid: &EulerGrid, x: &[f64], window: Window) -> (Vec<DVec2>, M
     (v, m)
 }
 
-fn velocity_tangent(grid: &EulerGrid, x: &[f64], dx: &[f64], window: Window) -> Vec<DVec2> {
-    let m = grid.moments(x, window);
-    let dm = grid.moments_tangent(x, dx, window);
+fn velocity_tangent(
+    grid: &EulerGrid,
+    x: &[f64],
+    dx: &[f64],
+    counted: &Counted,
+    window: Window,
+) -> Vec<DVec2> {
+    let m = grid.moments(x, counted, window);
+    let dm = grid.moments_tangent(x, dx, counted, window);
     (0..grid.cells())
         .map(|c| {
             let r = m.rho[c] + VELOCITY_FLOOR;
@@ -286,15 +318,23 @@ fn velocity_tangent(grid: &EulerGrid, x: &[f64], dx: &[f64], window: Window) -> 
         .collect()
 }
 
-fn velocity_adjoint(grid: &EulerGrid, x: &[f64], v_bar: &[DVec2], window: Window, out: &mut [f64]) {
-    let m = grid.moments(x, window);
-    velocity_adjoint_at(grid, x, &m, v_bar, window, out);
+fn velocity_adjoint(
+    grid: &EulerGrid,
+    x: &[f64],
+    counted: &Counted,
+    v_bar: &[DVec2],
+    window: Window,
+    out: &mut [f64],
+) {
+    let m = grid.moments(x, counted, window);
+    velocity_adjoint_at(grid, x, counted, &m, v_bar, window, out);
 }
 
 /// [`velocity_adjoint`] with the moments at `x` already made.
 fn velocity_adjoint_at(
     grid: &EulerGrid,
     x: &[f64],
+    counted: &Counted,
     m: &Moments,
     v_bar: &[DVec2],
     window: Window,
@@ -307,7 +347,7 @@ fn velocity_adjoint_at(
         mom_bar[c] = v_bar[c] / r;
         rho_bar[c] = -v_bar[c].dot(m.momentum[c]) / (r * r);
     }
-    grid.moments_adjoint(x, &rho_bar, &mom_bar, window, out);
+    grid.moments_adjoint(x, counted, &rho_bar, &mom_bar, window, out);
 }
 
 /// The Eulerian velocity at chosen cells: two numbers each.
@@ -315,6 +355,7 @@ fn velocity_adjoint_at(
 pub struct Velocity {
     pub grid: EulerGrid,
     pub cells: Vec<usize>,
+    pub counted: Counted,
 }
 
 impl Observe for Velocity {
@@ -322,7 +363,12 @@ impl Observe for Velocity {
         2 * self.cells.len()
     }
     fn observe(&self, x: &[f64], out: &mut [f64]) {
-        let (v, _) = velocity_field(&self.grid, x, Window::around(&self.grid, &self.cells, 0));
+        let (v, _) = velocity_field(
+            &self.grid,
+            x,
+            &self.counted,
+            Window::around(&self.grid, &self.cells, 0),
+        );
         for (o, &c) in out.chunks_exact_mut(2).zip(&self.cells) {
             o.copy_from_slice(&[v[c].x, v[c].y]);
         }
@@ -332,6 +378,7 @@ impl Observe for Velocity {
             &self.grid,
             x,
             dx,
+            &self.counted,
             Window::around(&self.grid, &self.cells, 0),
         );
         for (o, &c) in out.chunks_exact_mut(2).zip(&self.cells) {
@@ -344,16 +391,16 @@ impl Observe for Velocity {
             v_bar[c] += DVec2::new(d[0], d[1]);
         }
         let window = Window::around(&self.grid, &self.cells, 0);
-        velocity_adjoint(&self.grid, x, &v_bar, window, out);
+        velocity_adjoint(&self.grid, x, &self.counted, &v_bar, window, out);
     }
     fn misfit_adjoint(&self, x: &[f64], y: &[f64], scale: f64, out: &mut [f64]) {
         let window = Window::around(&self.grid, &self.cells, 0);
-        let (v, m) = velocity_field(&self.grid, x, window);
+        let (v, m) = velocity_field(&self.grid, x, &self.counted, window);
         let mut v_bar = vec![DVec2::ZERO; self.grid.cells()];
         for (y, &c) in y.chunks_exact(2).zip(&self.cells) {
             v_bar[c] += (v[c] - DVec2::new(y[0], y[1])) * scale;
         }
-        velocity_adjoint_at(&self.grid, x, &m, &v_bar, window, out);
+        velocity_adjoint_at(&self.grid, x, &self.counted, &m, &v_bar, window, out);
     }
 }
 
@@ -362,6 +409,7 @@ impl Observe for Velocity {
 pub struct Vorticity {
     pub grid: EulerGrid,
     pub cells: Vec<usize>,
+    pub counted: Counted,
 }
 
 impl Vorticity {
@@ -391,25 +439,43 @@ impl Observe for Vorticity {
     }
     fn observe(&self, x: &[f64], out: &mut [f64]) {
         let window = Window::around(&self.grid, &self.cells, 1);
-        self.curl(&velocity_field(&self.grid, x, window).0, out);
+        self.curl(&velocity_field(&self.grid, x, &self.counted, window).0, out);
     }
     fn tangent(&self, x: &[f64], dx: &[f64], out: &mut [f64]) {
         let window = Window::around(&self.grid, &self.cells, 1);
-        self.curl(&velocity_tangent(&self.grid, x, dx, window), out);
+        self.curl(
+            &velocity_tangent(&self.grid, x, dx, &self.counted, window),
+            out,
+        );
     }
     fn adjoint_add(&self, x: &[f64], dy: &[f64], out: &mut [f64]) {
         let window = Window::around(&self.grid, &self.cells, 1);
-        velocity_adjoint(&self.grid, x, &self.curl_transpose(dy), window, out);
+        velocity_adjoint(
+            &self.grid,
+            x,
+            &self.counted,
+            &self.curl_transpose(dy),
+            window,
+            out,
+        );
     }
     fn misfit_adjoint(&self, x: &[f64], y: &[f64], scale: f64, out: &mut [f64]) {
         let window = Window::around(&self.grid, &self.cells, 1);
-        let (v, m) = velocity_field(&self.grid, x, window);
+        let (v, m) = velocity_field(&self.grid, x, &self.counted, window);
         let mut w = vec![0.0; self.cells.len()];
         self.curl(&v, &mut w);
         for (w, y) in w.iter_mut().zip(y) {
             *w = scale * (*w - y);
         }
-        velocity_adjoint_at(&self.grid, x, &m, &self.curl_transpose(&w), window, out);
+        velocity_adjoint_at(
+            &self.grid,
+            x,
+            &self.counted,
+            &m,
+            &self.curl_transpose(&w),
+            window,
+            out,
+        );
     }
 }
 

@@ -12,7 +12,7 @@ use crate::descent::Descent;
 use crate::error::EditError;
 use crate::integrate::Timeline;
 use crate::model::Character;
-use crate::observe::{Density, EulerGrid};
+use crate::observe::{Counted, Density, EulerGrid};
 use crate::world::{Rect, World};
 use glam::DVec2;
 use rand::Rng;
@@ -63,7 +63,11 @@ pub fn setup(o: &Overrides) -> Result<Setup, EditError> {
         }
         let cells = grid.cells_in(rect.min, rect.max);
         let target = vec![TARGET; cells.len()];
-        let operator = Box::new(Density { grid, cells });
+        let operator = Box::new(Density {
+            grid,
+            cells,
+            counted: Counted::All,
+        });
         let window = (t - 0.5, t + 0.5);
         constraints.push(Constraint::over_window(
             &name,

@@ -18,9 +18,9 @@ use crate::cost::{Constraint, Problem};
 use crate::descent::{Descent, Outcome};
 use crate::error::EditError;
 use crate::integrate::Timeline;
-use crate::model::position;
+use crate::model::{Instant, position};
 use crate::neighbours::Pairs;
-use crate::observe::{EulerGrid, Observe, Velocity};
+use crate::observe::{Counted, EulerGrid, Observe, Velocity};
 use crate::world::{Rect, World};
 use glam::DVec2;
 
@@ -106,6 +106,7 @@ pub fn setup(o: &Overrides) -> Result<Setup, EditError> {
     let operator = Box::new(Velocity {
         grid: g,
         cells: (0..g.cells()).collect(),
+        counted: Counted::All,
     });
     let r = o.r.unwrap_or(0.05);
     let window = (0.0, timeline.duration());
@@ -151,6 +152,7 @@ fn normalised_rms(problem: &Problem, states: &[f64]) -> Vec<f64> {
     let op = Velocity {
         grid: g,
         cells: (0..g.cells()).collect(),
+        counted: Counted::All,
     };
     let mut v = vec![0.0; op.len()];
     (0..=problem.timeline.steps)
@@ -177,7 +179,8 @@ fn advected(problem: &Problem, with_model: bool) -> Vec<f64> {
     let mut pairs = Pairs::default();
     let mut rhs = |x: &[f64], t: f64, out: &mut [f64]| {
         if with_model {
-            model.rhs(x, &mut pairs, out);
+            // The experiment's crowd follows no plans: its forces do not depend on time.
+            model.rhs(Instant::state(0), x, &mut pairs, out);
         } else {
             out.fill(0.0);
         }

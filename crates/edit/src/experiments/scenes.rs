@@ -78,6 +78,7 @@ pub fn paper_problem(
             world,
             repulsion: Repulsion::default(),
             linearisation: Linearisation::Radial,
+            tracks: None,
         },
         timeline,
         initial: at_rest(places),

@@ -10,7 +10,7 @@ use crate::cost::{Constraint, Problem};
 use crate::descent::Descent;
 use crate::error::EditError;
 use crate::integrate::Timeline;
-use crate::observe::{EulerGrid, Vorticity};
+use crate::observe::{Counted, EulerGrid, Vorticity};
 use crate::world::{Rect, World};
 use glam::DVec2;
 
@@ -81,7 +81,11 @@ pub fn setup(o: &Overrides) -> Result<Setup, EditError> {
     let target = vec![TARGET; cells.len()];
     let r = o.r.unwrap_or(0.2);
     let window = (12.0, 17.0);
-    let operator = Box::new(Vorticity { grid, cells });
+    let operator = Box::new(Vorticity {
+        grid,
+        cells,
+        counted: Counted::All,
+    });
     let constraint = Constraint::over_window(
         "whirl in the crossing",
         operator,
