@@ -14,6 +14,7 @@ mod fuzz;
 mod golden;
 mod hostile;
 mod kill;
+mod moments;
 mod paintings;
 mod patterns;
 mod scenes;

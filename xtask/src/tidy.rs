@@ -27,6 +27,11 @@ const JUSTIFIED: &[(&str, &str, &str)] = &[
         "crowd-runtime",
         "the check reads what ships as an engine does, through the runtime",
     ),
+    (
+        "crowd-moments",
+        "crowd-edit",
+        "stage 7 is Allain's optimal crowd editing, whose model, adjoint and descents crowd-edit is",
+    ),
 ];
 
 /// Crates every stage may use: the vocabulary and the space-time geometry.

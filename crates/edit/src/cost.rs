@@ -164,6 +164,10 @@ pub struct Problem {
     /// the number of iterations keep the edit natural. The paper's experiments are run this
     /// way (with eq. 6's terms reported); stage 7 uses the whole cost.
     pub objective: Objective,
+    /// Whether a global step may not push two characters more than 2 cm deeper into each
+    /// other than the unedited crowd has them (`descent`): the experiments' guarantee. Stage 7
+    /// leaves it to the exact check of the walks it ships.
+    pub keep_apart: bool,
 }
 
 /// See [`Problem::objective`].

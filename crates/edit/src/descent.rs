@@ -154,7 +154,10 @@ pub fn solve(
     // has them (less 2 cm): the model's repulsion is a force, not a guarantee, and a strong
     // enough control overpowers it. (Measured from the unedited run, not from each iterate, or
     // the 2 cm would add up over the iterations.)
-    let floor = before.smallest_gap(problem.timeline.steps).min(0.0) - GLOBAL_OVERLAP;
+    let floor = match problem.keep_apart {
+        true => before.smallest_gap(problem.timeline.steps).min(0.0) - GLOBAL_OVERLAP,
+        false => f64::NEG_INFINITY,
+    };
     let mut memory = Memory::default();
     let quasi_newton = descent == Descent::QuasiNewton;
     for index in 1..=iterations {

@@ -66,6 +66,51 @@ impl Observe for Positions {
     }
 }
 
+/// How far each chosen character walks faster than its limit, m/s (0 at or below it): as a
+/// constraint with target 0, a soft speed limit whose square is C1 (stage 7 keeps edited
+/// walkers to `match.max_speed` with it).
+#[derive(Clone, Debug)]
+pub struct SpeedLimit {
+    /// (character, its limit in m/s).
+    pub who: Vec<(usize, f64)>,
+}
+
+impl SpeedLimit {
+    /// The excess of character `i` over `limit` and the unit direction of its velocity.
+    fn excess(x: &[f64], i: usize, limit: f64) -> (f64, DVec2) {
+        let u = velocity(x, i);
+        let speed = u.length();
+        if speed > limit {
+            (speed - limit, u / speed)
+        } else {
+            (0.0, DVec2::ZERO)
+        }
+    }
+}
+
+impl Observe for SpeedLimit {
+    fn len(&self) -> usize {
+        self.who.len()
+    }
+    fn observe(&self, x: &[f64], out: &mut [f64]) {
+        for (o, &(i, limit)) in out.iter_mut().zip(&self.who) {
+            *o = Self::excess(x, i, limit).0;
+        }
+    }
+    fn tangent(&self, x: &[f64], dx: &[f64], out: &mut [f64]) {
+        for (o, &(i, limit)) in out.iter_mut().zip(&self.who) {
+            *o = Self::excess(x, i, limit).1.dot(velocity(dx, i));
+        }
+    }
+    fn adjoint_add(&self, x: &[f64], dy: &[f64], out: &mut [f64]) {
+        for (d, &(i, limit)) in dy.iter().zip(&self.who) {
+            let e = Self::excess(x, i, limit).1 * *d;
+            out[4 * i + 2] += e.x;
+            out[4 * i + 3] += e.y;
+        }
+    }
+}
+
 /// Which characters an Eulerian operator counts: everyone, or those listed (stage 7: the
 /// walkers in the patch at the observed step; one operator per step).
 #[derive(Clone, Debug, Default, PartialEq)]

@@ -8,7 +8,9 @@ use crowd_edit::cost::Objective;
 use crowd_edit::integrate::{Run, Timeline};
 use crowd_edit::model::{Character, Instant, Linearisation, Model, Plan, Repulsion};
 use crowd_edit::neighbours::Pairs;
-use crowd_edit::observe::{Counted, Density, EulerGrid, Observe, Positions, Velocity, Vorticity};
+use crowd_edit::observe::{
+    Counted, Density, EulerGrid, Observe, Positions, SpeedLimit, Velocity, Vorticity,
+};
 use crowd_edit::{Constraint, Covariances, Problem, Rect, World};
 use glam::DVec2;
 use rand::{Rng, SeedableRng};
@@ -214,6 +216,14 @@ fn operators(n_characters: usize) -> Vec<(&'static str, Box<dyn Observe>)> {
     let inner = grid.cells_in(DVec2::new(4.0, 3.0), DVec2::new(8.0, 7.0));
     vec![
         (
+            "speed limit",
+            Box::new(SpeedLimit {
+                who: (0..n_characters)
+                    .map(|i| (i, 0.3 + 0.1 * i as f64))
+                    .collect(),
+            }),
+        ),
+        (
             "positions",
             Box::new(Positions {
                 who: (0..n_characters).step_by(2).collect(),
@@ -321,6 +331,7 @@ fn the_gradient_of_the_cost_is_its_derivative() {
             covariances,
             constraints,
             objective,
+            keep_apart: true,
         };
         let mut rng = ChaCha8Rng::seed_from_u64(600 + seed);
         let shift = random_vector(&mut rng, n)

@@ -12,6 +12,7 @@
 //! arguments; it depends on `crowd-core` for the vocabulary only.
 
 pub mod approach;
+pub mod clear;
 pub mod encounter;
 pub mod grid;
 pub mod patch;
@@ -23,6 +24,7 @@ pub mod tracks;
 pub mod trajectory;
 
 pub use approach::{approach, closest, distance_to_rect, nearest_along, to_rect};
+pub use clear::{Ladder, keep_clear};
 pub use encounter::{Encounter, Other, encounter_with, pair};
 pub use grid::{BoxGrid, PieceGrid};
 pub use patch::{Patch, obstacles_near};

@@ -33,10 +33,9 @@ use crowd_core::config::SmoothSettings;
 use crowd_core::patterns::Crossing;
 use crowd_core::trajectories::{ControlPoint, PatchMotion, SmoothingSummary, Trajectory};
 use crowd_core::{Hash, Hasher, PatchGraph};
-use crowd_geometry::{Encounter, Other, Patch, Segment, Tracks, trajectory_segments};
+use crowd_geometry::{Patch, Segment};
 use glam::DVec2;
 use rayon::prelude::*;
-use std::collections::HashMap;
 
 /// The stage name in `smoothed.ron`'s header.
 pub const STAGE: &str = "smooth";
@@ -218,14 +217,19 @@ fn smooth_patch(
             s
         })
         .collect();
-    let chosen = keep_clear(trajectories, smoothed, patch, |i, level, held| {
-        let tr = &trajectories[i];
-        if held.is_empty() {
-            curve_at(i, level).0
-        } else {
-            held_at(tr, held, limits, max_speed.max(fastest(tr)) + 1e-9).0
-        }
-    });
+    let ladder = crowd_geometry::Ladder {
+        levels: LEVELS,
+        holds: HOLDS,
+    };
+    let chosen =
+        crowd_geometry::keep_clear(trajectories, smoothed, patch, ladder, |i, level, held| {
+            let tr = &trajectories[i];
+            if held.is_empty() {
+                curve_at(i, level).0
+            } else {
+                held_at(tr, held, limits, max_speed.max(fastest(tr)) + 1e-9).0
+            }
+        });
     let kept_straight = chosen
         .iter()
         .zip(trajectories)
@@ -285,15 +289,6 @@ fn fastest(tr: &Trajectory) -> f64 {
         .fold(0.0, f64::max)
 }
 
-/// Who an encounter is between, whatever the period shift.
-fn key(e: &Encounter) -> (usize, u8, usize) {
-    match e.other {
-        Other::Walker { b, .. } => (e.a, 0, b),
-        Other::Stander(s) => (e.a, 1, s),
-        Other::Obstacle(o) => (e.a, 2, o),
-    }
-}
-
 /// Halvings of the curve's departure from the polyline before a trajectory ships as its
 /// polyline with its corners averaged.
 const CURVE_LEVELS: u32 = 4;
@@ -308,68 +303,6 @@ const LEVELS: u32 = CURVE_LEVELS + AVERAGE_S.len() as u32;
 /// Times of close encounters at which a trajectory may keep its polyline's corners, before it
 /// ships as its polyline.
 const HOLDS: u32 = 4;
-
-/// The smoothed trajectories, except where a curve comes closer to someone or something than
-/// allowed where the polylines did not (or closer than they already did): both walkers of such
-/// a pair move half-way back to their polylines (`curve_at(i, level, [])`); after [`LEVELS`]
-/// they keep their polylines' corners near each such encounter (`curve_at(i, _, times)`), and
-/// after [`HOLDS`] encounters ship as their polylines, until nothing is worse than before.
-fn keep_clear(
-    before: &[Trajectory],
-    mut after: Vec<Trajectory>,
-    patch: &Patch,
-    curve_at: impl Fn(usize, u32, &[f64]) -> Trajectory,
-) -> Vec<Trajectory> {
-    // The polylines' margins, measured only for the pairs whose curves come too close (a
-    // few in a patch): the whole matrix of the polylines cost as much as the curves'.
-    let old_tracks = Tracks::new(before.iter().map(trajectory_segments).collect());
-    let mut old: HashMap<_, f64> = HashMap::new();
-    let mut was = |e: &Encounter| {
-        *old.entry(key(e)).or_insert_with(|| {
-            crowd_geometry::encounter_with(&old_tracks, e.a, e.other, patch)
-                .map_or(f64::INFINITY, |o| o.margin)
-        })
-    };
-    let mut tracks = Tracks::new(after.iter().map(trajectory_segments).collect());
-    // Only the rows of walkers that changed are measured again.
-    let mut rows = crowd_geometry::rows(&tracks, patch);
-    let mut level = vec![0u32; before.len()];
-    let mut held: Vec<Vec<f64>> = vec![Vec::new(); before.len()];
-    loop {
-        // Who must move back, and when (in their own time) it came too close.
-        let mut again: Vec<(usize, f64)> = Vec::new();
-        for e in rows.iter().flatten() {
-            if e.margin < 0.0 && e.margin < was(e) - 1e-9 {
-                again.push((e.a, e.t));
-                if let Other::Walker { b, shift } = e.other {
-                    again.push((b, e.t - shift));
-                }
-            }
-        }
-        again.sort_unstable_by(|x, y| x.0.cmp(&y.0).then(x.1.total_cmp(&y.1)));
-        again.retain(|&(i, _)| level[i] <= LEVELS + HOLDS);
-        if again.is_empty() {
-            return after;
-        }
-        let mut moved: Vec<usize> = again.iter().map(|&(i, _)| i).collect();
-        moved.dedup();
-        for &i in &moved {
-            level[i] += 1;
-            if level[i] > LEVELS {
-                held[i].extend(again.iter().filter(|&&(j, _)| j == i).map(|&(_, t)| t));
-            }
-            after[i] = if level[i] > LEVELS + HOLDS {
-                before[i].clone()
-            } else if level[i] > LEVELS {
-                curve_at(i, level[i], &held[i])
-            } else {
-                curve_at(i, level[i], &[])
-            };
-            tracks.set(i, trajectory_segments(&after[i]));
-        }
-        crowd_geometry::refresh(&mut rows, &mut tracks, &moved, patch);
-    }
-}
 
 /// Stage 6's files, encoded: the motion side file, then `smoothed.ron`. The collide stage's
 /// figures are carried over: smoothing leaves no pair closer than stage 5 did.

@@ -85,6 +85,7 @@ pub fn paper_problem(
         covariances: Covariances::velocity_only(q_velocity),
         objective: Objective::Constraints,
         constraints,
+        keep_apart: true,
     }
 }
 

@@ -1,0 +1,186 @@
+//! Stage 7, edit: the moments an artist asks for (`edits` in `pipeline.ron`: people meeting at
+//! a point, an area filling, a drift, a whirl) edited into the patches they cover by optimal
+//! control of the social-force crowd model (Allain et al. 2014, with `crowd-edit`).
+//!
+//! Each covered patch is its own problem: its walkers follow their planned walks
+//! (`Model::tracking`) and the descent finds the model error that brings the patch nearest the
+//! edits' targets at the least cost. A patch's entry and exit points and border bands are never
+//! moved (an edit's displacement is masked to zero there), so neighbouring patches, edited or
+//! not, still join, and the world still tiles and loops; an edited walk that is too fast, leaves
+//! the patch, or comes closer to anyone or anything than its plan did (measured exactly, as
+//! stage 5 measures) is walked back towards its plan.
+//!
+//! - `plan.rs`: a patch's people over the problem's span, their plans and masks;
+//! - `targets.rs`: each edit as a patch takes it, its constraints and its residual;
+//! - `patch.rs`: one patch edited, its walks checked and walked back where they must be.
+
+pub mod patch;
+pub mod plan;
+pub mod targets;
+
+use crowd_core::PatchGraph;
+use crowd_core::config::{DEFAULT_Q, Edit, EditKind};
+use crowd_core::trajectories::PatchMotion;
+use glam::DVec2;
+use patch::{Context, Edited, edit_patch};
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+use targets::{Local, Residual, localise};
+
+/// The stage name in `edited.ron`'s header.
+pub const STAGE: &str = "edit";
+pub const VERSION: u32 = 1;
+
+/// How long before an edit's window its patch's problem starts, s: the time walkers have to
+/// get where the edit wants them.
+pub const LEAD_IN_S: f64 = 6.0;
+/// How long after the window it ends, s: the time they have to rejoin their plans.
+pub const LEAD_OUT_S: f64 = 4.0;
+
+/// What stage 7 reads of a pipeline besides its input files.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Inputs {
+    pub period_s: f64,
+    /// The fastest an edited walker may walk, m/s (or its plan's fastest piece, where that is
+    /// faster already).
+    pub max_speed: f64,
+    /// Kept beyond every radius, m ([`crowd_core::config::Pipeline::shipping_error_m`]).
+    pub margin_m: f64,
+    pub edits: Vec<Edit>,
+}
+
+/// What one edit did, for the report.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct EditOutcome {
+    pub name: String,
+    pub kind: String,
+    /// What `before` and `after` measure.
+    pub measure: String,
+    pub before: f64,
+    pub after: f64,
+    /// The patches it covers (indices in the graph).
+    pub patches: Vec<u32>,
+    /// Walkers whose walk it changed, over those patches.
+    pub walkers: usize,
+    /// Descent iterations, summed over its patches.
+    pub iterations: usize,
+}
+
+/// What an edit's residual measures.
+fn measure_of(kind: &EditKind) -> &'static str {
+    match kind {
+        EditKind::Meet { .. } => "largest distance of a meeting walker from its place, m",
+        EditKind::Density { .. } => "RMS of density - target in the window, people/m2",
+        EditKind::Flow { .. } => "RMS of velocity - target in the window, m/s",
+        EditKind::Vorticity { .. } => "RMS of vorticity - target in the window, 1/s",
+    }
+}
+
+/// The edits that reach patch `p`, on one clock (absolute seconds, windows shifted by whole
+/// periods to follow the first), and the span its problem covers.
+fn locals_of(graph: &PatchGraph, p: usize, inputs: &Inputs) -> (Vec<Local>, (f64, f64)) {
+    let side = graph.world.patch_side_m;
+    let origin = graph.world_from_patch(graph.patches[p].cell);
+    let period = inputs.period_s;
+    let mut locals: Vec<Local> = inputs
+        .edits
+        .iter()
+        .enumerate()
+        .filter_map(|(k, e)| localise(e, k, origin, side, e.kind.window().0))
+        .collect();
+    if locals.is_empty() {
+        return (locals, (0.0, 0.0));
+    }
+    locals.sort_by(|a, b| a.window.0.total_cmp(&b.window.0).then(a.edit.cmp(&b.edit)));
+    let start = locals[0].window.0 - LEAD_IN_S;
+    let end = |l: &Local| l.window.1 + LEAD_OUT_S;
+    let last = locals.iter().map(end).fold(f64::NEG_INFINITY, f64::max);
+    let span = (start, last.min(start + period));
+    // A window the span cannot hold (another edit a period away) is left to no patch here.
+    locals.retain(|l| end(l) <= span.1 + 1e-9);
+    (locals, span)
+}
+
+/// Edits every patch an edit reaches, in parallel; deterministic. The others are returned as
+/// they came.
+pub fn edit(
+    graph: &PatchGraph,
+    motion: &[PatchMotion],
+    inputs: &Inputs,
+    progress: &dyn crowd_core::Progress,
+) -> (Vec<PatchMotion>, Vec<EditOutcome>) {
+    let work: Vec<(usize, Vec<Local>, (f64, f64))> = (0..motion.len())
+        .filter_map(|p| {
+            let (locals, span) = locals_of(graph, p, inputs);
+            (!locals.is_empty()).then_some((p, locals, span))
+        })
+        .collect();
+    progress.begin("edit", work.len() as u64);
+    let done: Vec<(usize, Vec<Local>, Edited)> = work
+        .into_par_iter()
+        .map(|(p, locals, span)| {
+            let obstacles = crowd_geometry::obstacles_near(graph, p);
+            let q = locals
+                .iter()
+                .filter_map(|l| inputs.edits[l.edit].q)
+                .fold(f64::INFINITY, f64::min);
+            let cx = Context {
+                patch: crowd_geometry::Patch {
+                    side_m: graph.world.patch_side_m,
+                    period_s: inputs.period_s,
+                    radius_m: graph.radius_m + inputs.margin_m,
+                    obstacles: &obstacles,
+                    standers: &motion[p].standers,
+                },
+                obstacles: &graph.patches[p].obstacles,
+                max_speed: inputs.max_speed,
+                q: if q.is_finite() { q } else { DEFAULT_Q },
+            };
+            let edited = edit_patch(&motion[p], &locals, span, &cx);
+            progress.advance(1);
+            (p, locals, edited)
+        })
+        .collect();
+    let mut out = motion.to_vec();
+    let mut outcomes: Vec<EditOutcome> = inputs
+        .edits
+        .iter()
+        .map(|e| EditOutcome {
+            name: e.name.clone(),
+            kind: e.kind.name().to_string(),
+            measure: measure_of(&e.kind).to_string(),
+            before: 0.0,
+            after: 0.0,
+            patches: Vec::new(),
+            walkers: 0,
+            iterations: 0,
+        })
+        .collect();
+    let mut residuals: Vec<Option<(Residual, Residual)>> = vec![None; inputs.edits.len()];
+    for (p, locals, edited) in done {
+        for (local, &(before, after)) in locals.iter().zip(&edited.residuals) {
+            let o = &mut outcomes[local.edit];
+            o.patches.push(p as u32);
+            o.walkers += edited.walkers;
+            o.iterations += edited.iterations;
+            let r = &mut residuals[local.edit];
+            *r = Some(match *r {
+                Some((b, a)) => (b.combine(before), a.combine(after)),
+                None => (before, after),
+            });
+        }
+        out[p] = edited.motion;
+    }
+    for (o, r) in outcomes.iter_mut().zip(residuals) {
+        if let Some((before, after)) = r {
+            o.before = before.value();
+            o.after = after.value();
+        }
+    }
+    (out, outcomes)
+}
+
+/// The world position of patch-local point `p` in patch `patch`.
+pub fn world_point(graph: &PatchGraph, patch: usize, p: DVec2) -> DVec2 {
+    graph.world_from_patch(graph.patches[patch].cell) + p
+}

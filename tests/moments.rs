@@ -1,0 +1,205 @@
+//! Stage 7 on real patches: each kind of edit brings its patches nearer its target, and no
+//! entry, exit or border band moves.
+
+use crate::util::*;
+use crowd_core::PatchGraph;
+use crowd_core::config::{Edit, EditKind};
+use crowd_core::trajectories::{PatchMotion, TrajectoriesFile, Trajectory, band_ends, position_at};
+use crowd_geometry::{Tracks, trajectory_segments};
+use crowd_moments::{Inputs, edit};
+use glam::DVec2;
+use std::path::Path;
+
+fn load(out: &Path) -> (PatchGraph, Vec<PatchMotion>) {
+    let graph = PatchGraph::load(&out.join("graph.ron")).unwrap();
+    let (stage, version) = (crowd_smooth::STAGE, crowd_smooth::VERSION);
+    let motion = TrajectoriesFile::load_stage(&out.join("smoothed.ron"), stage, version)
+        .unwrap()
+        .1;
+    (graph, motion)
+}
+
+/// Patches by the time walkers spend in them, busiest first.
+fn busiest(motion: &[PatchMotion]) -> Vec<usize> {
+    let time = |p: usize| -> f64 { motion[p].trajectories.iter().map(|t| t.duration()).sum() };
+    let mut order: Vec<usize> = (0..motion.len()).collect();
+    order.sort_by(|a, b| time(*b).total_cmp(&time(*a)).then(a.cmp(b)));
+    order
+}
+
+fn inputs(edits: Vec<Edit>) -> Inputs {
+    Inputs {
+        period_s: 20.0,
+        max_speed: MAX_SPEED,
+        margin_m: MARGIN_M,
+        edits,
+    }
+}
+
+/// `match.max_speed` (1.8 m/s) with stage 6's allowance, and the shipping margin of `city`.
+const MAX_SPEED: f64 = 1.8 * 1.04;
+const MARGIN_M: f64 = 0.0015;
+
+fn edit_of(name: &str, kind: EditKind) -> Edit {
+    Edit {
+        name: name.into(),
+        kind,
+        r: None,
+        q: None,
+    }
+}
+
+/// What every edit must keep, checked patch by patch against the unedited motion: the same
+/// walkers with bit-identical entry and exit points and border bands, no walk faster than the
+/// limit (or than its plan), every point in the patch, and (measured exactly, as stage 5 does)
+/// no one closer to anyone or anything than before.
+fn assert_kept(graph: &PatchGraph, before: &[PatchMotion], after: &[PatchMotion]) {
+    let side = graph.world.patch_side_m;
+    for (p, (b, a)) in before.iter().zip(after).enumerate() {
+        if a == b {
+            continue;
+        }
+        assert_eq!(a.standers, b.standers, "patch {p}: standers moved");
+        assert_eq!(a.trajectories.len(), b.trajectories.len());
+        for (j, (ta, tb)) in a.trajectories.iter().zip(&b.trajectories).enumerate() {
+            assert_eq!((ta.entry, ta.exit), (tb.entry, tb.exit));
+            let ends = |t: &Trajectory| {
+                let (e, x) = band_ends(&t.points);
+                let n = t.points.len();
+                let head = t.points[..=e.unwrap_or(0)].to_vec();
+                let tail = t.points[x.unwrap_or(n - 1)..].to_vec();
+                (head, tail)
+            };
+            assert_eq!(
+                ends(ta),
+                ends(tb),
+                "patch {p} walker {j}: an entry, exit or band moved"
+            );
+            let allowed = MAX_SPEED.max(crowd_moments::patch::fastest(tb)) + 1e-9;
+            assert!(
+                crowd_moments::patch::fastest(ta) <= allowed,
+                "patch {p} walker {j}: too fast"
+            );
+            assert!(
+                ta.points.iter().all(
+                    |q| q.pos.cmpge(DVec2::ZERO).all() && q.pos.cmple(DVec2::splat(side)).all()
+                ),
+                "patch {p} walker {j} leaves the patch"
+            );
+        }
+        let obstacles = crowd_geometry::obstacles_near(graph, p);
+        let patch = crowd_geometry::Patch {
+            side_m: side,
+            period_s: 20.0,
+            radius_m: graph.radius_m + MARGIN_M,
+            obstacles: &obstacles,
+            standers: &b.standers,
+        };
+        let margins = |m: &PatchMotion| {
+            let tracks = Tracks::new(m.trajectories.iter().map(trajectory_segments).collect());
+            crowd_geometry::rows(&tracks, &patch)
+                .into_iter()
+                .flatten()
+                .map(|e| e.margin)
+                .fold(f64::INFINITY, f64::min)
+        };
+        let (was, now) = (margins(b), margins(a));
+        assert!(
+            now >= was.min(0.0) - 1e-9,
+            "patch {p}: closest margin {was} -> {now}"
+        );
+    }
+}
+
+/// Two walkers of `patch` who pass near each other (2-4 m apart) at some whole second from 6
+/// to 14 s while both are off their border bands: where and when they could meet.
+fn near_pair(graph: &PatchGraph, motion: &PatchMotion, patch: usize) -> Option<(DVec2, f64)> {
+    let origin = graph.world_from_patch(graph.patches[patch].cell);
+    let free = |t: &Trajectory, at: f64| {
+        let (e, x) = band_ends(&t.points);
+        let from = e.map_or(t.points[0].t, |i| t.points[i].t) + 4.0;
+        let to = x.map_or(t.points[t.points.len() - 1].t, |i| t.points[i].t) - 4.0;
+        (from..=to).contains(&at)
+    };
+    for second in 6..=14 {
+        for period in [0.0, 20.0] {
+            let at = second as f64 + period;
+            let here: Vec<&Trajectory> =
+                motion.trajectories.iter().filter(|t| free(t, at)).collect();
+            for (i, a) in here.iter().enumerate() {
+                for b in &here[i + 1..] {
+                    let (pa, pb) = (position_at(&a.points, at), position_at(&b.points, at));
+                    let d = pa.distance(pb);
+                    if (2.0..4.0).contains(&d) {
+                        return Some((origin + (pa + pb) / 2.0, second as f64));
+                    }
+                }
+            }
+        }
+    }
+    None
+}
+
+#[test]
+fn a_meeting_brings_two_walkers_together_and_moves_no_border_point() {
+    let (graph, motion) = load(scene("city"));
+    let (p, (at, time)) = busiest(&motion)
+        .into_iter()
+        .find_map(|p| near_pair(&graph, &motion[p], p).map(|m| (p, m)))
+        .expect("two walkers pass near each other somewhere");
+    let kind = EditKind::Meet {
+        at: (at.x, at.y),
+        time_s: time,
+        people: 2,
+        radius_m: None,
+    };
+    let (after, outcomes) = edit(&graph, &motion, &inputs(vec![edit_of("meet", kind)]), &());
+    let o = &outcomes[0];
+    eprintln!("meet in patch {p} at {at} {time} s: {o:?}");
+    assert_eq!(o.patches, vec![p as u32]);
+    assert!(o.after < 0.9 * o.before, "{o:?}");
+    assert_kept(&graph, &motion, &after);
+}
+
+#[test]
+fn each_area_edit_brings_its_patches_nearer_its_target() {
+    let (graph, motion) = load(scene("city"));
+    let p = busiest(&motion)[0];
+    let side = graph.world.patch_side_m;
+    let c = graph.world_from_patch(graph.patches[p].cell) + DVec2::splat(side / 2.0);
+    let rect = (c.x - 2.5, c.y - 2.5, c.x + 2.5, c.y + 2.5);
+    let kinds = [
+        EditKind::Density {
+            rect,
+            window_s: (8.0, 10.0),
+            people_per_m2: 0.3,
+        },
+        EditKind::Flow {
+            rect,
+            window_s: (8.0, 10.0),
+            velocity_m_s: (0.0, -1.0),
+        },
+        EditKind::Vorticity {
+            rect,
+            window_s: (8.0, 10.0),
+            per_s: 0.5,
+        },
+    ];
+    for kind in kinds {
+        let name = kind.name();
+        let (after, outcomes) = edit(&graph, &motion, &inputs(vec![edit_of(name, kind)]), &());
+        let o = &outcomes[0];
+        eprintln!("{name}: {o:?}");
+        assert_eq!(o.patches, vec![p as u32], "{name}");
+        assert!(o.after < 0.95 * o.before, "{name}: {o:?}");
+        assert_kept(&graph, &motion, &after);
+    }
+}
+
+#[test]
+fn no_edits_change_nothing() {
+    let (graph, motion) = load(scene("lanes"));
+    let (after, outcomes) = edit(&graph, &motion, &inputs(vec![]), &());
+    assert!(outcomes.is_empty());
+    assert_eq!(after, motion);
+}
