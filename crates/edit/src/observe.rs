@@ -111,6 +111,68 @@ impl Observe for SpeedLimit {
     }
 }
 
+/// How far each counted character stands inside the clearance of the others, summed, m: per
+/// character i, sum_j max(0, `clearance` - |y_j - y_i|). As a constraint with target 0, a soft
+/// collision rule whose square is C1 (stage 7 keeps its edits apart with it, as the exact
+/// check of what it ships will).
+#[derive(Clone, Debug)]
+pub struct Apart {
+    /// The distance two centres keep, m.
+    pub clearance: f64,
+    /// The characters counted (and observed), in the order of the output.
+    pub who: Vec<usize>,
+}
+
+impl Apart {
+    /// Every counted pair (a, b) (indices into `who`) closer than the clearance, with their
+    /// unit offset from a to b and its length.
+    fn pressed(&self, x: &[f64]) -> Vec<(usize, usize, DVec2, f64)> {
+        let mut out = Vec::new();
+        for (a, &i) in self.who.iter().enumerate() {
+            for (b, &j) in self.who.iter().enumerate().skip(a + 1) {
+                let d = position(x, j) - position(x, i);
+                let n = d.length();
+                if n < self.clearance && n > 0.0 {
+                    out.push((a, b, d / n, n));
+                }
+            }
+        }
+        out
+    }
+}
+
+impl Observe for Apart {
+    fn len(&self) -> usize {
+        self.who.len()
+    }
+    fn observe(&self, x: &[f64], out: &mut [f64]) {
+        out.fill(0.0);
+        for (a, b, _, n) in self.pressed(x) {
+            out[a] += self.clearance - n;
+            out[b] += self.clearance - n;
+        }
+    }
+    fn tangent(&self, x: &[f64], dx: &[f64], out: &mut [f64]) {
+        out.fill(0.0);
+        for (a, b, e, _) in self.pressed(x) {
+            let (i, j) = (self.who[a], self.who[b]);
+            let dn = e.dot(position(dx, j) - position(dx, i));
+            out[a] -= dn;
+            out[b] -= dn;
+        }
+    }
+    fn adjoint_add(&self, x: &[f64], dy: &[f64], out: &mut [f64]) {
+        for (a, b, e, _) in self.pressed(x) {
+            let (i, j) = (self.who[a], self.who[b]);
+            let g = e * -(dy[a] + dy[b]);
+            out[4 * j] += g.x;
+            out[4 * j + 1] += g.y;
+            out[4 * i] -= g.x;
+            out[4 * i + 1] -= g.y;
+        }
+    }
+}
+
 /// Which characters an Eulerian operator counts: everyone, or those listed (stage 7: the
 /// walkers in the patch at the observed step; one operator per step).
 #[derive(Clone, Debug, Default, PartialEq)]

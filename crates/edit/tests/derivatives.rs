@@ -9,7 +9,7 @@ use crowd_edit::integrate::{Run, Timeline};
 use crowd_edit::model::{Character, Instant, Linearisation, Model, Plan, Repulsion};
 use crowd_edit::neighbours::Pairs;
 use crowd_edit::observe::{
-    Counted, Density, EulerGrid, Observe, Positions, SpeedLimit, Velocity, Vorticity,
+    Apart, Counted, Density, EulerGrid, Observe, Positions, SpeedLimit, Velocity, Vorticity,
 };
 use crowd_edit::{Constraint, Covariances, Problem, Rect, World};
 use glam::DVec2;
@@ -216,6 +216,13 @@ fn operators(n_characters: usize) -> Vec<(&'static str, Box<dyn Observe>)> {
     let inner = grid.cells_in(DVec2::new(4.0, 3.0), DVec2::new(8.0, 7.0));
     vec![
         (
+            "apart",
+            Box::new(Apart {
+                clearance: 1.2,
+                who: (0..n_characters).filter(|i| i % 4 != 2).collect(),
+            }),
+        ),
+        (
             "speed limit",
             Box::new(SpeedLimit {
                 who: (0..n_characters)
@@ -319,7 +326,7 @@ fn the_gradient_of_the_cost_is_its_derivative() {
         for (k, (name, op)) in operators(6).into_iter().enumerate() {
             let mut rng = ChaCha8Rng::seed_from_u64(500 + seed + k as u64);
             let len = op.len();
-            let window = (0.3 + 0.4 * k as f64, 0.9 + 0.3 * k as f64);
+            let window = (0.2 + 0.2 * k as f64, 0.6 + 0.25 * k as f64);
             let target = move |_: f64| random_vector(&mut rng, len);
             constraints
                 .push(Constraint::over_window(name, op, timeline, window, 0.7, target).unwrap());

@@ -13,7 +13,7 @@ use crowd_core::trajectories::{ControlPoint, PatchMotion, PointKind, Trajectory,
 use crowd_edit::cost::Sample;
 use crowd_edit::descent::{Descent, solve};
 use crowd_edit::model::{Character, Linearisation, Model, Repulsion};
-use crowd_edit::observe::SpeedLimit;
+use crowd_edit::observe::{Apart, SpeedLimit};
 use crowd_edit::{Constraint, Covariances, Objective, Problem, Rect, Timeline, World};
 use crowd_geometry::{Ladder, Patch, keep_clear};
 use glam::DVec2;
@@ -90,6 +90,7 @@ pub fn edit_patch(
         })
         .collect();
     limit_speeds(&copies, motion, span, steps, cx.max_speed, &mut constraints);
+    keep_apart(&copies, span, steps, cx.patch.radius_m, &mut constraints);
     let side = cx.patch.side_m;
     let world = World::new(
         Rect::new(DVec2::ZERO, DVec2::splat(side)),
@@ -222,6 +223,47 @@ fn limit_speeds(
             }],
             operator: Box::new(SpeedLimit { who }),
             r: SPEED_R,
+        });
+    }
+}
+
+/// R of the soft collision rule, m^2: strong, since a collision the model leaves costs the
+/// walkers in it their edit at the exact check.
+pub const APART_R: f64 = 0.001;
+
+/// How much farther apart than the exact check needs the model keeps everyone, m: the model
+/// walks its plans to within a few centimetres (Runge-Kutta on polylines).
+pub const APART_BUFFER_M: f64 = 0.05;
+
+/// The soft collision rule at every step on everyone present ([`Apart`]): centres
+/// 2 `radius` + [`APART_BUFFER_M`] apart.
+fn keep_apart(
+    copies: &[Copy],
+    span: (f64, f64),
+    steps: usize,
+    radius: f64,
+    out: &mut Vec<Constraint>,
+) {
+    for k in 0..=steps {
+        let t = span.0 + k as f64 * DT;
+        let who: Vec<usize> = (0..copies.len())
+            .filter(|&i| copies[i].present(t))
+            .collect();
+        if who.len() < 2 {
+            continue;
+        }
+        out.push(Constraint {
+            name: "apart".to_string(),
+            samples: vec![Sample {
+                step: k,
+                target: vec![0.0; who.len()],
+                weight: DT,
+            }],
+            operator: Box::new(Apart {
+                clearance: 2.0 * radius + APART_BUFFER_M,
+                who,
+            }),
+            r: APART_R,
         });
     }
 }
