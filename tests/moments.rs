@@ -141,58 +141,65 @@ fn near_pair(graph: &PatchGraph, motion: &PatchMotion, patch: usize) -> Option<(
 }
 
 #[test]
-fn a_meeting_brings_two_walkers_together_and_moves_no_border_point() {
+fn meetings_bring_walkers_within_half_a_metre_and_move_no_border_point() {
     let (graph, motion) = load(scene("city"));
-    let (p, (at, time)) = busiest(&motion)
-        .into_iter()
-        .find_map(|p| near_pair(&graph, &motion[p], p).map(|m| (p, m)))
-        .expect("two walkers pass near each other somewhere");
-    let kind = EditKind::Meet {
-        at: (at.x, at.y),
-        time_s: time,
-        people: 2,
-        radius_m: None,
-    };
-    let (after, outcomes) = edit(&graph, &motion, &inputs(vec![edit_of("meet", kind)]), &());
-    let o = &outcomes[0];
-    eprintln!("meet in patch {p} at {at} {time} s: {o:?}");
-    assert_eq!(o.patches, vec![p as u32]);
-    assert!(o.after < 0.5 && o.after < o.before, "{o:?}");
-    assert_kept(&graph, &motion, &after);
+    let mut met = 0;
+    for p in busiest(&motion).into_iter().take(8) {
+        let Some((at, time)) = near_pair(&graph, &motion[p], p) else {
+            continue;
+        };
+        let kind = EditKind::Meet {
+            at: (at.x, at.y),
+            time_s: time,
+            people: 2,
+            radius_m: None,
+        };
+        let (after, outcomes) = edit(&graph, &motion, &inputs(vec![edit_of("meet", kind)]), &());
+        let o = &outcomes[0];
+        assert_eq!(o.patches, vec![p as u32]);
+        assert!(o.after < 0.5 && o.after < o.before, "patch {p}: {o:?}");
+        assert_kept(&graph, &motion, &after);
+        met += 1;
+    }
+    assert!(
+        met >= 3,
+        "only {met} of the busiest patches had two walkers to meet"
+    );
 }
 
 #[test]
-fn each_area_edit_brings_its_patches_nearer_its_target() {
+fn each_area_edit_lowers_its_residual_on_busy_patches() {
     let (graph, motion) = load(scene("city"));
-    let p = busiest(&motion)[0];
     let side = graph.world.patch_side_m;
-    let c = graph.world_from_patch(graph.patches[p].cell) + DVec2::splat(side / 2.0);
-    let rect = (c.x - 2.5, c.y - 2.5, c.x + 2.5, c.y + 2.5);
-    let kinds = [
-        EditKind::Density {
-            rect,
-            window_s: (8.0, 10.0),
-            people_per_m2: 0.3,
-        },
-        EditKind::Flow {
-            rect,
-            window_s: (8.0, 10.0),
-            velocity_m_s: (0.0, -1.0),
-        },
-        EditKind::Vorticity {
-            rect,
-            window_s: (8.0, 10.0),
-            per_s: 0.5,
-        },
-    ];
-    for kind in kinds {
-        let name = kind.name();
-        let (after, outcomes) = edit(&graph, &motion, &inputs(vec![edit_of(name, kind)]), &());
-        let o = &outcomes[0];
-        eprintln!("{name}: {o:?}");
-        assert_eq!(o.patches, vec![p as u32], "{name}");
-        assert!(o.after < 0.95 * o.before, "{name}: {o:?}");
-        assert_kept(&graph, &motion, &after);
+    for p in busiest(&motion).into_iter().take(4) {
+        let c = graph.world_from_patch(graph.patches[p].cell) + DVec2::splat(side / 2.0);
+        let rect = (c.x - 2.5, c.y - 2.5, c.x + 2.5, c.y + 2.5);
+        let window_s = (8.0, 10.0);
+        let kinds = [
+            EditKind::Density {
+                rect,
+                window_s,
+                people_per_m2: 0.3,
+            },
+            EditKind::Flow {
+                rect,
+                window_s,
+                velocity_m_s: (0.0, -1.0),
+            },
+            EditKind::Vorticity {
+                rect,
+                window_s,
+                per_s: 0.5,
+            },
+        ];
+        for kind in kinds {
+            let name = kind.name();
+            let (after, outcomes) = edit(&graph, &motion, &inputs(vec![edit_of(name, kind)]), &());
+            let o = &outcomes[0];
+            assert_eq!(o.patches, vec![p as u32], "{name}");
+            assert!(o.after < o.before, "patch {p}, {name}: {o:?}");
+            assert_kept(&graph, &motion, &after);
+        }
     }
 }
 
