@@ -210,3 +210,140 @@ fn no_edits_change_nothing() {
     assert!(outcomes.is_empty());
     assert_eq!(after, motion);
 }
+
+/// `crowd report DIR --json`.
+fn report_json(dir: &Path) -> serde_json::Value {
+    let out = crowd_ok(&["report", s(dir), "--json"]);
+    serde_json::from_slice(&out.stdout).unwrap()
+}
+
+/// The text of `assets/pipelines/city-edits.ron` with its layer paths made absolute (so that
+/// a changed copy can live anywhere) and `change` applied to it.
+fn city_edits_text(change: impl Fn(String) -> String) -> String {
+    let text = std::fs::read_to_string(scene_pipeline("city-edits")).unwrap();
+    let shared = shared_scenes().canonicalize().unwrap();
+    change(text.replace("../../../shared/scenes", s(&shared)))
+}
+
+#[test]
+fn the_city_with_an_edit_of_each_kind_meets_them_and_ships_without_a_collision() {
+    let out = scene("city-edits");
+    let json = report_json(out);
+    let edits = json["edits"].as_array().expect("report.json has the edits");
+    assert_eq!(edits.len(), 4);
+    for e in edits {
+        let (before, after) = (e["before"].as_f64().unwrap(), e["after"].as_f64().unwrap());
+        assert!(after < before, "{e}");
+        if e["kind"] == "Meet" {
+            assert!(after < 0.5, "{e}");
+        }
+    }
+    assert_eq!(json["checked_stage"], "edit");
+    for key in ["collisions", "library_collisions", "gltf_collisions"] {
+        assert_eq!(json[key], 0, "{key}");
+    }
+    assert!(
+        std::fs::read_to_string(out.join("report.md"))
+            .unwrap()
+            .contains("## Edits (stage 7)")
+    );
+    // Every entry, exit and band point as stage 6 left it.
+    let (graph, smoothed) = load(out);
+    let edited = TrajectoriesFile::load_stage(
+        &out.join("edited.ron"),
+        crowd_moments::STAGE,
+        crowd_moments::VERSION,
+    )
+    .unwrap()
+    .1;
+    assert_ne!(edited, smoothed);
+    assert_kept(&graph, &smoothed, &edited);
+}
+
+#[test]
+fn changing_an_edit_reruns_only_the_edit_and_export_and_removing_them_all_drops_the_edit_file() {
+    let dir = copy_of("city-edits");
+    let build = |text: String| {
+        let pipeline = dir.path().join("changed.ron");
+        std::fs::write(&pipeline, text).unwrap();
+        let out = crowd_ok(&[
+            "build",
+            "--pipeline",
+            s(&pipeline),
+            "--output",
+            s(dir.path()),
+        ]);
+        String::from_utf8_lossy(&out.stdout).into_owned() + &String::from_utf8_lossy(&out.stderr)
+    };
+    let said = build(city_edits_text(|t| t.replace("per_s: 0.5", "per_s: 0.4")));
+    for stage in ["merge", "graph", "optimize", "match", "collide", "smooth"] {
+        assert!(
+            said.contains(&format!("{stage}: up to date, skipped")),
+            "{stage}:\n{said}"
+        );
+    }
+    for stage in ["edit", "export"] {
+        assert!(
+            said.contains(&format!("{stage}: built in")),
+            "{stage}:\n{said}"
+        );
+    }
+    let without = city_edits_text(|t| {
+        let start = t.find("    edits: [").unwrap();
+        let end = t[start..].find("\n    ],\n").unwrap() + start + "\n    ],\n".len();
+        format!("{}{}", &t[..start], &t[end..])
+    });
+    let said = build(without);
+    assert!(said.contains("export: built in"), "{said}");
+    assert!(!said.contains("edit: built"), "{said}");
+    assert!(!dir.path().join("edited.ron").exists());
+    assert!(!dir.path().join("edited.bin").exists());
+    assert!(report_json(dir.path()).get("edits").is_none());
+}
+
+#[test]
+fn a_bad_edit_is_refused_naming_it_and_leaves_no_folder() {
+    let cases = [
+        (
+            r#"(name: "long", kind: Density(rect: (1, 1, 5, 5), window_s: (5, 30), people_per_m2: 0.2))"#,
+            "at most one period",
+        ),
+        (
+            r#"(name: "crammed", kind: Density(rect: (1, 1, 5, 5), window_s: (5, 8), people_per_m2: 2.0))"#,
+            "optimize.rho_max",
+        ),
+        (
+            r#"(name: "swirl", kind: Swirl(rect: (1, 1, 5, 5)))"#,
+            "Swirl",
+        ),
+        (
+            r#"(name: "far away", kind: Meet(at: (5000, 5), time_s: 3))"#,
+            "not on the painted maps",
+        ),
+    ];
+    for (edit, expected) in cases {
+        let dir = tempfile::tempdir().unwrap();
+        let pipeline = dir.path().join("pipeline.ron");
+        let text = city_edits_text(|t| {
+            let start = t.find("    edits: [").unwrap();
+            let end = t[start..].find("\n    ],\n").unwrap() + start + "\n    ],\n".len();
+            format!(
+                "{}    edits: [\n        {edit},\n    ],\n{}",
+                &t[..start],
+                &t[end..]
+            )
+        })
+        .replace("../../build/city-edits", "out");
+        std::fs::write(&pipeline, text).unwrap();
+        let err = crowd_err(&["build", "--pipeline", s(&pipeline)]);
+        assert!(err.contains(expected), "{edit}: {err}");
+        assert!(
+            err.contains("edits[0]") || err.contains("Swirl"),
+            "{edit}: {err}"
+        );
+        assert!(
+            !dir.path().join("out").exists(),
+            "{edit}: a refused build left its folder"
+        );
+    }
+}

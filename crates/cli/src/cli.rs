@@ -106,8 +106,10 @@ pub enum Command {
         #[arg(long, value_name = "FILE")]
         pipeline: Option<PathBuf>,
     },
-    /// Run one of the optimal crowd editing paper's experiments (Allain et al. 2014) and write
-    /// its per-iteration CSV, plots, trajectories before and after, and result.ron.
+    /// Stage 7: edit the pipeline's moments into the patches they cover (reads the smoothed
+    /// trajectories, and the graph beside them); or, with `--experiment`, run one of the
+    /// optimal crowd editing paper's experiments (Allain et al. 2014) and write its
+    /// per-iteration CSV, plots, trajectories before and after, and result.ron.
     #[command(after_long_help = crate::edit_pictures::LEGEND)]
     Edit(EditArgs),
     /// The figures of a build folder (`--json` for one JSON object).
@@ -127,33 +129,63 @@ pub enum Command {
     },
 }
 
-/// One of the optimal crowd editing paper's experiments (see `crowd-edit`).
+/// Stage 7 alone, or one of the optimal crowd editing paper's experiments (see `crowd-edit`).
 #[derive(Debug, clap::Args)]
 pub struct EditArgs {
-    /// rendez-vous, letters, density, vorticity or flow.
+    /// The experiment to run: rendez-vous, letters, density, vorticity or flow. Without it,
+    /// stage 7 runs on the pipeline's build.
     #[arg(long, value_name = "NAME")]
-    pub experiment: String,
-    /// Where to write the CSV, pictures and result.ron (default: edit-NAME).
-    #[arg(long, short, value_name = "DIR")]
+    pub experiment: Option<String>,
+    /// Stage 7: the pipeline, with its `edits`.
+    #[arg(
+        long,
+        value_name = "FILE",
+        default_value = "pipeline.ron",
+        conflicts_with = "experiment"
+    )]
+    pub pipeline: PathBuf,
+    /// Stage 7: the smoothed trajectories it reads (default: `smoothed.ron` in the pipeline's
+    /// output folder); graph.ron read beside it.
+    #[arg(long, short, value_name = "FILE", conflicts_with = "experiment")]
+    pub input: Option<PathBuf>,
+    /// Stage 7: the file to write (default: `edited.ron` in the pipeline's output folder;
+    /// edited.bin beside it). An experiment: the folder for its CSV, pictures and result.ron
+    /// (default: edit-NAME).
+    #[arg(long, short, value_name = "PATH")]
     pub output: Option<PathBuf>,
     /// Descent iterations (default: the experiment's, as in the paper).
-    #[arg(long, value_name = "N")]
+    #[arg(long, value_name = "N", requires = "experiment")]
     pub iterations: Option<usize>,
     /// local, global, quasi-newton (global along L-BFGS directions) or alternating (5 local
     /// iterations then 5 global, section 4.3) (default: the experiment's).
-    #[arg(long, value_name = "DESCENT", value_parser = parse_descent)]
+    #[arg(long, value_name = "DESCENT", value_parser = parse_descent, requires = "experiment")]
     pub descent: Option<crowd_edit::Descent>,
     /// Every constraint's covariance R (default: the paper's for the experiment).
-    #[arg(long, value_name = "R", allow_negative_numbers = true)]
+    #[arg(
+        long,
+        value_name = "R",
+        allow_negative_numbers = true,
+        requires = "experiment"
+    )]
     pub r: Option<f64>,
     /// The model covariance Q_u, m^2/s^4 (default: the paper's for the experiment).
-    #[arg(long, value_name = "Q", allow_negative_numbers = true)]
+    #[arg(
+        long,
+        value_name = "Q",
+        allow_negative_numbers = true,
+        requires = "experiment"
+    )]
     pub q: Option<f64>,
     /// rendez-vous only: the meeting point, metres.
-    #[arg(long, value_name = "X,Y", value_parser = parse_point, allow_negative_numbers = true)]
+    #[arg(long, value_name = "X,Y", value_parser = parse_point, allow_negative_numbers = true, requires = "experiment")]
     pub meet: Option<(f64, f64)>,
     /// rendez-vous only: the meeting time, seconds.
-    #[arg(long, value_name = "T", allow_negative_numbers = true)]
+    #[arg(
+        long,
+        value_name = "T",
+        allow_negative_numbers = true,
+        requires = "experiment"
+    )]
     pub meet_time: Option<f64>,
 }
 
@@ -290,9 +322,13 @@ impl FromArgMatches for StageCommand {
 
 impl Subcommand for StageCommand {
     fn augment_subcommands(command: clap::Command) -> clap::Command {
-        STAGES.iter().fold(command, |command, s| {
-            command.subcommand(stage_subcommand(s))
-        })
+        // Stage 7's subcommand is `edit`, which also runs the paper's experiments.
+        STAGES
+            .iter()
+            .filter(|s| ***s != stages::EDIT)
+            .fold(command, |command, s| {
+                command.subcommand(stage_subcommand(s))
+            })
     }
 
     fn augment_subcommands_for_update(command: clap::Command) -> clap::Command {
@@ -300,7 +336,7 @@ impl Subcommand for StageCommand {
     }
 
     fn has_subcommand(name: &str) -> bool {
-        stage::named(name).is_some()
+        stage::named(name).is_some_and(|s| *s != stages::EDIT)
     }
 }
 
@@ -393,8 +429,12 @@ pub fn run(cli: Cli) -> Result<()> {
             driver::run_stage(stage, &p, input, output, &ui)?;
         }
         Command::Edit(args) => {
+            let Some(experiment) = args.experiment else {
+                let p = PipelineFile::load(&args.pipeline)?;
+                return driver::run_stage(&stages::EDIT, &p, args.input, args.output, &ui);
+            };
             let command = crate::edit::EditCommand {
-                experiment: args.experiment,
+                experiment,
                 output: args.output,
                 overrides: crowd_edit::experiments::Overrides {
                     iterations: args.iterations,

@@ -95,7 +95,20 @@ fn run_stages(
     let mut outcomes = Vec::new();
     // Whether files can be written is proved before the first stage that runs does any work.
     let mut writable = false;
+    let mut stale = Vec::new();
     for stage in stage::up_to(options.until) {
+        if !(stage.applies)(artifacts.pipeline) {
+            // An edit stage's files from a build that had edits would be read as this one's
+            // (`crowd check` reads the latest trajectories in the folder).
+            stale.extend(
+                stage
+                    .writes
+                    .iter()
+                    .map(|name| out.join(name))
+                    .filter(|path| path.exists()),
+            );
+            continue;
+        }
         let path = out.join(stage.output);
         let hash = (stage.hash)(artifacts)?;
         if !options.force && (stage.fresh)(artifacts, &path, hash)? {
@@ -140,6 +153,9 @@ fn run_stages(
     if outcomes.iter().any(|o| o.seconds.is_some()) {
         pending.commit()?;
         files::write_atomic(&out.join(TIMINGS_FILE), files::to_ron(&timings).as_bytes())?;
+    }
+    for path in stale {
+        std::fs::remove_file(&path).map_err(|e| crowd_core::Error::io(&path, "remove", e))?;
     }
     Ok(outcomes)
 }

@@ -23,6 +23,8 @@ pub struct Report {
     pub trajectories: Option<TrajectoriesFile>,
     pub collided: Option<TrajectoriesFile>,
     pub smoothed: Option<TrajectoriesFile>,
+    /// Stage 7's file, when the pipeline has edits.
+    pub edited: Option<TrajectoriesFile>,
     /// The last `crowd check` of the folder.
     pub check: Option<crowd_check::CheckReport>,
     pub export: Option<crowd_export::ExportFile>,
@@ -91,6 +93,7 @@ impl Report {
         let trajectories = read(optional(TRAJECTORIES_FILE))?;
         let collided = read(optional(COLLIDED_FILE))?;
         let smoothed = read(optional(SMOOTHED_FILE))?;
+        let edited = read(optional(stages::EDITED_FILE))?;
         let check = read(optional(CHECK_FILE))?;
         let export = read(optional(EXPORT_FILE))?;
         let mut outputs = BTreeMap::new();
@@ -107,6 +110,7 @@ impl Report {
             trajectories,
             collided,
             smoothed,
+            edited,
             check,
             export,
             stages: read_timings(dir),
@@ -183,6 +187,9 @@ impl Report {
         if let Some(s) = self.smoothed.as_ref().and_then(|s| s.smoothing.as_ref()) {
             out.insert("smoothed_trajectories".into(), json!(s.smoothed));
             out.insert("kept_straight".into(), json!(s.kept_straight));
+        }
+        if let Some(edits) = self.edited.as_ref().and_then(|e| e.edits.as_ref()) {
+            out.insert("edits".into(), json!(edits));
         }
         if let Some(c) = self.collided.as_ref().and_then(|c| c.collisions.as_ref()) {
             out.insert("unconverged_patches".into(), json!(c.unconverged.len()));

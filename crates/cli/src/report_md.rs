@@ -277,6 +277,7 @@ fn markdown(dir: &Path, report: &Report, pictures: &[Picture]) -> String {
     }
 
     shipped(&mut s, dir, report, &json);
+    edits(&mut s, report);
     let _ = writeln!(
         s,
         "## Cost\n\nWall time and peak resident memory of each stage (and of the check) when it \
@@ -399,4 +400,33 @@ fn size(bytes: u64) -> String {
         b if b >= 1_000 => format!("{:.1} kB", b as f64 / 1e3),
         b => format!("{b} B"),
     }
+}
+
+/// The edits of stage 7, when the pipeline has any: each one's residual before and after.
+fn edits(s: &mut String, report: &Report) {
+    let Some(edits) = report.edited.as_ref().and_then(|e| e.edits.as_ref()) else {
+        return;
+    };
+    let _ = writeln!(
+        s,
+        "## Edits (stage 7)\n\nEach edit's residual on the patches it covers, before and after \
+         (what it measures in the last column).\n\n| edit | kind | before | after | patches | \
+         walkers changed | iterations | measure |\n| --- | --- | ---: | ---: | ---: | ---: | ---: \
+         | --- |"
+    );
+    for e in edits {
+        let _ = writeln!(
+            s,
+            "| {} | {} | {:.3} | {:.3} | {} | {} | {} | {} |",
+            e.name,
+            e.kind,
+            e.before,
+            e.after,
+            e.patches.len(),
+            e.walkers,
+            e.iterations,
+            e.measure
+        );
+    }
+    s.push('\n');
 }

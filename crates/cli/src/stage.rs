@@ -39,6 +39,8 @@ pub struct Stage {
     /// Runs it, writing into the path (and beside it): the files to write, and its result
     /// left in the artifacts for the next stage.
     pub run: fn(&mut Artifacts, &Path, Hash, &Ui) -> Result<Ran>,
+    /// Whether a build of this pipeline runs it (stage 7 only when there are edits).
+    pub applies: fn(&crowd_core::config::PipelineFile) -> bool,
 }
 
 /// What a stage run gives back.

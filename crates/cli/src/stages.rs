@@ -1,7 +1,8 @@
 //! The pipeline's stages, in build order: the one table `crowd build`, the stage subcommands,
 //! `--until`, the report and the timings read. Each entry says what the stage reads and writes
 //! and glues its crate's pure function to the files: hash the inputs, tell whether the file is
-//! up to date, run. Stage 7 (edit) is not built yet; it will be one more entry.
+//! up to date, run. Stage 7 (edit) runs only when the pipeline has edits; export then reads its
+//! file in place of stage 6's.
 
 use crate::artifacts::Artifacts;
 use crate::stage::{Ran, Stage};
@@ -21,16 +22,32 @@ pub const PATTERNS_FILE: &str = "patterns.ron";
 pub const TRAJECTORIES_FILE: &str = "trajectories.ron";
 pub const COLLIDED_FILE: &str = "collided.ron";
 pub const SMOOTHED_FILE: &str = "smoothed.ron";
+pub const EDITED_FILE: &str = "edited.ron";
 pub const EXPORT_FILE: &str = "export.ron";
 
 /// Every stage, in the order a build runs them.
-pub static STAGES: [&Stage; 7] = [
-    &MERGE, &GRAPH, &OPTIMIZE, &MATCH, &COLLIDE, &SMOOTH, &EXPORT,
+pub static STAGES: [&Stage; 8] = [
+    &MERGE, &GRAPH, &OPTIMIZE, &MATCH, &COLLIDE, &SMOOTH, &EDIT, &EXPORT,
 ];
 
-/// The stages that write trajectories (`crowd check` reads them), latest first. Stage 7 will
-/// join them.
-pub static TRAJECTORY_STAGES: [&Stage; 3] = [&SMOOTH, &COLLIDE, &MATCH];
+/// The stages that write trajectories (`crowd check` reads them), latest first.
+pub static TRAJECTORY_STAGES: [&Stage; 4] = [&EDIT, &SMOOTH, &COLLIDE, &MATCH];
+
+/// Every stage but the edit runs in every build.
+fn always(_: &crowd_core::config::PipelineFile) -> bool {
+    true
+}
+
+/// The stage whose trajectories export reads: the edit's when the pipeline has edits, the
+/// smooth stage's otherwise (a pipeline without edits builds the bytes it built before stage 7
+/// existed).
+pub fn final_motion(pipeline: &crowd_core::config::PipelineFile) -> &'static Stage {
+    if pipeline.pipeline.edits.is_empty() {
+        &SMOOTH
+    } else {
+        &EDIT
+    }
+}
 
 pub static MERGE: Stage = Stage {
     name: "merge",
@@ -56,6 +73,7 @@ pub static MERGE: Stage = Stage {
         Ok(true)
     },
     run: merge,
+    applies: always,
 };
 
 pub static GRAPH: Stage = Stage {
@@ -77,6 +95,7 @@ pub static GRAPH: Stage = Stage {
     // The graph is read (and checked) only when a later stage runs.
     fresh: |_, path, hash| Ok(header_matches(&GRAPH, path, hash)),
     run: graph,
+    applies: always,
 };
 
 pub static OPTIMIZE: Stage = Stage {
@@ -106,6 +125,7 @@ pub static OPTIMIZE: Stage = Stage {
         Ok(true)
     },
     run: optimize,
+    applies: always,
 };
 
 pub static MATCH: Stage = Stage {
@@ -125,6 +145,7 @@ pub static MATCH: Stage = Stage {
     },
     fresh: |a, path, hash| motion_fresh(&MATCH, a, path, hash),
     run: matching,
+    applies: always,
 };
 
 pub static COLLIDE: Stage = Stage {
@@ -143,6 +164,7 @@ pub static COLLIDE: Stage = Stage {
     },
     fresh: |a, path, hash| motion_fresh(&COLLIDE, a, path, hash),
     run: collide,
+    applies: always,
 };
 
 pub static SMOOTH: Stage = Stage {
@@ -165,6 +187,27 @@ pub static SMOOTH: Stage = Stage {
     },
     fresh: |a, path, hash| motion_fresh(&SMOOTH, a, path, hash),
     run: smooth,
+    applies: always,
+};
+
+pub static EDIT: Stage = Stage {
+    name: "edit",
+    number: 7,
+    about: "Stage 7: edit the pipeline's moments into the patches they cover (reads the \
+            smoothed trajectories, and the graph beside them)",
+    reads: &[GRAPH_FILE, SMOOTHED_FILE],
+    output: EDITED_FILE,
+    writes: &["edited.bin", EDITED_FILE],
+    kind: crowd_moments::STAGE,
+    version: crowd_moments::VERSION,
+    hash: |a| {
+        let (graph, smoothed) = (a.bytes(&GRAPH)?, a.bytes(&SMOOTH)?);
+        let inputs = crowd_moments::inputs(a.pipeline);
+        Ok(crowd_moments::input_hash(&graph, &smoothed, &inputs))
+    },
+    fresh: |a, path, hash| motion_fresh(&EDIT, a, path, hash),
+    run: edit,
+    applies: |p| !p.pipeline.edits.is_empty(),
 };
 
 pub static EXPORT: Stage = Stage {
@@ -183,7 +226,7 @@ pub static EXPORT: Stage = Stage {
     version: crowd_export::VERSION,
     hash: |a| {
         let (graph, patterns) = (a.bytes(&GRAPH)?, a.bytes(&OPTIMIZE)?);
-        let smoothed = a.bytes(&SMOOTH)?;
+        let smoothed = a.bytes(final_motion(a.pipeline))?;
         let inputs = crowd_export::inputs(a.pipeline);
         Ok(crowd_export::input_hash(
             &graph, &patterns, &smoothed, &inputs,
@@ -191,6 +234,7 @@ pub static EXPORT: Stage = Stage {
     },
     fresh: |_, path, hash| Ok(export_current(path, hash)),
     run: export,
+    applies: always,
 };
 
 /// Whether the file at `path` was built by this version of `stage` from exactly `hash`.
@@ -339,11 +383,31 @@ fn smooth(a: &mut Artifacts, out: &Path, hash: Hash, ui: &Ui) -> Result<Ran> {
     Ok(Ran::files(writes))
 }
 
+fn edit(a: &mut Artifacts, out: &Path, hash: Hash, ui: &Ui) -> Result<Ran> {
+    if a.pipeline.pipeline.edits.is_empty() {
+        bail!(
+            "{}: the pipeline has no `edits`; stage 7 edits nothing (export reads {SMOOTHED_FILE})",
+            a.pipeline.path.display()
+        );
+    }
+    let graph = a.graph()?;
+    a.pipeline
+        .check_edits((graph.world.size_m.x, graph.world.size_m.y))?;
+    let bar = ui.stage_bar(EDIT.name);
+    let smoothed = a.take_motion(&SMOOTH)?;
+    let inputs = crowd_moments::inputs(a.pipeline);
+    let (motion, edits) = crowd_moments::edit(&graph, &smoothed.1, &inputs, &bar);
+    let (file, writes) = crowd_moments::encode(out, &motion, edits, &smoothed.0, hash);
+    drop(smoothed);
+    a.made_motion(&EDIT, (file, motion));
+    Ok(Ran::files(writes))
+}
+
 fn export(a: &mut Artifacts, out: &Path, hash: Hash, _: &Ui) -> Result<Ran> {
     let (graph, patterns) = (a.graph()?, a.patterns()?);
     a.pipeline
         .check_region((graph.world.size_m.x, graph.world.size_m.y))?;
-    let smoothed = a.take_motion(&SMOOTH)?;
+    let smoothed = a.take_motion(final_motion(a.pipeline))?;
     let inputs = crowd_export::inputs(a.pipeline);
     let export = crowd_export::export(&graph, &patterns.1, &smoothed.1, &inputs, hash)
         .map_err(|e| anyhow!("{}: cannot export: {e}", out.display()))?;

@@ -479,6 +479,7 @@ pub fn encode_file(
         summary: summarize(motion, period_s),
         collisions,
         smoothing,
+        edits: None,
         motion: record,
     };
     let ron = crate::files::to_stage_ron(&file).into_bytes();
@@ -499,8 +500,31 @@ pub struct TrajectoriesFile {
     /// What the smooth stage did (absent before it).
     #[serde(default)]
     pub smoothing: Option<SmoothingSummary>,
+    /// What the edit stage did, per edit (absent before it, and in every file of a pipeline
+    /// without edits, so that those files are the bytes they were before stage 7 existed).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub edits: Option<Vec<EditSummary>>,
     /// Per patch motion, in patch order.
     pub motion: SideFile,
+}
+
+/// What one edit of stage 7 did.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct EditSummary {
+    pub name: String,
+    /// Meet, Density, Flow or Vorticity.
+    pub kind: String,
+    /// What `before` and `after` measure, with its unit.
+    pub measure: String,
+    pub before: f64,
+    pub after: f64,
+    /// The patches it covers (indices in the graph).
+    pub patches: Vec<u32>,
+    /// Walkers whose walk changed, over those patches.
+    pub walkers: usize,
+    /// Descent iterations, summed over its patches.
+    pub iterations: usize,
 }
 
 /// The collide stage's figures.

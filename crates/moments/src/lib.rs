@@ -20,11 +20,12 @@ pub mod targets;
 
 use crowd_core::PatchGraph;
 use crowd_core::config::{DEFAULT_Q, Edit, EditKind};
-use crowd_core::trajectories::PatchMotion;
+use crowd_core::trajectories::{EditSummary, PatchMotion, TrajectoriesFile};
+use crowd_core::{Hash, Hasher};
 use glam::DVec2;
 use patch::{Context, Edited, edit_patch};
 use rayon::prelude::*;
-use serde::{Deserialize, Serialize};
+use serde::Serialize;
 use targets::{Local, Residual, localise};
 
 /// The stage name in `edited.ron`'s header.
@@ -49,21 +50,56 @@ pub struct Inputs {
     pub edits: Vec<Edit>,
 }
 
-/// What one edit did, for the report.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct EditOutcome {
-    pub name: String,
-    pub kind: String,
-    /// What `before` and `after` measure.
-    pub measure: String,
-    pub before: f64,
-    pub after: f64,
-    /// The patches it covers (indices in the graph).
-    pub patches: Vec<u32>,
-    /// Walkers whose walk it changed, over those patches.
-    pub walkers: usize,
-    /// Descent iterations, summed over its patches.
-    pub iterations: usize,
+/// What stage 7 reads of a pipeline besides its input files.
+pub fn inputs(pipeline: &crowd_core::config::PipelineFile) -> Inputs {
+    let p = &pipeline.pipeline;
+    Inputs {
+        period_s: p.period_s,
+        max_speed: p.matching.max_speed * SPEED_ALLOWANCE,
+        margin_m: p.shipping_error_m(),
+        edits: p.edits.clone(),
+    }
+}
+
+/// How much faster than `match.max_speed` an edited walk may be: stage 6's allowance, which
+/// the shipped files are held to (with export's share).
+pub const SPEED_ALLOWANCE: f64 = 1.04;
+
+/// The hash of stage 7's inputs: the graph and smoothed files' bytes and the settings.
+pub fn input_hash(graph: &[u8], smoothed: &[u8], inputs: &Inputs) -> Hash {
+    Hasher::new(STAGE, VERSION)
+        .file("graph file", graph)
+        .file("smoothed file", smoothed)
+        .value("inputs", inputs)
+        .finish()
+}
+
+/// Stage 7's files, encoded: the motion side file, then `edited.ron` (stage 6's figures
+/// carried over, and what each edit did).
+pub fn encode(
+    out: &std::path::Path,
+    motion: &[PatchMotion],
+    edits: Vec<EditSummary>,
+    smoothed: &TrajectoriesFile,
+    hash: Hash,
+) -> (TrajectoriesFile, crowd_core::files::Writes) {
+    let header = crowd_core::files::Header::new(STAGE, VERSION, hash);
+    let (mut file, mut writes) = crowd_core::trajectories::encode_file(
+        out,
+        header,
+        smoothed.period_s,
+        smoothed.radius_m,
+        motion,
+        smoothed.collisions.clone(),
+        smoothed.smoothing.clone(),
+    );
+    file.edits = Some(edits);
+    let ron = crowd_core::files::to_stage_ron(&file).into_bytes();
+    writes
+        .last_mut()
+        .expect("encode_file writes the file last")
+        .1 = ron;
+    (file, writes)
 }
 
 /// What an edit's residual measures.
@@ -108,7 +144,7 @@ pub fn edit(
     motion: &[PatchMotion],
     inputs: &Inputs,
     progress: &dyn crowd_core::Progress,
-) -> (Vec<PatchMotion>, Vec<EditOutcome>) {
+) -> (Vec<PatchMotion>, Vec<EditSummary>) {
     let work: Vec<(usize, Vec<Local>, (f64, f64))> = (0..motion.len())
         .filter_map(|p| {
             let (locals, span) = locals_of(graph, p, inputs);
@@ -142,10 +178,10 @@ pub fn edit(
         })
         .collect();
     let mut out = motion.to_vec();
-    let mut outcomes: Vec<EditOutcome> = inputs
+    let mut outcomes: Vec<EditSummary> = inputs
         .edits
         .iter()
-        .map(|e| EditOutcome {
+        .map(|e| EditSummary {
             name: e.name.clone(),
             kind: e.kind.name().to_string(),
             measure: measure_of(&e.kind).to_string(),

@@ -3,6 +3,7 @@
 //! its paths. `Pipeline::validate` checks the top level and calls each stage's `validate`.
 
 use super::checks::{Check, Num, invalid, not_negative, positive, require};
+use super::edits::{Edit, EditLimits, validate_edits};
 use super::ron_text::{describe_ron_error, locate_field};
 use super::settings::{
     CollideSettings, ExportSettings, GraphSettings, MatchSettings, MergeSettings, OptimizeSettings,
@@ -47,6 +48,9 @@ pub struct Pipeline {
     pub smooth: SmoothSettings,
     #[serde(default)]
     pub export: ExportSettings,
+    /// The moments stage 7 edits in (none: stage 7 does not run, and export reads stage 6).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub edits: Vec<Edit>,
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -168,7 +172,15 @@ impl Pipeline {
         self.collide.validate()?;
         self.smooth.validate()?;
         self.export.validate()?;
-        self.validate_sizes()
+        self.validate_sizes()?;
+        validate_edits(
+            &self.edits,
+            &EditLimits {
+                period_s: self.period_s,
+                rho_max: self.optimize.rho_max,
+                max_speed: self.matching.max_speed,
+            },
+        )
     }
 }
 
@@ -375,6 +387,14 @@ impl PipelineFile {
                  inside (0, 0, {width}, {height}), the maps' size in world metres"
             ),
         ))
+    }
+
+    /// Refuses an edit whose place is not on the painted maps (`width` x `height` m).
+    pub fn check_edits(&self, size: (f64, f64)) -> Result<()> {
+        match super::edits::check_edits_on_map(&self.pipeline.edits, size) {
+            Ok(()) => Ok(()),
+            Err((k, message)) => Err(self.field_error(&format!("edits[{k}].kind"), message)),
+        }
     }
 
     /// Refuses a setting its stage cannot use, at the line of the setting.
