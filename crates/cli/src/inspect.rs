@@ -28,9 +28,12 @@ pub fn inspect(path: &Path) -> Result<String> {
             let (patterns, crossings) = Patterns::load(path)?;
             Ok(inspect_patterns(&patterns, &crossings))
         }
-        stage @ (TrajectoriesFile::STAGE | crowd_collide::STAGE | crowd_smooth::STAGE) => Ok(
-            inspect_trajectories(&TrajectoriesFile::load_stage(path, stage, version_of(stage))?.0),
-        ),
+        stage @ (TrajectoriesFile::STAGE
+        | crowd_collide::STAGE
+        | crowd_smooth::STAGE
+        | crowd_moments::STAGE) => Ok(inspect_trajectories(
+            &TrajectoriesFile::load_stage(path, stage, version_of(stage))?.0,
+        )),
         crowd_export::STAGE => inspect_export(path),
         other => bail!(
             "{}: `crowd inspect` does not know `{other}` files",
@@ -147,7 +150,10 @@ pub fn render(path: &Path, out: &Path, patch: Option<u32>) -> Result<&'static st
                 crowd_render::PATTERNS_LEGEND,
             )
         }
-        stage @ (TrajectoriesFile::STAGE | crowd_collide::STAGE | crowd_smooth::STAGE) => {
+        stage @ (TrajectoriesFile::STAGE
+        | crowd_collide::STAGE
+        | crowd_smooth::STAGE
+        | crowd_moments::STAGE) => {
             let graph = PatchGraph::load(&beside(GRAPH_FILE))?;
             let (patterns, crossings) = Patterns::load_for(&beside(PATTERNS_FILE), &graph)?;
             let patches = graph.patches.len();
