@@ -258,6 +258,24 @@ fn the_city_with_an_edit_of_each_kind_meets_them_and_ships_without_a_collision()
     .1;
     assert_ne!(edited, smoothed);
     assert_kept(&graph, &smoothed, &edited);
+    // Each edit pictured before and after; an edit the pipeline does not have is refused.
+    let dir = tempfile::tempdir().unwrap();
+    let picture = dir.path().join("whirl.png");
+    let pipeline = scene_pipeline("city-edits");
+    let file = out.join("edited.ron");
+    let args = [
+        "render",
+        s(&file),
+        "--pipeline",
+        s(&pipeline),
+        "-o",
+        s(&picture),
+    ];
+    crowd_ok(&[&args[..], &["--edit", "whirl"]].concat());
+    let image = image::open(&picture).unwrap();
+    assert!(image.width() > 500 && image.height() > 250);
+    let err = crowd_err(&[&args[..], &["--edit", "tornado"]].concat());
+    assert!(err.contains("no edit named `tornado`"), "{err}");
 }
 
 #[test]

@@ -90,8 +90,19 @@ pub enum Command {
         #[arg(long, short, value_name = "OUT.png")]
         output: PathBuf,
         /// For trajectories: the patch to draw (default: the busiest).
-        #[arg(long, value_name = "ID")]
+        #[arg(long, value_name = "ID", conflicts_with = "edit")]
         patch: Option<u32>,
+        /// For stage 7's file: the edit to draw, before and after, in every patch it covers.
+        #[arg(long, value_name = "NAME")]
+        edit: Option<String>,
+        /// With `--edit`: the pipeline that asks for it.
+        #[arg(
+            long,
+            value_name = "FILE",
+            default_value = "pipeline.ron",
+            requires = "edit"
+        )]
+        pipeline: PathBuf,
     },
     /// Check a build folder's world as an engine plays it: every pair, every time, across
     /// borders too, on the latest trajectories and on what ships (`library.crowd`,
@@ -458,8 +469,17 @@ pub fn run(cli: Cli) -> Result<()> {
             file,
             output,
             patch,
+            edit,
+            pipeline,
         } => {
-            let legend = crate::inspect::render(&file, &output, patch)?;
+            let legend = match edit {
+                Some(name) => {
+                    let image = crate::edit_render::render_edit(&file, &name, &pipeline)?;
+                    crowd_render::save_png(&image, &output)?;
+                    crate::edit_render::EDIT_LEGEND
+                }
+                None => crate::inspect::render(&file, &output, patch)?,
+            };
             ui.say(format!("wrote {}: {legend}", output.display()));
         }
         Command::Report {

@@ -7,6 +7,7 @@ pub mod cli;
 pub mod driver;
 pub mod edit;
 pub mod edit_pictures;
+pub mod edit_render;
 pub mod inspect;
 pub mod memory;
 pub mod report;
