@@ -429,4 +429,12 @@ fn edits(s: &mut String, report: &Report) {
         );
     }
     s.push('\n');
+    for e in edits {
+        if let Some(note) = &e.note {
+            let _ = writeln!(s, "- {}: {note}.", e.name);
+        }
+    }
+    if edits.iter().any(|e| e.note.is_some()) {
+        s.push('\n');
+    }
 }

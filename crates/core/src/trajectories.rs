@@ -525,6 +525,9 @@ pub struct EditSummary {
     pub walkers: usize,
     /// Descent iterations, summed over its patches.
     pub iterations: usize,
+    /// What else the report should say of it (a density edit: how near its patches could come).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub note: Option<String>,
 }
 
 /// The collide stage's figures.

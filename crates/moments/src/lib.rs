@@ -30,7 +30,7 @@ use targets::{Local, Residual, localise};
 
 /// The stage name in `edited.ron`'s header.
 pub const STAGE: &str = "edit";
-pub const VERSION: u32 = 1;
+pub const VERSION: u32 = 2;
 
 /// How long before an edit's window its patch's problem starts, s: the time walkers have to
 /// get where the edit wants them.
@@ -190,6 +190,7 @@ pub fn edit(
             patches: Vec::new(),
             walkers: 0,
             iterations: 0,
+            note: None,
         })
         .collect();
     let mut residuals: Vec<Option<(Residual, Residual)>> = vec![None; inputs.edits.len()];
@@ -207,10 +208,20 @@ pub fn edit(
         }
         out[p] = edited.motion;
     }
-    for (o, r) in outcomes.iter_mut().zip(residuals) {
+    for ((o, r), e) in outcomes.iter_mut().zip(residuals).zip(&inputs.edits) {
         if let Some((before, after)) = r {
             o.before = before.value();
             o.after = after.value();
+            if let EditKind::Density { people_per_m2, .. } = e.kind {
+                o.note = Some(format!(
+                    "mean density in the rectangle {:.3} -> {:.3} people/m2 for a target of \
+                     {people_per_m2}; the walkers in its patches then would give {:.3} people/m2 \
+                     if every one of them stood in it (a patch's count is fixed by its crossings)",
+                    before.mean(),
+                    after.mean(),
+                    before.capacity()
+                ));
+            }
         }
     }
     (out, outcomes)

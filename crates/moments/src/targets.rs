@@ -114,8 +114,14 @@ pub enum Measure {
         who: Vec<usize>,
         places: Vec<DVec2>,
     },
-    /// The root mean square of H(X) - Y over the window (the constraints' indices).
-    Rms(Vec<usize>),
+    /// The root mean square of H(X) - Y over the window (the constraints' indices), and what
+    /// the patch can hold: the walkers present, summed over the window's steps, and the
+    /// rectangle's area times those steps (density edits; zeros for the others).
+    Rms {
+        indices: Vec<usize>,
+        people: f64,
+        area_steps: f64,
+    },
 }
 
 /// The grid over `rect` with `margin` cells more on every side.
@@ -230,7 +236,13 @@ pub fn constrain(
                     push(Box::new(op), k, vec![target; cells.len()], DT)
                 })
                 .collect();
-            Measure::Rms(indices)
+            let window = steps_of(local.window, start, steps);
+            let people: usize = window.clone().map(|k| walkers(k).len()).sum();
+            Measure::Rms {
+                indices,
+                people: people as f64,
+                area_steps: rect.area() * window.count() as f64,
+            }
         }
         LocalKind::Flow { rect, velocity } => {
             let grid = grid_over(rect, 0);
@@ -249,7 +261,11 @@ pub fn constrain(
                     push(Box::new(op), k, y.clone(), DT)
                 })
                 .collect();
-            Measure::Rms(indices)
+            Measure::Rms {
+                indices,
+                people: 0.0,
+                area_steps: 0.0,
+            }
         }
         LocalKind::Vorticity { rect, per_s } => {
             let grid = grid_over(rect, 1);
@@ -264,7 +280,11 @@ pub fn constrain(
                     push(Box::new(op), k, vec![per_s; cells.len()], DT)
                 })
                 .collect();
-            Measure::Rms(indices)
+            Measure::Rms {
+                indices,
+                people: 0.0,
+                area_steps: 0.0,
+            }
         }
     }
 }
@@ -326,16 +346,34 @@ pub fn residual(
                 .fold(0.0, f64::max);
             Residual::Largest(far)
         }
-        Measure::Rms(indices) => {
-            let (mut squares, mut count) = (0.0, 0usize);
+        Measure::Rms {
+            indices,
+            people,
+            area_steps,
+        } => {
+            let (mut squares, mut sum, mut count) = (0.0, 0.0, 0usize);
             for &c in indices {
                 let constraint = &constraints[c];
                 let (_, rms) = constraint.misfit(states, n);
                 let len = constraint.operator.len();
                 squares += rms * rms * len as f64;
                 count += len;
+                let mut h = vec![0.0; len];
+                for sample in &constraint.samples {
+                    let k = sample.step;
+                    constraint
+                        .operator
+                        .observe(&states[k * n..(k + 1) * n], &mut h);
+                    sum += h.iter().sum::<f64>();
+                }
             }
-            Residual::Squares { squares, count }
+            Residual::Squares {
+                squares,
+                sum,
+                count,
+                people: *people,
+                area_steps: *area_steps,
+            }
         }
     }
 }
@@ -345,7 +383,15 @@ pub fn residual(
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Residual {
     Largest(f64),
-    Squares { squares: f64, count: usize },
+    /// The squares of H - Y and the sum of H over `count` numbers, and what the patches can
+    /// hold (`Measure::Rms`).
+    Squares {
+        squares: f64,
+        sum: f64,
+        count: usize,
+        people: f64,
+        area_steps: f64,
+    },
 }
 
 impl Residual {
@@ -353,14 +399,26 @@ impl Residual {
         match (self, other) {
             (Residual::Largest(a), Residual::Largest(b)) => Residual::Largest(a.max(b)),
             (
-                Residual::Squares { squares, count },
                 Residual::Squares {
-                    squares: s,
-                    count: c,
+                    squares,
+                    sum,
+                    count,
+                    people,
+                    area_steps,
+                },
+                Residual::Squares {
+                    squares: s2,
+                    sum: u2,
+                    count: c2,
+                    people: p2,
+                    area_steps: a2,
                 },
             ) => Residual::Squares {
-                squares: squares + s,
-                count: count + c,
+                squares: squares + s2,
+                sum: sum + u2,
+                count: count + c2,
+                people: people + p2,
+                area_steps: area_steps + a2,
             },
             (a, _) => a,
         }
@@ -370,7 +428,26 @@ impl Residual {
     pub fn value(self) -> f64 {
         match self {
             Residual::Largest(d) => d,
-            Residual::Squares { squares, count } => (squares / count.max(1) as f64).sqrt(),
+            Residual::Squares { squares, count, .. } => (squares / count.max(1) as f64).sqrt(),
+        }
+    }
+
+    /// The mean of what was observed (a density edit's mean density in its rectangle).
+    pub fn mean(self) -> f64 {
+        match self {
+            Residual::Largest(d) => d,
+            Residual::Squares { sum, count, .. } => sum / count.max(1) as f64,
+        }
+    }
+
+    /// The most a density edit's patches could show: everyone present in them, in its
+    /// rectangle, people per m2.
+    pub fn capacity(self) -> f64 {
+        match self {
+            Residual::Squares {
+                people, area_steps, ..
+            } if area_steps > 0.0 => people / area_steps,
+            _ => f64::NAN,
         }
     }
 }
