@@ -365,3 +365,35 @@ fn a_bad_edit_is_refused_naming_it_and_leaves_no_folder() {
         );
     }
 }
+
+#[test]
+fn crowd_edit_alone_writes_the_bytes_the_build_wrote() {
+    let built = scene("city-edits");
+    let dir = tempfile::tempdir().unwrap();
+    let pipeline = dir.path().join("city-edits.ron");
+    std::fs::write(&pipeline, city_edits_text(|t| t)).unwrap();
+    let out = dir.path().join("edited.ron");
+    let input = built.join("smoothed.ron");
+    crowd_ok(&[
+        "edit",
+        "--pipeline",
+        s(&pipeline),
+        "-i",
+        s(&input),
+        "-o",
+        s(&out),
+    ]);
+    for name in ["edited.ron", "edited.bin"] {
+        let (a, b) = (
+            std::fs::read(built.join(name)).unwrap(),
+            std::fs::read(dir.path().join(name)).unwrap(),
+        );
+        assert!(a == b, "{name} differs from the build's");
+    }
+    // An experiment's flags belong to `--experiment`.
+    let err = crowd_err(&["edit", "--pipeline", s(&pipeline), "--iterations", "3"]);
+    assert!(
+        err.contains("--iterations") && err.contains("--experiment"),
+        "{err}"
+    );
+}

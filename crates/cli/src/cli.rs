@@ -441,6 +441,20 @@ pub fn run(cli: Cli) -> Result<()> {
         }
         Command::Edit(args) => {
             let Some(experiment) = args.experiment else {
+                let experiment_only = [
+                    ("--iterations", args.iterations.is_some()),
+                    ("--descent", args.descent.is_some()),
+                    ("--r", args.r.is_some()),
+                    ("--q", args.q.is_some()),
+                    ("--meet", args.meet.is_some()),
+                    ("--meet-time", args.meet_time.is_some()),
+                ];
+                if let Some((flag, _)) = experiment_only.iter().find(|(_, given)| *given) {
+                    anyhow::bail!(
+                        "{flag} is a setting of the paper's experiments: give --experiment NAME \
+                         (without it, `crowd edit` runs stage 7 with the pipeline's edits)"
+                    );
+                }
                 let p = PipelineFile::load(&args.pipeline)?;
                 return driver::run_stage(&stages::EDIT, &p, args.input, args.output, &ui);
             };
