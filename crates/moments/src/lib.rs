@@ -30,7 +30,7 @@ use targets::{Local, Residual, localise};
 
 /// The stage name in `edited.ron`'s header.
 pub const STAGE: &str = "edit";
-pub const VERSION: u32 = 2;
+pub const VERSION: u32 = 3;
 
 /// How long before an edit's window its patch's problem starts, s: the time walkers have to
 /// get where the edit wants them.
@@ -112,9 +112,15 @@ fn measure_of(kind: &EditKind) -> &'static str {
     }
 }
 
-/// The edits that reach patch `p`, on one clock (absolute seconds, windows shifted by whole
-/// periods to follow the first), and the span its problem covers.
-fn locals_of(graph: &PatchGraph, p: usize, inputs: &Inputs) -> (Vec<Local>, (f64, f64)) {
+/// Edits of one patch solved as one problem, and the problem's span (absolute seconds).
+type Group = (Vec<Local>, (f64, f64));
+/// A group and what its problem gave.
+type Solved = (Vec<Local>, Edited);
+
+/// The edits that reach patch `p`, in groups each of whose windows, with the lead-in before
+/// and the lead-out after, fit in one period: one problem per group, solved in turn on the
+/// motion the one before left (so no edit is dropped for lack of room), with its span.
+fn locals_of(graph: &PatchGraph, p: usize, inputs: &Inputs) -> Vec<Group> {
     let side = graph.world.patch_side_m;
     let origin = graph.world_from_patch(graph.patches[p].cell);
     let period = inputs.period_s;
@@ -124,17 +130,24 @@ fn locals_of(graph: &PatchGraph, p: usize, inputs: &Inputs) -> (Vec<Local>, (f64
         .enumerate()
         .filter_map(|(k, e)| localise(e, k, origin, side, e.kind.window().0))
         .collect();
-    if locals.is_empty() {
-        return (locals, (0.0, 0.0));
-    }
     locals.sort_by(|a, b| a.window.0.total_cmp(&b.window.0).then(a.edit.cmp(&b.edit)));
-    let start = locals[0].window.0 - LEAD_IN_S;
     let end = |l: &Local| l.window.1 + LEAD_OUT_S;
-    let last = locals.iter().map(end).fold(f64::NEG_INFINITY, f64::max);
-    let span = (start, last.min(start + period));
-    // A window the span cannot hold (another edit a period away) is left to no patch here.
-    locals.retain(|l| end(l) <= span.1 + 1e-9);
-    (locals, span)
+    let mut groups: Vec<Group> = Vec::new();
+    for local in locals {
+        match groups.last_mut() {
+            Some((group, span)) if end(&local).max(span.1) - span.0 <= period => {
+                span.1 = span.1.max(end(&local));
+                group.push(local);
+            }
+            _ => {
+                let start = local.window.0 - LEAD_IN_S;
+                // A window is at most a period long: its lead-out may have to be cut.
+                let span = (start, end(&local).min(start + period));
+                groups.push((vec![local], span));
+            }
+        }
+    }
+    groups
 }
 
 /// Edits every patch an edit reaches, in parallel; deterministic. The others are returned as
@@ -145,19 +158,20 @@ pub fn edit(
     inputs: &Inputs,
     progress: &dyn crowd_core::Progress,
 ) -> (Vec<PatchMotion>, Vec<EditSummary>) {
-    let work: Vec<(usize, Vec<Local>, (f64, f64))> = (0..motion.len())
+    let work: Vec<(usize, Vec<Group>)> = (0..motion.len())
         .filter_map(|p| {
-            let (locals, span) = locals_of(graph, p, inputs);
-            (!locals.is_empty()).then_some((p, locals, span))
+            let groups = locals_of(graph, p, inputs);
+            (!groups.is_empty()).then_some((p, groups))
         })
         .collect();
     progress.begin("edit", work.len() as u64);
-    let done: Vec<(usize, Vec<Local>, Edited)> = work
+    let done: Vec<(usize, Vec<Solved>)> = work
         .into_par_iter()
-        .map(|(p, locals, span)| {
+        .map(|(p, groups)| {
             let obstacles = crowd_geometry::obstacles_near(graph, p);
-            let q = locals
+            let q = groups
                 .iter()
+                .flat_map(|(locals, _)| locals)
                 .filter_map(|l| inputs.edits[l.edit].q)
                 .fold(f64::INFINITY, f64::min);
             let cx = Context {
@@ -172,9 +186,15 @@ pub fn edit(
                 max_speed: inputs.max_speed,
                 q: if q.is_finite() { q } else { DEFAULT_Q },
             };
-            let edited = edit_patch(&motion[p], &locals, span, &cx);
+            let mut now = motion[p].clone();
+            let mut done = Vec::new();
+            for (locals, span) in groups {
+                let edited = edit_patch(&now, &locals, span, &cx);
+                now = edited.motion.clone();
+                done.push((locals, edited));
+            }
             progress.advance(1);
-            (p, locals, edited)
+            (p, done)
         })
         .collect();
     let mut out = motion.to_vec();
@@ -194,21 +214,47 @@ pub fn edit(
         })
         .collect();
     let mut residuals: Vec<Option<(Residual, Residual)>> = vec![None; inputs.edits.len()];
-    for (p, locals, edited) in done {
-        for (local, &(before, after)) in locals.iter().zip(&edited.residuals) {
-            let o = &mut outcomes[local.edit];
-            o.patches.push(p as u32);
-            o.walkers += edited.walkers;
-            o.iterations += edited.iterations;
-            let r = &mut residuals[local.edit];
-            *r = Some(match *r {
-                Some((b, a)) => (b.combine(before), a.combine(after)),
-                None => (before, after),
-            });
+    for (p, groups) in done {
+        for (locals, edited) in groups {
+            merge(p, &locals, &edited, &mut outcomes, &mut residuals);
+            out[p] = edited.motion;
         }
-        out[p] = edited.motion;
     }
-    for ((o, r), e) in outcomes.iter_mut().zip(residuals).zip(&inputs.edits) {
+    finish(&mut outcomes, residuals, &inputs.edits);
+    (out, outcomes)
+}
+
+/// Adds one problem's residuals and figures to its edits'.
+fn merge(
+    p: usize,
+    locals: &[Local],
+    edited: &Edited,
+    outcomes: &mut [EditSummary],
+    residuals: &mut [Option<(Residual, Residual)>],
+) {
+    for (local, &(before, after)) in locals.iter().zip(&edited.residuals) {
+        let o = &mut outcomes[local.edit];
+        // A patch edited for this edit in two problems is listed once.
+        if o.patches.last() != Some(&(p as u32)) {
+            o.patches.push(p as u32);
+        }
+        o.walkers += edited.walkers;
+        o.iterations += edited.iterations;
+        let r = &mut residuals[local.edit];
+        *r = Some(match *r {
+            Some((b, a)) => (b.combine(before), a.combine(after)),
+            None => (before, after),
+        });
+    }
+}
+
+/// Each edit's residual before and after, and a density edit's note.
+fn finish(
+    outcomes: &mut [EditSummary],
+    residuals: Vec<Option<(Residual, Residual)>>,
+    edits: &[Edit],
+) {
+    for ((o, r), e) in outcomes.iter_mut().zip(residuals).zip(edits) {
         if let Some((before, after)) = r {
             o.before = before.value();
             o.after = after.value();
@@ -224,7 +270,6 @@ pub fn edit(
             }
         }
     }
-    (out, outcomes)
 }
 
 /// The world position of patch-local point `p` in patch `patch`.
