@@ -235,6 +235,25 @@ fn city_edits_text(change: impl Fn(String) -> String) -> String {
     change(text.replace("../../../shared/scenes", s(&shared)))
 }
 
+/// Pipeline text with its `edits` replaced by `edits` (none: no `edits` field), or added
+/// before the closing parenthesis when it has none.
+fn with_edits(text: &str, edits: &[String]) -> String {
+    let (head, tail) = match text.find("    edits: [") {
+        Some(start) => {
+            let end = text[start..].find("\n    ],\n").unwrap() + start + "\n    ],\n".len();
+            (&text[..start], &text[end..])
+        }
+        None => text.split_at(text.rfind(')').unwrap()),
+    };
+    if edits.is_empty() {
+        return format!("{head}{tail}");
+    }
+    format!(
+        "{head}    edits: [\n        {},\n    ],\n{tail}",
+        edits.join(",\n        ")
+    )
+}
+
 #[test]
 fn the_city_with_an_edit_of_each_kind_meets_them_and_ships_without_a_collision() {
     let out = scene("city-edits");
@@ -316,11 +335,7 @@ fn changing_an_edit_reruns_only_the_edit_and_export_and_removing_them_all_drops_
             "{stage}:\n{said}"
         );
     }
-    let without = city_edits_text(|t| {
-        let start = t.find("    edits: [").unwrap();
-        let end = t[start..].find("\n    ],\n").unwrap() + start + "\n    ],\n".len();
-        format!("{}{}", &t[..start], &t[end..])
-    });
+    let without = city_edits_text(|t| with_edits(&t, &[]));
     let said = build(without);
     assert!(said.contains("export: built in"), "{said}");
     assert!(!said.contains("edit: built"), "{said}");
@@ -352,16 +367,8 @@ fn a_bad_edit_is_refused_naming_it_and_leaves_no_folder() {
     for (edit, expected) in cases {
         let dir = tempfile::tempdir().unwrap();
         let pipeline = dir.path().join("pipeline.ron");
-        let text = city_edits_text(|t| {
-            let start = t.find("    edits: [").unwrap();
-            let end = t[start..].find("\n    ],\n").unwrap() + start + "\n    ],\n".len();
-            format!(
-                "{}    edits: [\n        {edit},\n    ],\n{}",
-                &t[..start],
-                &t[end..]
-            )
-        })
-        .replace("../../build/city-edits", "out");
+        let text = city_edits_text(|t| with_edits(&t, &[edit.to_string()]))
+            .replace("../../build/city-edits", "out");
         std::fs::write(&pipeline, text).unwrap();
         let err = crowd_err(&["build", "--pipeline", s(&pipeline)]);
         assert!(err.contains(expected), "{edit}: {err}");
@@ -467,13 +474,7 @@ fn every_kind_of_edit_works_on_a_small_random_painting() {
                 at.x, at.y
             ));
         }
-        let text = std::fs::read_to_string(&pipeline).unwrap();
-        let end = text.rfind(')').unwrap();
-        let with = format!(
-            "{}    edits: [\n        {},\n    ],\n)\n",
-            &text[..end],
-            edits.join(",\n        ")
-        );
+        let with = with_edits(&std::fs::read_to_string(&pipeline).unwrap(), &edits);
         std::fs::write(&pipeline, with).unwrap();
         crowd_ok(&["build", "-q", "--pipeline", s(&pipeline)]);
         let json = report_json(&out);

@@ -144,6 +144,36 @@ fn the_adjoint_model_is_the_transpose_of_the_tangent() {
     }
 }
 
+/// Central differences of a whole run from `x0` under `controls` along (dx0, de).
+fn run_finite_difference(
+    model: &Model,
+    timeline: Timeline,
+    (x0, controls): (&[f64], &[f64]),
+    (dx0, de): (&[f64], &[f64]),
+) -> Vec<f64> {
+    let h = 1e-6;
+    let shifted = |s: f64| {
+        let x: Vec<f64> = x0.iter().zip(dx0).map(|(a, b)| a + s * b).collect();
+        let e: Vec<f64> = controls.iter().zip(de).map(|(a, b)| a + s * b).collect();
+        Run::forward(model, timeline, &x, &e).states
+    };
+    let (plus, minus) = (shifted(h), shifted(-h));
+    plus.iter()
+        .zip(&minus)
+        .map(|(a, b)| (a - b) / (2.0 * h))
+        .collect()
+}
+
+/// The adjoint of `run` forced by the weight `w` on every state (one state after another).
+fn weighted_adjoint(run: &Run, model: &Model, w: &[f64]) -> (Vec<f64>, Vec<f64>) {
+    let n = run.n;
+    run.adjoint(model, |k, _, mu| {
+        for (m, v) in mu.iter_mut().zip(&w[k * n..(k + 1) * n]) {
+            *m += v;
+        }
+    })
+}
+
 fn small_timeline() -> Timeline {
     Timeline { dt: 0.1, steps: 25 }
 }
@@ -162,19 +192,7 @@ fn a_runge_kutta_run_is_differentiated_exactly_by_its_tangent_and_adjoint() {
             random_vector(&mut rng, timeline.steps * n),
         );
         let dx = run.tangent(&model, &dx0, &de);
-        // Finite differences of the whole run along (dx0, de).
-        let h = 1e-6;
-        let shifted = |s: f64| {
-            let x: Vec<f64> = x0.iter().zip(&dx0).map(|(a, b)| a + s * b).collect();
-            let e: Vec<f64> = controls.iter().zip(&de).map(|(a, b)| a + s * b).collect();
-            Run::forward(&model, timeline, &x, &e).states
-        };
-        let (plus, minus) = (shifted(h), shifted(-h));
-        let fd: Vec<f64> = plus
-            .iter()
-            .zip(&minus)
-            .map(|(a, b)| (a - b) / (2.0 * h))
-            .collect();
+        let fd = run_finite_difference(&model, timeline, (&x0, &controls), (&dx0, &de));
         let err = relative(&fd, &dx);
         assert!(
             err < 1e-5,
@@ -187,11 +205,7 @@ fn a_runge_kutta_run_is_differentiated_exactly_by_its_tangent_and_adjoint() {
         for linearisation in [Linearisation::Exact, Linearisation::Radial] {
             model.linearisation = linearisation;
             let dx = run.tangent(&model, &dx0, &de);
-            let (mu0, ebar) = run.adjoint(&model, |k, _, mu| {
-                for (m, v) in mu.iter_mut().zip(&w[k * n..(k + 1) * n]) {
-                    *m += v;
-                }
-            });
+            let (mu0, ebar) = weighted_adjoint(&run, &model, &w);
             let lhs = dot(&dx, &w);
             let rhs = dot(&dx0, &mu0) + dot(&de, &ebar);
             let err = agree_to(lhs, rhs);
@@ -477,29 +491,14 @@ fn a_tracked_run_with_masked_controls_is_differentiated_exactly() {
             random_vector(&mut rng, timeline.steps * n),
         );
         let dx = run.tangent(&model, &dx0, &de);
-        let h = 1e-6;
-        let shifted = |s: f64| {
-            let x: Vec<f64> = x0.iter().zip(&dx0).map(|(a, b)| a + s * b).collect();
-            let e: Vec<f64> = controls.iter().zip(&de).map(|(a, b)| a + s * b).collect();
-            Run::forward(&model, timeline, &x, &e).states
-        };
-        let (plus, minus) = (shifted(h), shifted(-h));
-        let fd: Vec<f64> = plus
-            .iter()
-            .zip(&minus)
-            .map(|(a, b)| (a - b) / (2.0 * h))
-            .collect();
+        let fd = run_finite_difference(&model, timeline, (&x0, &controls), (&dx0, &de));
         let err = relative(&fd, &dx);
         assert!(
             err < 1e-5,
             "seed {seed}: run tangent vs finite differences {err:e}"
         );
         let w = random_vector(&mut rng, (timeline.steps + 1) * n);
-        let (mu0, ebar) = run.adjoint(&model, |k, _, mu| {
-            for (m, v) in mu.iter_mut().zip(&w[k * n..(k + 1) * n]) {
-                *m += v;
-            }
-        });
+        let (mu0, ebar) = weighted_adjoint(&run, &model, &w);
         let err = agree_to(dot(&dx, &w), dot(&dx0, &mu0) + dot(&de, &ebar));
         assert!(err < 1e-10, "seed {seed}: run adjoint identity {err:e}");
         // No gradient reaches a control the plan does not let act.
