@@ -355,14 +355,23 @@ impl<'a> Walk<'a> {
         }
         times.retain(|&t| t >= self.t0 && t <= self.t1);
         times.sort_by(f64::total_cmp);
-        // No chord shorter than a few milliseconds: glTF's f32 times near 20 s are 2 us apart,
-        // and the library's ticks 0.1 ms. The ends and the multiples of the period stay.
-        let fixed = |t: f64| t == self.t0 || t == self.t1 || (t / period).round() * period == t;
+        times.dedup();
+        // No new chord shorter than a few milliseconds: glTF's f32 times near 20 s are 2 us
+        // apart, and the library's ticks 0.1 ms. The ends, the multiples of the period and the
+        // walk's own points where it is left as it was stay (dropping one of those would move
+        // the walk there: a corner 1 ms after a split point, held for an encounter).
+        let point_times: Vec<f64> = self.pts.iter().map(|p| p.t).collect();
+        let fixed = |t: f64| {
+            t == self.t0
+                || t == self.t1
+                || (t / period).round() * period == t
+                || (point_times.binary_search_by(|p| p.total_cmp(&t)).is_ok() && !self.active(t, t))
+        };
         let mut kept: Vec<f64> = Vec::with_capacity(times.len());
         for t in times {
             match kept.last_mut() {
-                Some(last) if t - *last < MIN_GAP_S => {
-                    if fixed(t) && !fixed(*last) {
+                Some(last) if t - *last < MIN_GAP_S && !(fixed(t) && fixed(*last)) => {
+                    if fixed(t) {
                         *last = t;
                     }
                 }

@@ -39,7 +39,7 @@ use rayon::prelude::*;
 
 /// The stage name in `smoothed.ron`'s header.
 pub const STAGE: &str = "smooth";
-pub const VERSION: u32 = 9;
+pub const VERSION: u32 = 10;
 
 /// What stage 6 reads of a pipeline besides its input files.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
