@@ -4,7 +4,9 @@
 use crate::util::*;
 use crowd_core::PatchGraph;
 use crowd_core::config::{Edit, EditKind};
-use crowd_core::trajectories::{PatchMotion, TrajectoriesFile, Trajectory, band_ends, position_at};
+use crowd_core::trajectories::{
+    DensityFigures, PatchMotion, TrajectoriesFile, Trajectory, band_ends, position_at,
+};
 use crowd_geometry::{Tracks, trajectory_segments};
 use crowd_moments::{Inputs, edit};
 use glam::DVec2;
@@ -33,6 +35,7 @@ fn inputs(edits: Vec<Edit>) -> Inputs {
         max_speed: MAX_SPEED,
         margin_m: MARGIN_M,
         edits,
+        flow_maps: Vec::new(),
     }
 }
 
@@ -208,6 +211,14 @@ fn each_area_edit_lowers_its_residual_on_busy_patches() {
             let o = &outcomes[0];
             assert_eq!(o.patches, vec![p as u32], "{name}");
             assert!(o.after < o.before, "patch {p}, {name}: {o:?}");
+            // People come: 82-101 % of what these patches can give (0.18-0.30 people/m2 of
+            // 0.3; their plans have 0.06-0.24).
+            if let Some(d) = o.density {
+                assert!(
+                    d.after > d.before && d.after >= 0.75 * d.attainable(),
+                    "patch {p}: {d:?}"
+                );
+            }
             assert_kept(&graph, &motion, &after);
         }
     }
@@ -227,12 +238,14 @@ fn report_json(dir: &Path) -> serde_json::Value {
     serde_json::from_slice(&out.stdout).unwrap()
 }
 
-/// The text of `assets/pipelines/city-edits.ron` with its layer paths made absolute (so that
-/// a changed copy can live anywhere) and `change` applied to it.
+/// The text of `assets/pipelines/city-edits.ron` with `change` applied to it and its layer and
+/// flow-map paths made absolute (so that a changed copy can live anywhere).
 fn city_edits_text(change: impl Fn(String) -> String) -> String {
     let text = std::fs::read_to_string(scene_pipeline("city-edits")).unwrap();
     let shared = shared_scenes().canonicalize().unwrap();
+    let map = root().join("assets/city/edit-turn.png");
     change(text.replace("../../../shared/scenes", s(&shared)))
+        .replace("../city/edit-turn.png", s(&map))
 }
 
 /// Pipeline text with its `edits` replaced by `edits` (none: no `edits` field), or added
@@ -259,13 +272,21 @@ fn the_city_with_an_edit_of_each_kind_meets_them_and_ships_without_a_collision()
     let out = scene("city-edits");
     let json = report_json(out);
     let edits = json["edits"].as_array().expect("report.json has the edits");
-    assert_eq!(edits.len(), 4);
+    assert_eq!(edits.len(), 5);
     for e in edits {
         let (before, after) = (e["before"].as_f64().unwrap(), e["after"].as_f64().unwrap());
         assert!(after < before, "{e}");
         if e["kind"] == "Meet" {
             assert!(after < 0.5, "{e}");
         }
+        // The square fills to within 15 % of what it asks (0.059 -> 0.267 people/m2 for 0.3).
+        if e["kind"] == "Density" {
+            let d: DensityFigures = serde_json::from_value(e["density"].clone()).unwrap();
+            assert!(d.after > d.before && d.reached(0.15), "{e}");
+        }
+        assert!(e.get("warning").is_none(), "{e}");
+        // Its time, from `timings.ron`.
+        assert!(e["seconds"].as_f64().is_some_and(|t| t > 0.0), "{e}");
     }
     assert_eq!(json["checked_stage"], "edit");
     for key in ["collisions", "library_collisions", "gltf_collisions"] {
@@ -383,6 +404,128 @@ fn a_bad_edit_is_refused_naming_it_and_leaves_no_folder() {
     }
 }
 
+/// A flow map painted in one colour asks what its vector asks: the same constraints, the same
+/// edited motion, bit for bit.
+#[test]
+fn a_flow_map_of_one_colour_edits_as_its_vector_does() {
+    let (graph, motion) = load(scene("city"));
+    let p = busiest(&motion)[0];
+    let side = graph.world.patch_side_m;
+    let c = graph.world_from_patch(graph.patches[p].cell) + DVec2::splat(side / 2.0);
+    let rect = (c.x - 2.5, c.y - 2.5, c.x + 2.5, c.y + 2.5);
+    let window_s = (8.0, 10.0);
+    let vector = EditKind::Flow {
+        rect,
+        window_s,
+        velocity_m_s: (0.6, -0.8),
+    };
+    let painted = EditKind::FlowMap {
+        rect,
+        window_s,
+        map: "south-east.png".into(),
+        speed_m_s: 1.0,
+    };
+    let size = graph.world.size_m;
+    let (w, h) = (size.x as u32, size.y as u32);
+    let n = (w * h) as usize;
+    let map = crowd_core::flow_map::VelocityMap {
+        width: w,
+        height: h,
+        meters_per_pixel: 1.0,
+        velocity: vec![DVec2::new(0.6, -0.8); n],
+        weight: vec![1.0; n],
+    };
+    let (by_vector, was) = edit(
+        &graph,
+        &motion,
+        &inputs(vec![edit_of("drift", vector)]),
+        &(),
+    );
+    let mut with_map = inputs(vec![edit_of("drift", painted)]);
+    with_map.flow_maps = vec![(0, std::sync::Arc::new(map))];
+    let (by_map, is) = edit(&graph, &motion, &with_map, &());
+    assert_eq!(was[0].patches, vec![p as u32]);
+    assert!(was[0].after < was[0].before, "{:?}", was[0]);
+    assert_eq!((was[0].before, was[0].after), (is[0].before, is[0].after));
+    assert!(by_vector == by_map, "the edited motion differs");
+}
+
+/// A flow map that cannot be read, is damaged, or is not the layers' size is refused naming
+/// the edit and the file, and the build leaves no folder.
+#[test]
+fn a_bad_flow_map_is_refused_naming_the_edit_and_the_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let turn = root().join("assets/city/edit-turn.png");
+    let bytes = std::fs::read(&turn).unwrap();
+    std::fs::write(dir.path().join("cut.png"), &bytes[..bytes.len() / 2]).unwrap();
+    let mut small = Vec::new();
+    image::RgbaImage::new(40, 40)
+        .write_to(
+            &mut std::io::Cursor::new(&mut small),
+            image::ImageFormat::Png,
+        )
+        .unwrap();
+    std::fs::write(dir.path().join("small.png"), small).unwrap();
+    let cases = [
+        ("missing.png", "edits[3].kind.map"),
+        ("cut.png", "damaged or truncated"),
+        ("small.png", "expected 400 x 400"),
+    ];
+    for (file, expected) in cases {
+        let path = dir.path().join(file);
+        let pipeline = dir.path().join("pipeline.ron");
+        let text = city_edits_text(|t| t.replace("../city/edit-turn.png", s(&path)))
+            .replace("../../build/city-edits", "out");
+        std::fs::write(&pipeline, text).unwrap();
+        let err = crowd_err(&["build", "-q", "--pipeline", s(&pipeline)]);
+        assert!(err.contains(expected), "{file}: {err}");
+        assert!(
+            err.contains("corner turn") && err.contains(file),
+            "{file}: {err}"
+        );
+        assert!(
+            !dir.path().join("out").exists(),
+            "{file}: a folder was left"
+        );
+    }
+}
+
+/// An edit over a city block (a cell no patch covers) edits nothing, and says so: a warning
+/// on stderr and in the report, a failure under `--deny-warnings`.
+#[test]
+fn an_edit_over_no_patch_is_a_warning() {
+    let (graph, _) = load(scene("city"));
+    let side = graph.world.patch_side_m;
+    let block = graph.dropped.blocked[0];
+    let (x, y) = (f64::from(block.col) * side, f64::from(block.row) * side);
+    let edit = format!(
+        r#"(name: "in a wall", kind: Density(rect: ({}, {}, {}, {}), window_s: (5, 8), people_per_m2: 0.2))"#,
+        x + 1.0,
+        y + 1.0,
+        x + side - 1.0,
+        y + side - 1.0
+    );
+    let dir = tempfile::tempdir().unwrap();
+    let pipeline = dir.path().join("pipeline.ron");
+    let text = city_edits_text(|t| with_edits(&t, std::slice::from_ref(&edit)))
+        .replace("../../build/city-edits", "out");
+    std::fs::write(&pipeline, text).unwrap();
+    let build = crowd(&["build", "-q", "--pipeline", s(&pipeline)]);
+    let stderr = String::from_utf8_lossy(&build.stderr);
+    assert!(build.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("warning: edit \"in a wall\": it covers no patch"),
+        "{stderr}"
+    );
+    let out = dir.path().join("out");
+    let json = report_json(&out);
+    assert_eq!(json["edits"][0]["patches"].as_array().unwrap().len(), 0);
+    let md = std::fs::read_to_string(out.join("report.md")).unwrap();
+    assert!(md.contains("it covers no patch"), "{md}");
+    let stderr = crowd_broken(&["build", "-q", "--deny-warnings", "--pipeline", s(&pipeline)]);
+    assert!(stderr.contains("--deny-warnings"), "{stderr}");
+}
+
 #[test]
 fn crowd_edit_alone_writes_the_bytes_the_build_wrote() {
     let built = scene("city-edits");
@@ -422,7 +565,7 @@ fn crowd_edit_alone_writes_the_bytes_the_build_wrote() {
 #[test]
 fn every_kind_of_edit_works_on_a_small_random_painting() {
     let dir = tempfile::tempdir().unwrap();
-    let (mut edited_scenes, mut improved, mut total) = (0, 0, 0);
+    let (mut edited_scenes, mut total) = (0, 0);
     for seed in 1..=8u64 {
         let painting = crowd_paintings::random(seed, crowd_paintings::Limits { max_patches: 8 });
         let scene = dir.path().join(format!("seed-{seed}"));
@@ -485,11 +628,10 @@ fn every_kind_of_edit_works_on_a_small_random_painting() {
         for e in outcomes {
             let (before, after) = (e["before"].as_f64().unwrap(), e["after"].as_f64().unwrap());
             eprintln!(
-                "seed {seed}: {} {before:.3} -> {after:.3} ({} iterations)",
-                e["name"], e["iterations"]
+                "seed {seed}: {} {before:.3} -> {after:.3} ({} iterations) {} {}",
+                e["name"], e["iterations"], e["density"], e["warning"]
             );
-            assert!(after <= before, "seed {seed}: {e}");
-            improved += usize::from(after < before);
+            assert!(after < before, "seed {seed}: {e}");
             total += 1;
         }
         for key in ["library_collisions", "gltf_collisions"] {
@@ -509,10 +651,5 @@ fn every_kind_of_edit_works_on_a_small_random_painting() {
         edited_scenes >= 2,
         "only {edited_scenes} small paintings had a busy patch to edit"
     );
-    // A descent that finds no step leaves its patch as planned (seed 1's patch of 54 walkers
-    // packed at 0.4 people/m2); most find one.
-    assert!(
-        2 * improved > total,
-        "only {improved} of {total} edits lowered their residual"
-    );
+    assert!(total >= 12, "only {total} edits tried");
 }

@@ -142,6 +142,16 @@ fn run_stages(
             run.seconds,
             path.display()
         ));
+        // Its parts' times replace those of its last run (an edit removed leaves none).
+        let part = |name: &str| format!("{}: {name}", stage.name);
+        timings.retain(|k, _| !k.starts_with(&part("")));
+        for (name, seconds) in &ran.parts {
+            let run = StageRun {
+                seconds: *seconds,
+                peak_mb: None,
+            };
+            timings.insert(part(name), run);
+        }
         timings.insert(stage.name.to_string(), run);
         outcomes.push(StageOutcome {
             stage: stage.name,
@@ -190,7 +200,7 @@ pub fn run_stage(
         _ => Artifacts::new(pipeline, &dir),
     };
     let hash = (stage.hash)(&mut artifacts)?;
-    let Ran { writes, note } = (stage.run)(&mut artifacts, &out, hash, ui)?;
+    let Ran { writes, note, .. } = (stage.run)(&mut artifacts, &out, hash, ui)?;
     files::write_all(&writes)?;
     let note = note.map(|n| format!(" ({n})")).unwrap_or_default();
     ui.say(format!("{}: wrote {}{note}", stage.name, out.display()));

@@ -8,6 +8,7 @@ pub mod driver;
 pub mod edit;
 pub mod edit_pictures;
 pub mod edit_render;
+pub mod flow_maps;
 pub mod inspect;
 pub mod memory;
 pub mod report;

@@ -66,6 +66,12 @@ impl Scope {
 }
 
 impl Report {
+    /// The seconds stage 7 spent on edit `name` (`timings.ron`'s `"edit: NAME"`).
+    pub fn edit_seconds(&self, name: &str) -> Option<f64> {
+        let key = format!("{}: {name}", stages::EDIT.name);
+        self.stages.get(&key).map(|r| r.seconds)
+    }
+
     /// Every figure of the folder's stage files.
     pub fn gather(dir: &Path) -> Result<Report> {
         Report::gather_in(dir, Scope::default())
@@ -189,7 +195,15 @@ impl Report {
             out.insert("kept_straight".into(), json!(s.kept_straight));
         }
         if let Some(edits) = self.edited.as_ref().and_then(|e| e.edits.as_ref()) {
-            out.insert("edits".into(), json!(edits));
+            let with_seconds: Vec<Value> = edits
+                .iter()
+                .map(|e| {
+                    let mut v = json!(e);
+                    v["seconds"] = json!(self.edit_seconds(&e.name));
+                    v
+                })
+                .collect();
+            out.insert("edits".into(), json!(with_seconds));
         }
         if let Some(c) = self.collided.as_ref().and_then(|c| c.collisions.as_ref()) {
             out.insert("unconverged_patches".into(), json!(c.unconverged.len()));
@@ -203,8 +217,9 @@ impl Report {
             out.insert("library_position_error_m".into(), json!(e.position_error_m));
             out.insert("library_time_error_s".into(), json!(e.time_error_s));
         }
-        let seconds: BTreeMap<_, _> = self.stages.iter().map(|(k, r)| (k, r.seconds)).collect();
-        let peaks: BTreeMap<_, _> = self.stages.iter().map(|(k, r)| (k, r.peak_mb)).collect();
+        let whole = || self.stages.iter().filter(|(k, _)| !k.contains(": "));
+        let seconds: BTreeMap<_, _> = whole().map(|(k, r)| (k, r.seconds)).collect();
+        let peaks: BTreeMap<_, _> = whole().map(|(k, r)| (k, r.peak_mb)).collect();
         out.insert("stage_seconds".into(), json!(seconds));
         out.insert("stage_peak_mb".into(), json!(peaks));
         out.insert("build_seconds".into(), json!(seconds.values().sum::<f64>()));

@@ -289,11 +289,11 @@ fn markdown(dir: &Path, report: &Report, pictures: &[Picture]) -> String {
             let _ = writeln!(s, "| {stage} | {:.2} | {peak} |", run.seconds);
         }
     }
-    let total: f64 = report.stages.values().map(|r| r.seconds).sum();
-    let peak = report
-        .stages
-        .values()
-        .filter_map(|r| r.peak_mb)
+    // Whole stages only: the parts of one (`edit: NAME`) are inside its time.
+    let whole = || (report.stages.iter()).filter(|(k, _)| !k.contains(": "));
+    let total: f64 = whole().map(|(_, r)| r.seconds).sum();
+    let peak = whole()
+        .filter_map(|(_, r)| r.peak_mb)
         .reduce(f64::max)
         .map_or("-".into(), |mb| format!("{mb:.0}"));
     let _ = writeln!(s, "| **all stages** | **{total:.2}** | **{peak}** |\n");
@@ -410,14 +410,17 @@ fn edits(s: &mut String, report: &Report) {
     let _ = writeln!(
         s,
         "## Edits (stage 7)\n\nEach edit's residual on the patches it covers, before and after \
-         (what it measures in the last column).\n\n| edit | kind | before | after | patches | \
-         walkers changed | iterations | measure |\n| --- | --- | ---: | ---: | ---: | ---: | ---: \
-         | --- |"
+         (what it measures in the last column), and the seconds its problems took.\n\n| edit | \
+         kind | before | after | patches | walkers changed | iterations | seconds | measure \
+         |\n| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | --- |"
     );
     for e in edits {
+        let seconds = report
+            .edit_seconds(&e.name)
+            .map_or("-".to_string(), |t| format!("{t:.3}"));
         let _ = writeln!(
             s,
-            "| {} | {} | {:.3} | {:.3} | {} | {} | {} | {} |",
+            "| {} | {} | {:.3} | {:.3} | {} | {} | {} | {seconds} | {} |",
             e.name,
             e.kind,
             e.before,

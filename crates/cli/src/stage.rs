@@ -49,11 +49,18 @@ pub struct Ran {
     pub writes: Writes,
     /// A figure worth printing after the stage (stage 3's E).
     pub note: Option<String>,
+    /// The seconds its parts took, by name (stage 7: each edit), for `timings.ron` as
+    /// `"stage: part"`.
+    pub parts: Vec<(String, f64)>,
 }
 
 impl Ran {
     pub fn files(writes: Writes) -> Ran {
-        Ran { writes, note: None }
+        Ran {
+            writes,
+            note: None,
+            parts: Vec::new(),
+        }
     }
 
     /// The bytes written to `path`.

@@ -203,7 +203,11 @@ pub static EDIT: Stage = Stage {
     hash: |a| {
         let (graph, smoothed) = (a.bytes(&GRAPH)?, a.bytes(&SMOOTH)?);
         let inputs = crowd_moments::inputs(a.pipeline);
-        Ok(crowd_moments::input_hash(&graph, &smoothed, &inputs))
+        let maps = crate::flow_maps::read(a.pipeline)?;
+        let bytes: Vec<&[u8]> = maps.iter().map(|m| m.bytes.as_slice()).collect();
+        Ok(crowd_moments::input_hash(
+            &graph, &smoothed, &inputs, &bytes,
+        ))
     },
     fresh: |a, path, hash| motion_fresh(&EDIT, a, path, hash),
     run: edit,
@@ -328,8 +332,8 @@ fn optimize(a: &mut Artifacts, out: &Path, hash: Hash, ui: &Ui) -> Result<Ran> {
     let note = format!("E = {:.4}", outcome.error.e);
     a.made_patterns((patterns, outcome.crossings));
     Ok(Ran {
-        writes,
         note: Some(note),
+        ..Ran::files(writes)
     })
 }
 
@@ -395,12 +399,18 @@ fn edit(a: &mut Artifacts, out: &Path, hash: Hash, ui: &Ui) -> Result<Ran> {
         .check_edits((graph.world.size_m.x, graph.world.size_m.y))?;
     let bar = ui.stage_bar(EDIT.name);
     let smoothed = a.take_motion(&SMOOTH)?;
-    let inputs = crowd_moments::inputs(a.pipeline);
-    let (motion, edits) = crowd_moments::edit(&graph, &smoothed.1, &inputs, &bar);
+    let mut inputs = crowd_moments::inputs(a.pipeline);
+    let maps = crate::flow_maps::read(a.pipeline)?;
+    inputs.flow_maps = crate::flow_maps::decode(a.pipeline, &graph, maps)?;
+    let (motion, edits, seconds) = crowd_moments::edit_timed(&graph, &smoothed.1, &inputs, &bar);
+    let parts = edits.iter().map(|e| e.name.clone()).zip(seconds).collect();
     let (file, writes) = crowd_moments::encode(out, &motion, edits, &smoothed.0, hash);
     drop(smoothed);
     a.made_motion(&EDIT, (file, motion));
-    Ok(Ran::files(writes))
+    Ok(Ran {
+        parts,
+        ..Ran::files(writes)
+    })
 }
 
 fn export(a: &mut Artifacts, out: &Path, hash: Hash, _: &Ui) -> Result<Ran> {

@@ -7,11 +7,11 @@
 //! stage instead, never a warning.
 
 use crate::check::CHECK_FILE;
-use crate::stages::{COLLIDED_FILE, GRAPH_FILE};
+use crate::stages::{COLLIDED_FILE, EDITED_FILE, GRAPH_FILE};
 use anyhow::{Result, bail};
 use crowd_core::PatchGraph;
 use crowd_core::config::PipelineFile;
-use crowd_core::trajectories::{CollisionSummary, MotionSummary};
+use crowd_core::trajectories::{CollisionSummary, EditSummary, MotionSummary};
 use std::path::Path;
 
 /// One thing the build could not meet.
@@ -38,12 +38,31 @@ pub fn gather(dir: &Path) -> Result<Vec<Warning>> {
             out.extend(hurried(&graph, summary));
         }
     }
+    let edited = dir.join(EDITED_FILE);
+    if edited.exists() {
+        let file: crowd_core::trajectories::TrajectoriesFile =
+            crowd_core::files::read_ron(&edited)?;
+        out.extend(edits(file.edits.as_deref().unwrap_or_default()));
+    }
     let check = dir.join(CHECK_FILE);
     if check.exists() {
         let figures: crowd_check::CheckReport = crowd_core::files::read_ron(&check)?;
         out.extend(shipped(&figures));
     }
     Ok(out)
+}
+
+/// Stage 7's edits that could not do what they asked.
+fn edits(edits: &[EditSummary]) -> Vec<Warning> {
+    edits
+        .iter()
+        .filter_map(|e| {
+            e.warning.as_ref().map(|w| Warning {
+                patches: e.patches.clone(),
+                text: format!("edit \"{}\": {w}", e.name),
+            })
+        })
+        .collect()
 }
 
 /// Where patch `p` lies, for a person: its world rectangle in metres.

@@ -8,6 +8,7 @@
 pub mod config;
 pub mod error;
 pub mod files;
+pub mod flow_map;
 pub mod grid;
 pub mod hash;
 pub mod maps;

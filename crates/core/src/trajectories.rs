@@ -525,9 +525,43 @@ pub struct EditSummary {
     pub walkers: usize,
     /// Descent iterations, summed over its patches.
     pub iterations: usize,
-    /// What else the report should say of it (a density edit: how near its patches could come).
+    /// A density edit's people in its rectangle (the others: `None`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub density: Option<DensityFigures>,
+    /// What else the report should say of it (a density edit: its people before and after).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub note: Option<String>,
+    /// What it could not do (an edit over no patch with walkers; a density edit more than 15 %
+    /// short of its target): a build warning.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub warning: Option<String>,
+}
+
+/// A density edit's people per m2 in its rectangle over its window, counted (a person is in
+/// or out), as the plans had them, as edited, and the most its patches could show: the
+/// walkers the edit may move, all in it, with those whose plans bring them. A patch's walkers
+/// are fixed by its crossings, so that can be below the target: the most is everyone the edit
+/// may move at all (off the border bands) in the rectangle, with those whose plans are.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DensityFigures {
+    pub target: f64,
+    pub before: f64,
+    pub after: f64,
+    pub reachable: f64,
+}
+
+impl DensityFigures {
+    /// What the edit can be held to: the target, or what the patches could show where that
+    /// is less.
+    pub fn attainable(&self) -> f64 {
+        self.target.min(self.reachable)
+    }
+
+    /// Within `share` (0.15: 15 %) of [`DensityFigures::attainable`], either way.
+    pub fn reached(&self, share: f64) -> bool {
+        (self.after - self.attainable()).abs() <= share * self.attainable()
+    }
 }
 
 /// The collide stage's figures.

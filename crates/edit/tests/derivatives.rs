@@ -9,7 +9,8 @@ use crowd_edit::integrate::{Run, Timeline};
 use crowd_edit::model::{Character, Instant, Linearisation, Model, Plan, Repulsion};
 use crowd_edit::neighbours::Pairs;
 use crowd_edit::observe::{
-    Apart, Counted, Density, EulerGrid, Observe, Positions, SpeedLimit, Velocity, Vorticity,
+    Apart, Blend, Counted, Density, EulerGrid, Limited, Observe, Positions, SpeedLimit, Velocity,
+    Vorticity, Within,
 };
 use crowd_edit::{Constraint, Covariances, Problem, Rect, World};
 use glam::DVec2;
@@ -240,8 +241,25 @@ fn operators(n_characters: usize) -> Vec<(&'static str, Box<dyn Observe>)> {
             "speed limit",
             Box::new(SpeedLimit {
                 who: (0..n_characters)
-                    .map(|i| (i, 0.3 + 0.1 * i as f64))
+                    .map(|i| Limited {
+                        character: i,
+                        limit: 0.3 + 0.1 * i as f64,
+                        // Every other one a walk shipped as a blend with a plan.
+                        blend: (i % 2 == 1).then_some(Blend {
+                            mask: 0.3 + 0.05 * i as f64,
+                            slope: 1.5 - 0.2 * i as f64,
+                            plan_pos: DVec2::new(4.0 + 0.5 * i as f64, 3.0),
+                            plan_vel: DVec2::new(0.4, -0.2 * i as f64),
+                        }),
+                    })
                     .collect(),
+            }),
+        ),
+        (
+            "within",
+            Box::new(Within {
+                rect: crowd_edit::Rect::new(DVec2::new(4.0, 3.0), DVec2::new(6.0, 5.0)),
+                who: (0..n_characters).filter(|i| i % 3 != 1).collect(),
             }),
         ),
         (

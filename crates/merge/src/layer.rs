@@ -214,7 +214,7 @@ pub fn decode(layers: &[LayerBytes]) -> Result<Vec<PaintedLayer>> {
     Ok(out)
 }
 
-fn decode_png(layer: &LayerBytes) -> Result<Raster> {
+pub(crate) fn decode_png(layer: &LayerBytes) -> Result<Raster> {
     let bad = |message: String| Error::Image {
         path: layer.path.clone(),
         message,

@@ -10,10 +10,13 @@
 //!   stander densities and directions are cleared under them.
 //!
 //! [`merge`] is the pure core; [`read_layers`], [`decode`] and [`write`] are the I/O edge.
+//! [`decode_flow_map`] reads a flow edit's map (stage 7) with the same checks.
 
+mod flow_map;
 mod layer;
 mod paint;
 
+pub use flow_map::decode_flow_map;
 pub use layer::{LayerBytes, PaintedLayer, Raster, decode, read_layers};
 pub use paint::merge;
 

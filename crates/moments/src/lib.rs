@@ -12,31 +12,40 @@
 //!
 //! - `plan.rs`: a patch's people over the problem's span, their plans and masks;
 //! - `targets.rs`: each edit as a patch takes it, its constraints and its residual;
+//! - `gather.rs`: who a density edit short of people brings into its rectangle;
 //! - `patch.rs`: one patch edited, its walks checked and walked back where they must be.
 
+pub mod gather;
 pub mod patch;
 pub mod plan;
 pub mod targets;
 
 use crowd_core::PatchGraph;
 use crowd_core::config::{DEFAULT_Q, Edit, EditKind};
-use crowd_core::trajectories::{EditSummary, PatchMotion, TrajectoriesFile};
+use crowd_core::flow_map::VelocityMap;
+use crowd_core::trajectories::{DensityFigures, EditSummary, PatchMotion, TrajectoriesFile};
 use crowd_core::{Hash, Hasher};
 use glam::DVec2;
 use patch::{Context, Edited, edit_patch};
 use rayon::prelude::*;
 use serde::Serialize;
+use std::sync::Arc;
 use targets::{Local, Residual, localise};
 
 /// The stage name in `edited.ron`'s header.
 pub const STAGE: &str = "edit";
-pub const VERSION: u32 = 3;
+pub const VERSION: u32 = 4;
 
 /// How long before an edit's window its patch's problem starts, s: the time walkers have to
 /// get where the edit wants them.
 pub const LEAD_IN_S: f64 = 6.0;
 /// How long after the window it ends, s: the time they have to rejoin their plans.
 pub const LEAD_OUT_S: f64 = 4.0;
+
+/// The longest problem edits of one patch share, s: later edits are solved in turn on the
+/// motion the ones before left. A crowd's sensitivity to an early push grows with time (a
+/// dense patch's gradient reached 4e9 over 28 s, and no step lowered the cost).
+pub const MAX_SPAN_S: f64 = 14.0;
 
 /// What stage 7 reads of a pipeline besides its input files.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -48,6 +57,10 @@ pub struct Inputs {
     /// Kept beyond every radius, m ([`crowd_core::config::Pipeline::shipping_error_m`]).
     pub margin_m: f64,
     pub edits: Vec<Edit>,
+    /// The flow map of each `FlowMap` edit (by its index in `edits`), decoded by the caller
+    /// (`crowd_merge::decode_flow_map`; [`input_hash`] takes the files' bytes).
+    #[serde(skip)]
+    pub flow_maps: Vec<(usize, Arc<VelocityMap>)>,
 }
 
 /// What stage 7 reads of a pipeline besides its input files.
@@ -58,6 +71,7 @@ pub fn inputs(pipeline: &crowd_core::config::PipelineFile) -> Inputs {
         max_speed: p.matching.max_speed * SPEED_ALLOWANCE,
         margin_m: p.shipping_error_m(),
         edits: p.edits.clone(),
+        flow_maps: Vec::new(),
     }
 }
 
@@ -65,13 +79,26 @@ pub fn inputs(pipeline: &crowd_core::config::PipelineFile) -> Inputs {
 /// the shipped files are held to (with export's share).
 pub const SPEED_ALLOWANCE: f64 = 1.04;
 
-/// The hash of stage 7's inputs: the graph and smoothed files' bytes and the settings.
-pub fn input_hash(graph: &[u8], smoothed: &[u8], inputs: &Inputs) -> Hash {
-    Hasher::new(STAGE, VERSION)
+/// The hash of stage 7's inputs: the graph and smoothed files' bytes, the settings, and the
+/// bytes of the flow maps the edits name (in the order of the edits).
+pub fn input_hash(graph: &[u8], smoothed: &[u8], inputs: &Inputs, flow_maps: &[&[u8]]) -> Hash {
+    // A flow map counts by its bytes, not by where it is (as the layers do): a pipeline copied
+    // elsewhere with absolute paths rebuilds nothing.
+    let mut settings = inputs.clone();
+    for edit in &mut settings.edits {
+        if let EditKind::FlowMap { map, .. } = &mut edit.kind {
+            *map = std::path::PathBuf::new();
+        }
+    }
+    let mut hasher = Hasher::new(STAGE, VERSION);
+    hasher
         .file("graph file", graph)
         .file("smoothed file", smoothed)
-        .value("inputs", inputs)
-        .finish()
+        .value("inputs", &settings);
+    for bytes in flow_maps {
+        hasher.file("flow map", bytes);
+    }
+    hasher.finish()
 }
 
 /// Stage 7's files, encoded: the motion side file, then `edited.ron` (stage 6's figures
@@ -107,15 +134,17 @@ fn measure_of(kind: &EditKind) -> &'static str {
     match kind {
         EditKind::Meet { .. } => "largest distance of a meeting walker from its place, m",
         EditKind::Density { .. } => "RMS of density - target in the window, people/m2",
-        EditKind::Flow { .. } => "RMS of velocity - target in the window, m/s",
+        EditKind::Flow { .. } | EditKind::FlowMap { .. } => {
+            "RMS of velocity - target in the window, m/s"
+        }
         EditKind::Vorticity { .. } => "RMS of vorticity - target in the window, 1/s",
     }
 }
 
 /// Edits of one patch solved as one problem, and the problem's span (absolute seconds).
 type Group = (Vec<Local>, (f64, f64));
-/// A group and what its problem gave.
-type Solved = (Vec<Local>, Edited);
+/// A group, what its problem gave, and the seconds it took.
+type Solved = (Vec<Local>, Edited, f64);
 
 /// The edits that reach patch `p`, in groups each of whose windows, with the lead-in before
 /// and the lead-out after, fit in one period: one problem per group, solved in turn on the
@@ -128,14 +157,21 @@ fn locals_of(graph: &PatchGraph, p: usize, inputs: &Inputs) -> Vec<Group> {
         .edits
         .iter()
         .enumerate()
-        .filter_map(|(k, e)| localise(e, k, origin, side, e.kind.window().0))
+        .filter_map(|(k, e)| {
+            let map = inputs
+                .flow_maps
+                .iter()
+                .find(|(i, _)| *i == k)
+                .map(|(_, m)| m);
+            localise(e, k, origin, side, e.kind.window().0, map)
+        })
         .collect();
     locals.sort_by(|a, b| a.window.0.total_cmp(&b.window.0).then(a.edit.cmp(&b.edit)));
     let end = |l: &Local| l.window.1 + LEAD_OUT_S;
     let mut groups: Vec<Group> = Vec::new();
     for local in locals {
         match groups.last_mut() {
-            Some((group, span)) if end(&local).max(span.1) - span.0 <= period => {
+            Some((group, span)) if end(&local).max(span.1) - span.0 <= period.min(MAX_SPAN_S) => {
                 span.1 = span.1.max(end(&local));
                 group.push(local);
             }
@@ -158,6 +194,19 @@ pub fn edit(
     inputs: &Inputs,
     progress: &dyn crowd_core::Progress,
 ) -> (Vec<PatchMotion>, Vec<EditSummary>) {
+    let (out, outcomes, _) = edit_timed(graph, motion, inputs, progress);
+    (out, outcomes)
+}
+
+/// [`edit`], and the seconds each edit took: the wall time of its problems, summed over its
+/// patches (a problem of several edits shared between them). On the clock, so kept out of the
+/// stage's file (`timings.ron` has them).
+pub fn edit_timed(
+    graph: &PatchGraph,
+    motion: &[PatchMotion],
+    inputs: &Inputs,
+    progress: &dyn crowd_core::Progress,
+) -> (Vec<PatchMotion>, Vec<EditSummary>, Vec<f64>) {
     let work: Vec<(usize, Vec<Group>)> = (0..motion.len())
         .filter_map(|p| {
             let groups = locals_of(graph, p, inputs);
@@ -189,9 +238,10 @@ pub fn edit(
             let mut now = motion[p].clone();
             let mut done = Vec::new();
             for (locals, span) in groups {
+                let clock = std::time::Instant::now();
                 let edited = edit_patch(&now, &locals, span, &cx);
                 now = edited.motion.clone();
-                done.push((locals, edited));
+                done.push((locals, edited, clock.elapsed().as_secs_f64()));
             }
             progress.advance(1);
             (p, done)
@@ -210,18 +260,24 @@ pub fn edit(
             patches: Vec::new(),
             walkers: 0,
             iterations: 0,
+            density: None,
             note: None,
+            warning: None,
         })
         .collect();
     let mut residuals: Vec<Option<(Residual, Residual)>> = vec![None; inputs.edits.len()];
+    let mut seconds = vec![0.0; inputs.edits.len()];
     for (p, groups) in done {
-        for (locals, edited) in groups {
+        for (locals, edited, took) in groups {
             merge(p, &locals, &edited, &mut outcomes, &mut residuals);
+            for local in &locals {
+                seconds[local.edit] += took / locals.len() as f64;
+            }
             out[p] = edited.motion;
         }
     }
     finish(&mut outcomes, residuals, &inputs.edits);
-    (out, outcomes)
+    (out, outcomes, seconds)
 }
 
 /// Adds one problem's residuals and figures to its edits'.
@@ -248,28 +304,94 @@ fn merge(
     }
 }
 
-/// Each edit's residual before and after, and a density edit's note.
+/// How near a density edit must come to its target (or to what its patches could show) for
+/// the report not to warn.
+pub const DENSITY_SHARE: f64 = 0.15;
+
+/// Each edit's residual before and after, a density edit's people, and a note where the
+/// report should say more.
 fn finish(
     outcomes: &mut [EditSummary],
     residuals: Vec<Option<(Residual, Residual)>>,
     edits: &[Edit],
 ) {
     for ((o, r), e) in outcomes.iter_mut().zip(residuals).zip(edits) {
-        if let Some((before, after)) = r {
-            o.before = before.value();
-            o.after = after.value();
-            if let EditKind::Density { people_per_m2, .. } = e.kind {
-                o.note = Some(format!(
-                    "mean density in the rectangle {:.3} -> {:.3} people/m2 for a target of \
-                     {people_per_m2}; the walkers in its patches then would give {:.3} people/m2 \
-                     if every one of them stood in it (a patch's count is fixed by its crossings)",
-                    before.mean(),
-                    after.mean(),
-                    before.capacity()
-                ));
-            }
+        let Some((before, after)) = r else {
+            o.warning = Some(
+                "it covers no patch of the crowd (only cells left out: blocked, unpainted or \
+                 walled in), so nothing was edited; move it onto painted ground"
+                    .to_string(),
+            );
+            continue;
+        };
+        o.before = before.value();
+        o.after = after.value();
+        if let (EditKind::Density { people_per_m2, .. }, Some(was), Some(now)) =
+            (&e.kind, before.people(), after.people())
+        {
+            let figures = DensityFigures {
+                target: *people_per_m2,
+                before: was.density(),
+                after: now.density(),
+                reachable: was.reachable(),
+            };
+            o.density = Some(figures);
+            o.note = Some(density_note(&figures));
+            o.warning = density_warning(&figures);
         }
     }
+}
+
+/// What the report says of a density edit.
+fn density_note(d: &DensityFigures) -> String {
+    let mut note = format!(
+        "{:.3} -> {:.3} people/m2 in the rectangle for a target of {} ({:.0} % of it)",
+        d.before,
+        d.after,
+        d.target,
+        100.0 * d.after / d.target
+    );
+    if d.after < (1.0 - DENSITY_SHARE) * d.target && d.reachable < d.target {
+        note += &format!(
+            "; its walkers could give at most {:.3} (a patch's walkers are fixed by its \
+             crossings: paint more density there for more)",
+            d.reachable
+        );
+    }
+    note
+}
+
+/// A density edit more than [`DENSITY_SHARE`] away from its target (or from what its patches
+/// could show, where that is less).
+fn density_warning(d: &DensityFigures) -> Option<String> {
+    if d.reached(DENSITY_SHARE) {
+        return None;
+    }
+    let goal = d.attainable();
+    let capped = if d.reachable < d.target {
+        " (as many as its patches' walkers could give)"
+    } else {
+        ""
+    };
+    let (how, why) = if d.after < goal {
+        (
+            "short of",
+            "the walkers the edit may move cannot all get there in time; lower its `r` to pull \
+             harder, or paint more walkers there",
+        )
+    } else {
+        (
+            "over",
+            "the plans bring more people there than asked, and the edit could not send enough \
+             away; lower its `r`, or paint fewer walkers there",
+        )
+    };
+    Some(format!(
+        "{:.3} people/m2 in its rectangle, more than {:.0} % {how} the {goal:.3} asked{capped}: \
+         {why}",
+        d.after,
+        100.0 * DENSITY_SHARE,
+    ))
 }
 
 /// The world position of patch-local point `p` in patch `patch`.

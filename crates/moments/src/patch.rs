@@ -12,8 +12,8 @@ use crate::targets::{Local, Measure, Residual, constrain, residual};
 use crowd_core::trajectories::{ControlPoint, PatchMotion, PointKind, Trajectory, position_at};
 use crowd_edit::cost::Sample;
 use crowd_edit::descent::{Descent, solve};
-use crowd_edit::model::{Character, Linearisation, Model, Repulsion};
-use crowd_edit::observe::{Apart, SpeedLimit};
+use crowd_edit::model::{Character, Linearisation, Model, Plan, Repulsion};
+use crowd_edit::observe::{Apart, Blend, Limited, SpeedLimit};
 use crowd_edit::{Constraint, Covariances, Objective, Problem, Rect, Timeline, World};
 use crowd_geometry::{Ladder, Patch, keep_clear};
 use glam::DVec2;
@@ -89,7 +89,15 @@ pub fn edit_patch(
             )
         })
         .collect();
-    limit_speeds(&copies, motion, span, steps, cx.max_speed, &mut constraints);
+    limit_speeds(
+        &copies,
+        motion,
+        span,
+        steps,
+        cx.max_speed,
+        &plan,
+        &mut constraints,
+    );
     keep_apart(&copies, span, steps, cx.patch.radius_m, &mut constraints);
     let side = cx.patch.side_m;
     let world = World::new(
@@ -182,22 +190,25 @@ pub fn edit_patch(
 /// then halves them, and the walkers the model kept apart from them collide). Stronger
 /// (0.005) it held the edits back more than the ladder did (density: RMS 0.133 -> 0.134
 /// instead of -> 0.104 on `city`'s busiest patch).
-pub const SPEED_R: f64 = 0.05;
+pub const SPEED_R: f64 = 0.002;
 
 /// How far under its limit the model keeps a walker: the walk shipped is sampled from it, and
 /// its pieces' speeds come out a little above the model's.
 pub const SPEED_MARGIN: f64 = 0.95;
 
 /// The soft speed limit at every step on the walkers that may be edited then: each at
-/// `max_speed`, or its plan's fastest where that is faster already ([`SpeedLimit`]).
+/// `max_speed`, or its plan's fastest where that is faster already ([`SpeedLimit`]), on the
+/// walk as it ships (the plan plus the displacement times the mask: [`Blend`]).
 fn limit_speeds(
     copies: &[Copy],
     motion: &PatchMotion,
     span: (f64, f64),
     steps: usize,
     max_speed: f64,
+    plan: &[Plan],
     out: &mut Vec<Constraint>,
 ) {
+    let n = copies.len();
     let limits: Vec<f64> = copies
         .iter()
         .map(|c| {
@@ -205,11 +216,27 @@ fn limit_speeds(
                 .map_or(0.0, |j| max_speed.max(fastest(&motion.trajectories[j])))
         })
         .collect();
+    // The masks' slopes by central differences (a smoothstep over a second: 1e-4 s resolves
+    // them to 1e-8).
+    const H: f64 = 1e-4;
     for k in 0..=steps {
         let t = span.0 + k as f64 * DT;
-        let who: Vec<(usize, f64)> = (0..copies.len())
+        let who: Vec<Limited> = (0..n)
             .filter(|&i| copies[i].mask(t, span) > 0.0)
-            .map(|i| (i, SPEED_MARGIN * limits[i]))
+            .map(|i| {
+                let c = &copies[i];
+                let p = plan[2 * k * n + i];
+                Limited {
+                    character: i,
+                    limit: SPEED_MARGIN * limits[i],
+                    blend: Some(Blend {
+                        mask: c.mask(t, span),
+                        slope: (c.mask(t + H, span) - c.mask(t - H, span)) / (2.0 * H),
+                        plan_pos: p.pos,
+                        plan_vel: p.vel,
+                    }),
+                }
+            })
             .collect();
         if who.is_empty() {
             continue;

@@ -3,12 +3,21 @@
 //! Eulerian density, velocity or vorticity on a grid over the part of its rectangle inside the
 //! patch), and the residual that says how near the edit came.
 
+use crate::gather::{Square, gather};
 use crate::plan::{Copy, DT};
 use crowd_core::config::{Edit, EditKind};
+use crowd_core::flow_map::VelocityMap;
 use crowd_edit::cost::Sample;
-use crowd_edit::observe::{Counted, Density, EulerGrid, Observe, Positions, Velocity, Vorticity};
+use crowd_edit::observe::{
+    Counted, Density, EulerGrid, Observe, Positions, Velocity, Vorticity, Within,
+};
 use crowd_edit::{Constraint, Rect};
 use glam::DVec2;
+use std::sync::Arc;
+
+/// R of a density edit's gathering ([`crate::gather`]), m^2: a walker 1 m outside its
+/// rectangle through a 2 s window costs 2 / R.
+pub const GATHER_R: f64 = 0.01;
 
 /// How long before a meeting its walkers must already be free to move, s.
 pub const MEET_NOTICE_S: f64 = 3.0;
@@ -41,7 +50,7 @@ pub enum LocalKind {
     },
     Flow {
         rect: Rect,
-        velocity: DVec2,
+        goal: FlowGoal,
     },
     Vorticity {
         rect: Rect,
@@ -49,10 +58,42 @@ pub enum LocalKind {
     },
 }
 
+/// The velocity a flow edit asks for: one vector, or a painted map's at each cell.
+#[derive(Clone, Debug)]
+pub enum FlowGoal {
+    Uniform(DVec2),
+    /// The map, and the world position of the patch's south-west corner.
+    Map {
+        map: Arc<VelocityMap>,
+        origin: DVec2,
+    },
+}
+
+impl FlowGoal {
+    /// The velocity asked of the patch-local square `[min, max)`, if any: a map's cells whose
+    /// pixels are mostly unpainted (mean alpha under a half) ask nothing.
+    fn over(&self, min: DVec2, max: DVec2) -> Option<DVec2> {
+        match self {
+            FlowGoal::Uniform(v) => Some(*v),
+            FlowGoal::Map { map, origin } => map
+                .mean_over(*origin + min, *origin + max)
+                .filter(|&(_, weight)| weight >= 0.5)
+                .map(|(v, _)| v),
+        }
+    }
+}
+
 /// `edit` as the patch whose south-west corner is `origin` (side `side`) takes it, its window
 /// starting at `from` on the problem's clock; `None` when it does not reach the patch (a
 /// meeting belongs to the patch its point is in).
-pub fn localise(edit: &Edit, index: usize, origin: DVec2, side: f64, from: f64) -> Option<Local> {
+pub fn localise(
+    edit: &Edit,
+    index: usize,
+    origin: DVec2,
+    side: f64,
+    from: f64,
+    map: Option<&Arc<VelocityMap>>,
+) -> Option<Local> {
     let (x0, y0, x1, y1) = edit.kind.rect();
     let (w0, w1) = edit.kind.window();
     let window = (from, from + (w1 - w0));
@@ -90,7 +131,16 @@ pub fn localise(edit: &Edit, index: usize, origin: DVec2, side: f64, from: f64) 
                 },
                 EditKind::Flow { velocity_m_s, .. } => LocalKind::Flow {
                     rect,
-                    velocity: DVec2::new(velocity_m_s.0, velocity_m_s.1),
+                    goal: FlowGoal::Uniform(DVec2::new(velocity_m_s.0, velocity_m_s.1)),
+                },
+                EditKind::FlowMap { .. } => LocalKind::Flow {
+                    rect,
+                    goal: FlowGoal::Map {
+                        map: Arc::clone(
+                            map.expect("the caller decodes every FlowMap edit's map (Inputs)"),
+                        ),
+                        origin,
+                    },
                 },
                 EditKind::Vorticity { per_s, .. } => LocalKind::Vorticity { rect, per_s },
                 EditKind::Meet { .. } => unreachable!("handled above"),
@@ -114,13 +164,16 @@ pub enum Measure {
         who: Vec<usize>,
         places: Vec<DVec2>,
     },
-    /// The root mean square of H(X) - Y over the window (the constraints' indices), and what
-    /// the patch can hold: the walkers present, summed over the window's steps, and the
-    /// rectangle's area times those steps (density edits; zeros for the others).
-    Rms {
+    /// The root mean square of H(X) - Y over the window (the constraints' indices).
+    Rms { indices: Vec<usize> },
+    /// A density edit's root mean square, and the people counted in its rectangle: at each
+    /// step of the window, those present (`counted`); what the patch could show
+    /// ([`crate::gather::Gathering::people`]).
+    Density {
         indices: Vec<usize>,
-        people: f64,
-        area_steps: f64,
+        rect: Rect,
+        counted: Vec<(usize, Vec<usize>)>,
+        reachable: f64,
     },
 }
 
@@ -175,16 +228,16 @@ pub fn constrain(
             .collect()
     };
     let name = format!("edit {}", local.edit);
-    let mut push = |operator: Box<dyn Observe>, k: usize, target: Vec<f64>, weight: f64| {
+    let mut push = |operator: Box<dyn Observe>, k: usize, target: Vec<f64>, r: f64| {
         out.push(Constraint {
             name: name.clone(),
             operator,
             samples: vec![Sample {
                 step: k,
                 target,
-                weight,
+                weight: DT,
             }],
-            r: local.r,
+            r,
         });
         out.len() - 1
     };
@@ -216,7 +269,9 @@ pub fn constrain(
                 radius_of(who.len(), radius),
             );
             let target = places.iter().flat_map(|p| [p.x, p.y]).collect();
-            push(Box::new(Positions { who: who.clone() }), k, target, 1.0);
+            // One instant: weight 1 (as `Constraint::over_window`), not a step's DT.
+            let c = push(Box::new(Positions { who: who.clone() }), k, target, local.r);
+            out[c].samples[0].weight = 1.0;
             Measure::Meet {
                 step: k,
                 who,
@@ -226,46 +281,65 @@ pub fn constrain(
         LocalKind::Density { rect, target } => {
             let grid = grid_over(rect, 0);
             let cells = inner(&grid, 0);
-            let indices = steps_of(local.window, start, steps)
-                .map(|k| {
+            let window = steps_of(local.window, start, steps);
+            let square = Square { rect, target };
+            let gathering = gather(&square, window.clone(), copies, span, positions);
+            let indices = window
+                .clone()
+                .zip(gathering.who)
+                .map(|(k, who)| {
                     let op = Density {
                         grid,
                         cells: cells.clone(),
                         counted: Counted::Only(present(k)),
                     };
-                    push(Box::new(op), k, vec![target; cells.len()], DT)
+                    let c = push(Box::new(op), k, vec![target; cells.len()], local.r);
+                    if !who.is_empty() {
+                        let zeros = vec![0.0; who.len()];
+                        let within = Within {
+                            rect: gathering.inside,
+                            who,
+                        };
+                        push(Box::new(within), k, zeros, GATHER_R);
+                    }
+                    c
                 })
                 .collect();
-            let window = steps_of(local.window, start, steps);
-            let people: usize = window.clone().map(|k| walkers(k).len()).sum();
-            Measure::Rms {
+            Measure::Density {
                 indices,
-                people: people as f64,
-                area_steps: rect.area() * window.count() as f64,
+                rect,
+                counted: window.map(|k| (k, present(k))).collect(),
+                reachable: gathering.people,
             }
         }
-        LocalKind::Flow { rect, velocity } => {
+        LocalKind::Flow { rect, ref goal } => {
             let grid = grid_over(rect, 0);
-            let cells = inner(&grid, 0);
-            let y: Vec<f64> = cells
-                .iter()
-                .flat_map(|_| [velocity.x, velocity.y])
-                .collect();
-            let indices = steps_of(local.window, start, steps)
-                .map(|k| {
-                    let op = Velocity {
-                        grid,
-                        cells: cells.clone(),
-                        counted: Counted::Only(present(k)),
-                    };
-                    push(Box::new(op), k, y.clone(), DT)
+            let half = DVec2::splat(grid.cell / 2.0);
+            let (cells, y): (Vec<usize>, Vec<f64>) = inner(&grid, 0)
+                .into_iter()
+                .filter_map(|c| {
+                    let at = grid.centre(c);
+                    goal.over(at - half, at + half).map(|v| (c, v))
                 })
-                .collect();
-            Measure::Rms {
-                indices,
-                people: 0.0,
-                area_steps: 0.0,
-            }
+                .fold((Vec::new(), Vec::new()), |(mut cells, mut y), (c, v)| {
+                    cells.push(c);
+                    y.extend([v.x, v.y]);
+                    (cells, y)
+                });
+            let indices = match cells.is_empty() {
+                true => Vec::new(),
+                false => steps_of(local.window, start, steps)
+                    .map(|k| {
+                        let op = Velocity {
+                            grid,
+                            cells: cells.clone(),
+                            counted: Counted::Only(present(k)),
+                        };
+                        push(Box::new(op), k, y.clone(), local.r)
+                    })
+                    .collect(),
+            };
+            Measure::Rms { indices }
         }
         LocalKind::Vorticity { rect, per_s } => {
             let grid = grid_over(rect, 1);
@@ -277,14 +351,10 @@ pub fn constrain(
                         cells: cells.clone(),
                         counted: Counted::Only(present(k)),
                     };
-                    push(Box::new(op), k, vec![per_s; cells.len()], DT)
+                    push(Box::new(op), k, vec![per_s; cells.len()], local.r)
                 })
                 .collect();
-            Measure::Rms {
-                indices,
-                people: 0.0,
-                area_steps: 0.0,
-            }
+            Measure::Rms { indices }
         }
     }
 }
@@ -329,13 +399,25 @@ fn ring(
 }
 
 /// The residual of `measure` on `states` (one state per step, `n` numbers each): its sum of
-/// squares and count (root mean square kinds), or its largest distance (a meeting).
+/// squares and count (root mean square kinds; a density edit also counts its people), or its
+/// largest distance (a meeting).
 pub fn residual(
     measure: &Measure,
     constraints: &[Constraint],
     states: &[f64],
     n: usize,
 ) -> Residual {
+    let squares = |indices: &[usize]| {
+        let (mut squares, mut count) = (0.0, 0usize);
+        for &c in indices {
+            let constraint = &constraints[c];
+            let (_, rms) = constraint.misfit(states, n);
+            let len = constraint.operator.len();
+            squares += rms * rms * len as f64;
+            count += len;
+        }
+        Squares { squares, count }
+    };
     match measure {
         Measure::Meet { step, who, places } => {
             let x = &states[step * n..(step + 1) * n];
@@ -346,79 +428,107 @@ pub fn residual(
                 .fold(0.0, f64::max);
             Residual::Largest(far)
         }
-        Measure::Rms {
+        Measure::Rms { indices } => Residual::Squares(squares(indices)),
+        Measure::Density {
             indices,
-            people,
-            area_steps,
+            rect,
+            counted,
+            reachable,
         } => {
-            let (mut squares, mut sum, mut count) = (0.0, 0.0, 0usize);
-            for &c in indices {
-                let constraint = &constraints[c];
-                let (_, rms) = constraint.misfit(states, n);
-                let len = constraint.operator.len();
-                squares += rms * rms * len as f64;
-                count += len;
-                let mut h = vec![0.0; len];
-                for sample in &constraint.samples {
-                    let k = sample.step;
-                    constraint
-                        .operator
-                        .observe(&states[k * n..(k + 1) * n], &mut h);
-                    sum += h.iter().sum::<f64>();
-                }
-            }
-            Residual::Squares {
-                squares,
-                sum,
-                count,
-                people: *people,
-                area_steps: *area_steps,
+            let inside: usize = counted
+                .iter()
+                .map(|(k, who)| {
+                    let x = &states[k * n..(k + 1) * n];
+                    who.iter()
+                        .filter(|&&i| rect.contains(DVec2::new(x[4 * i], x[4 * i + 1])))
+                        .count()
+                })
+                .sum();
+            Residual::Density {
+                squares: squares(indices),
+                people: People {
+                    inside: inside as f64,
+                    reachable: *reachable,
+                    area_steps: rect.area() * counted.len() as f64,
+                },
             }
         }
     }
 }
 
+/// Squares of H - Y over `count` numbers.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Squares {
+    pub squares: f64,
+    pub count: usize,
+}
+
+impl std::ops::Add for Squares {
+    type Output = Squares;
+    fn add(self, o: Squares) -> Squares {
+        Squares {
+            squares: self.squares + o.squares,
+            count: self.count + o.count,
+        }
+    }
+}
+
+/// People in a density edit's rectangle, summed over the window's steps: those there, those
+/// who could be ([`crate::gather::Gathering::people`]), and the rectangle's area times the
+/// steps.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct People {
+    pub inside: f64,
+    pub reachable: f64,
+    pub area_steps: f64,
+}
+
+impl std::ops::Add for People {
+    type Output = People;
+    fn add(self, o: People) -> People {
+        People {
+            inside: self.inside + o.inside,
+            reachable: self.reachable + o.reachable,
+            area_steps: self.area_steps + o.area_steps,
+        }
+    }
+}
+
+impl People {
+    /// People per m2 in the rectangle, over the window.
+    pub fn density(self) -> f64 {
+        self.inside / self.area_steps.max(f64::MIN_POSITIVE)
+    }
+
+    /// The most the patches could show, people per m2.
+    pub fn reachable(self) -> f64 {
+        self.reachable / self.area_steps.max(f64::MIN_POSITIVE)
+    }
+}
+
 /// A residual as patches add up: meetings keep their largest distance, the others their
-/// squares.
+/// squares (and density edits their people).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Residual {
     Largest(f64),
-    /// The squares of H - Y and the sum of H over `count` numbers, and what the patches can
-    /// hold (`Measure::Rms`).
-    Squares {
-        squares: f64,
-        sum: f64,
-        count: usize,
-        people: f64,
-        area_steps: f64,
-    },
+    Squares(Squares),
+    Density { squares: Squares, people: People },
 }
 
 impl Residual {
     pub fn combine(self, other: Residual) -> Residual {
         match (self, other) {
             (Residual::Largest(a), Residual::Largest(b)) => Residual::Largest(a.max(b)),
+            (Residual::Squares(a), Residual::Squares(b)) => Residual::Squares(a + b),
             (
-                Residual::Squares {
-                    squares,
-                    sum,
-                    count,
-                    people,
-                    area_steps,
-                },
-                Residual::Squares {
+                Residual::Density { squares, people },
+                Residual::Density {
                     squares: s2,
-                    sum: u2,
-                    count: c2,
                     people: p2,
-                    area_steps: a2,
                 },
-            ) => Residual::Squares {
+            ) => Residual::Density {
                 squares: squares + s2,
-                sum: sum + u2,
-                count: count + c2,
                 people: people + p2,
-                area_steps: area_steps + a2,
             },
             (a, _) => a,
         }
@@ -428,26 +538,17 @@ impl Residual {
     pub fn value(self) -> f64 {
         match self {
             Residual::Largest(d) => d,
-            Residual::Squares { squares, count, .. } => (squares / count.max(1) as f64).sqrt(),
+            Residual::Squares(s) | Residual::Density { squares: s, .. } => {
+                (s.squares / s.count.max(1) as f64).sqrt()
+            }
         }
     }
 
-    /// The mean of what was observed (a density edit's mean density in its rectangle).
-    pub fn mean(self) -> f64 {
+    /// A density edit's people (`None` for the other kinds).
+    pub fn people(self) -> Option<People> {
         match self {
-            Residual::Largest(d) => d,
-            Residual::Squares { sum, count, .. } => sum / count.max(1) as f64,
-        }
-    }
-
-    /// The most a density edit's patches could show: everyone present in them, in its
-    /// rectangle, people per m2.
-    pub fn capacity(self) -> f64 {
-        match self {
-            Residual::Squares {
-                people, area_steps, ..
-            } if area_steps > 0.0 => people / area_steps,
-            _ => f64::NAN,
+            Residual::Density { people, .. } => Some(people),
+            _ => None,
         }
     }
 }

@@ -50,6 +50,16 @@ pub enum EditKind {
         window_s: (f64, f64),
         velocity_m_s: (f64, f64),
     },
+    /// The crowd in the rectangle moves as the flow map `map` says (a PNG the size of the
+    /// layers, in their convention: R = east, G = north, 128 = zero, A = weight; its path
+    /// relative to `pipeline.ron`), a full-strength pixel at `speed_m_s`, over the window.
+    /// Pixels of alpha under a half leave their place free.
+    FlowMap {
+        rect: (f64, f64, f64, f64),
+        window_s: (f64, f64),
+        map: std::path::PathBuf,
+        speed_m_s: f64,
+    },
     /// The crowd in the rectangle turns at `per_s` (the vorticity, 1/s: positive
     /// anticlockwise) over the window.
     Vorticity {
@@ -79,6 +89,7 @@ impl EditKind {
             EditKind::Meet { .. } => "Meet",
             EditKind::Density { .. } => "Density",
             EditKind::Flow { .. } => "Flow",
+            EditKind::FlowMap { .. } => "FlowMap",
             EditKind::Vorticity { .. } => "Vorticity",
         }
     }
@@ -89,7 +100,7 @@ impl EditKind {
         match self {
             EditKind::Meet { .. } => 0.05,
             EditKind::Density { .. } => 0.01,
-            EditKind::Flow { .. } => 0.05,
+            EditKind::Flow { .. } | EditKind::FlowMap { .. } => 0.05,
             EditKind::Vorticity { .. } => 0.02,
         }
     }
@@ -100,6 +111,7 @@ impl EditKind {
             EditKind::Meet { time_s, .. } => (time_s, time_s),
             EditKind::Density { window_s, .. }
             | EditKind::Flow { window_s, .. }
+            | EditKind::FlowMap { window_s, .. }
             | EditKind::Vorticity { window_s, .. } => window_s,
         }
     }
@@ -110,6 +122,7 @@ impl EditKind {
             EditKind::Meet { at, .. } => (at.0, at.1, at.0, at.1),
             EditKind::Density { rect, .. }
             | EditKind::Flow { rect, .. }
+            | EditKind::FlowMap { rect, .. }
             | EditKind::Vorticity { rect, .. } => rect,
         }
     }
@@ -231,6 +244,30 @@ fn validate_kind(
                 )),
             )
         }
+        EditKind::FlowMap {
+            rect,
+            window_s,
+            ref map,
+            speed_m_s,
+        } => {
+            validate_area(rect, window_s, period, at, named)?;
+            require(
+                !map.as_os_str().is_empty(),
+                &at("kind.map"),
+                "\"\"",
+                &named("the path of an RGBA flow-map PNG, relative to pipeline.ron".into()),
+            )?;
+            require(
+                speed_m_s.is_finite() && speed_m_s > 0.0 && speed_m_s <= limits.max_speed,
+                &at("kind.speed_m_s"),
+                Num(speed_m_s),
+                &named(format!(
+                    "the speed of a full-strength pixel, above 0 and no faster than \
+                     `match.max_speed` ({} m/s)",
+                    Num(limits.max_speed)
+                )),
+            )
+        }
         EditKind::Vorticity {
             rect,
             window_s,
@@ -336,6 +373,7 @@ mod tests {
             (name: "square", kind: Density(rect: (0, 0, 8, 8), window_s: (8, 11), people_per_m2: 0.3)),
             (name: "bridge", kind: Flow(rect: (0, 0, 8, 8), window_s: (18, 24), velocity_m_s: (1, 0)), r: Some(0.1)),
             (name: "whirl", kind: Vorticity(rect: (0, 0, 8, 8), window_s: (2, 6), per_s: -0.5), q: Some(2)),
+            (name: "turn", kind: FlowMap(rect: (0, 0, 8, 8), window_s: (2, 6), map: "turn.png", speed_m_s: 1.2)),
         ]"#,
         )
         .unwrap();
@@ -376,6 +414,16 @@ mod tests {
                 r#"[(name: "a", kind: Flow(rect: (0, 0, 8, 8), window_s: (5, 8), velocity_m_s: (3, 0)))]"#,
                 "edits[0].kind.velocity_m_s",
                 "match.max_speed",
+            ),
+            (
+                r#"[(name: "a", kind: FlowMap(rect: (0, 0, 8, 8), window_s: (5, 8), map: "m.png", speed_m_s: 2.5))]"#,
+                "edits[0].kind.speed_m_s",
+                "match.max_speed",
+            ),
+            (
+                r#"[(name: "a", kind: FlowMap(rect: (0, 0, 8, 8), window_s: (5, 8), map: "", speed_m_s: 1))]"#,
+                "edits[0].kind.map",
+                "flow-map PNG",
             ),
             (
                 r#"[(name: "a", kind: Vorticity(rect: (0, 0, 8, 8), window_s: (5, 8), per_s: 0))]"#,
