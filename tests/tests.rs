@@ -19,4 +19,5 @@ mod paintings;
 mod patterns;
 mod scenes;
 mod settings;
+mod view;
 mod warnings;

@@ -123,6 +123,19 @@ pub enum Command {
     /// per-iteration CSV, plots, trajectories before and after, and result.ron.
     #[command(after_long_help = crate::edit_pictures::LEGEND)]
     Edit(EditArgs),
+    /// Watch a build in a browser: serves the folder and the viewer page on 127.0.0.1 (a free
+    /// port unless `--port`), prints the address and opens a browser where there is one;
+    /// Ctrl-C stops it. The page plays `library.crowd` over the painted ground, with the patch
+    /// grid, densities, directions, obstacles, the check's findings and the edits as toggles.
+    View {
+        /// The build folder (it has `library.crowd`).
+        dir: PathBuf,
+        #[arg(long)]
+        port: Option<u16>,
+        /// Print the address only; open no browser.
+        #[arg(long)]
+        no_open: bool,
+    },
     /// The figures of a build folder (`--json` for one JSON object).
     Report {
         /// Build folders (one for text and JSON; several for `--table`).
@@ -495,6 +508,19 @@ pub fn run(cli: Cli) -> Result<()> {
                 None => crate::inspect::render(&file, &output, patch)?,
             };
             ui.say(format!("wrote {}: {legend}", output.display()));
+        }
+        Command::View { dir, port, no_open } => {
+            let server = crowd_view::Server::bind(&dir, port)?;
+            // The address goes to stdout whatever `--quiet` says: it is the command's result.
+            out(format!(
+                "crowd view: serving {} at {} (Ctrl-C stops)\n",
+                dir.display(),
+                server.address
+            ))?;
+            if !no_open && !crowd_view::open_browser(&server.address) {
+                ui.say("no browser to open here: open the address above in one");
+            }
+            server.run()?;
         }
         Command::Report {
             dirs,

@@ -513,8 +513,12 @@ pub struct TrajectoriesFile {
 #[serde(deny_unknown_fields)]
 pub struct EditSummary {
     pub name: String,
-    /// Meet, Density, Flow or Vorticity.
+    /// Meet, Density, Flow, FlowMap or Vorticity.
     pub kind: String,
+    /// Where it is, `(x0, y0, x1, y1)` world metres (a meeting: its point twice), and its
+    /// window in the period, s (a meeting: its instant twice): what a viewer draws.
+    pub rect: (f64, f64, f64, f64),
+    pub window_s: (f64, f64),
     /// What `before` and `after` measure, with its unit.
     pub measure: String,
     pub before: f64,

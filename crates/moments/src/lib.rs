@@ -34,7 +34,7 @@ use targets::{Local, Residual, localise};
 
 /// The stage name in `edited.ron`'s header.
 pub const STAGE: &str = "edit";
-pub const VERSION: u32 = 4;
+pub const VERSION: u32 = 5;
 
 /// How long before an edit's window its patch's problem starts, s: the time walkers have to
 /// get where the edit wants them.
@@ -254,6 +254,8 @@ pub fn edit_timed(
         .map(|e| EditSummary {
             name: e.name.clone(),
             kind: e.kind.name().to_string(),
+            rect: e.kind.rect(),
+            window_s: e.kind.window(),
             measure: measure_of(&e.kind).to_string(),
             before: 0.0,
             after: 0.0,
