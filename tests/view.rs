@@ -168,7 +168,8 @@ fn screenshot_path(name: &str, tmp: &Path) -> PathBuf {
 }
 
 /// The page loads a built scene, shows every character of the library, moves them with time,
-/// and its patch-grid toggle changes the picture; a screenshot of each scene.
+/// its patch-grid toggle changes the picture, and a click on a patch shows its crossings and
+/// space-time plot; a screenshot of each scene.
 #[test]
 fn the_viewer_plays_city_and_ring_in_headless_chromium() {
     chromium();
@@ -204,6 +205,15 @@ fn the_viewer_plays_city_and_ring_in_headless_chromium() {
             0,
             "{name}: the grid stays: {seen}"
         );
+        // A click on a patch: its crossings and its space-time plot.
+        let panel = &seen["panel"];
+        assert_eq!(panel["shown"], true, "{name}: {seen}");
+        assert!(
+            panel["title"].as_str().unwrap_or_default().starts_with("Patch 0"),
+            "{name}: {panel}"
+        );
+        assert!(panel["crossings"].as_u64().unwrap() > 0, "{name}: {panel}");
+        assert_eq!(panel["plot"], true, "{name}: {panel}");
         let picture = image::open(&shot).unwrap();
         assert!(picture.width() >= 1000, "{name}: no screenshot");
     }

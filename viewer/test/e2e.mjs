@@ -78,6 +78,25 @@ try {
     await page.evaluate(() => window.crowdViewer.toggle('grid', false));
     await snap('gridOff', 2);
     out.gridOffDiffers = await differ('at2', 'gridOff');
+    // A click on the middle of the first patch shows its crossings and space-time plot.
+    const box = await page.evaluate(async () => {
+      const scene = await (await fetch('/scene.json')).json();
+      const p = scene.patches[0];
+      const side = scene.world.side;
+      window.crowdViewer.frame(p.col * side, p.row * side, (p.col + 1) * side, (p.row + 1) * side);
+      const r = document.getElementById('view').getBoundingClientRect();
+      return { x: r.left + r.width / 2, y: r.top + r.height / 2 };
+    });
+    await page.mouse.click(box.x, box.y);
+    out.panel = await page.evaluate(() => {
+      const panel = document.getElementById('panel');
+      return {
+        shown: !panel.hidden,
+        title: panel.querySelector('h2')?.textContent ?? null,
+        crossings: panel.querySelectorAll('tr').length - 1,
+        plot: !!panel.querySelector('canvas#spacetime'),
+      };
+    });
     if (arg) {
       const rect = region ? region.split(',').map(Number) : null;
       await page.evaluate((rect) => {
