@@ -209,7 +209,10 @@ fn the_viewer_plays_city_and_ring_in_headless_chromium() {
         let panel = &seen["panel"];
         assert_eq!(panel["shown"], true, "{name}: {seen}");
         assert!(
-            panel["title"].as_str().unwrap_or_default().starts_with("Patch 0"),
+            panel["title"]
+                .as_str()
+                .unwrap_or_default()
+                .starts_with("Patch 0"),
             "{name}: {panel}"
         );
         assert!(panel["crossings"].as_u64().unwrap() > 0, "{name}: {panel}");
