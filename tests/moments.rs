@@ -558,10 +558,47 @@ fn crowd_edit_alone_writes_the_bytes_the_build_wrote() {
     );
 }
 
+/// The largest change of any walker's velocity from one frame to the next (30 frames a
+/// second over one period), m/s, as the runtime plays `library.crowd`: the jolt a player
+/// shows.
+fn largest_jolt(out: &Path) -> f64 {
+    let lib =
+        crowd_runtime::Library::from_bytes(&std::fs::read(out.join("library.crowd")).unwrap())
+            .unwrap();
+    let mut sampler = crowd_runtime::Sampler::new(&lib);
+    let step = 1.0 / 30.0;
+    let frames = (lib.period_s() / step).round() as usize;
+    let (mut seen, mut at) = (Vec::new(), Vec::new());
+    for f in 0..=frames + 1 {
+        sampler.sample(f as f64 * step, [-1e9, -1e9, 1e9, 1e9], &mut seen);
+        at.push(
+            seen.iter()
+                .filter(|c| u64::from(c.id) < lib.walkers())
+                .map(|c| (c.id, DVec2::new(f64::from(c.x), f64::from(c.y))))
+                .collect::<Vec<_>>(),
+        );
+    }
+    let mut worst = 0.0f64;
+    for w in at.windows(3) {
+        for ((a, b), c) in w[0].iter().zip(&w[1]).zip(&w[2]) {
+            assert!(
+                a.0 == b.0 && b.0 == c.0,
+                "the runtime keeps its walkers' order"
+            );
+            let jolt = ((c.1 - b.1) - (b.1 - a.1)).length() / step;
+            worst = worst.max(jolt);
+        }
+    }
+    worst
+}
+
 /// A small random painting (`crowd-paintings`, seeds 1 to 8, at most 8 patches) built, then
 /// built again with one edit of each kind on its busiest patch (windows spread over the
-/// period, the meeting where two walkers pass near each other): each residual falls, and what
-/// ships is clean.
+/// period, the meeting where two walkers pass near each other): each residual falls, what
+/// ships is clean, and no walker jolts more than it did unedited or than
+/// [`crowd_moments::patch::MAX_JOLT`]. Before that bound, seed 1's hurried walker jolted by
+/// 4.3 m/s from one frame to the next (1.9 unedited): the edited walk was the plan resampled
+/// every 0.1 s, which turned its quick, finely sampled corners into single jumps.
 #[test]
 fn every_kind_of_edit_works_on_a_small_random_painting() {
     let dir = tempfile::tempdir().unwrap();
@@ -578,6 +615,7 @@ fn every_kind_of_edit_works_on_a_small_random_painting() {
             continue;
         }
         let (graph, motion) = load(&out);
+        let unedited_jolt = largest_jolt(&out);
         let p = busiest(&motion)[0];
         if motion[p].trajectories.len() < 6 {
             continue;
@@ -645,6 +683,12 @@ fn every_kind_of_edit_works_on_a_small_random_painting() {
         .unwrap()
         .1;
         assert_kept_over(&graph, &motion, &edited, period);
+        let jolt = largest_jolt(&out);
+        eprintln!("seed {seed}: largest jolt {unedited_jolt:.3} m/s unedited, {jolt:.3} edited");
+        assert!(
+            jolt <= unedited_jolt.max(crowd_moments::patch::MAX_JOLT) + 0.01,
+            "seed {seed}: a walker jolts by {jolt} m/s in a frame (unedited {unedited_jolt})"
+        );
         edited_scenes += 1;
     }
     assert!(

@@ -34,7 +34,7 @@ use targets::{Local, Residual, localise};
 
 /// The stage name in `edited.ron`'s header.
 pub const STAGE: &str = "edit";
-pub const VERSION: u32 = 5;
+pub const VERSION: u32 = 6;
 
 /// How long before an edit's window its patch's problem starts, s: the time walkers have to
 /// get where the edit wants them.
