@@ -169,7 +169,8 @@ fn screenshot_path(name: &str, tmp: &Path) -> PathBuf {
 
 /// The page loads a built scene, shows every character of the library, moves them with time,
 /// its patch-grid toggle changes the picture, and a click on a patch shows its crossings and
-/// space-time plot; a screenshot of each scene.
+/// space-time plot (zoomed in there, the characters out of view are not drawn); a screenshot
+/// of each scene.
 #[test]
 fn the_viewer_plays_city_and_ring_in_headless_chromium() {
     chromium();
@@ -216,6 +217,12 @@ fn the_viewer_plays_city_and_ring_in_headless_chromium() {
             "{name}: {panel}"
         );
         assert!(panel["crossings"].as_u64().unwrap() > 0, "{name}: {panel}");
+        // Zoomed in on that patch, only the characters in view are drawn.
+        let drawn = seen["zoomed"]["drawn"].as_u64().unwrap();
+        assert!(
+            drawn > 0 && drawn < count as u64 / 4,
+            "{name}: {drawn} of {count} drawn"
+        );
         assert_eq!(panel["plot"], true, "{name}: {panel}");
         let picture = image::open(&shot).unwrap();
         assert!(picture.width() >= 1000, "{name}: no screenshot");

@@ -47,7 +47,6 @@ async function start() {
   const sampler = new Sampler(lib);
   const count = lib.characters;
   const xy = new Float32Array(2 * count);
-  const heading = new Float32Array(lib.walkerCount);
   const stage = new Stage($('view'), world, count, lib.walkerCount);
   // The ground first, so that every frame from `ready` on has it (a folder without merge.ron
   // has none: the page goes on without).
@@ -81,14 +80,14 @@ async function start() {
 
   function draw() {
     const t0 = performance.now();
-    sampler.sample(state.time, xy, heading);
+    sampler.sample(state.time, xy);
     state.sampleMs = performance.now() - t0;
-    stage.place(xy, heading, lib.walkerCount);
+    stage.place(xy, sampler.facing, lib.walkerCount);
     lightEdits(stage.layers.get('edits'), state.time % period, period);
     stage.render();
     scrub.value = String(state.time % period);
     $('clock').textContent = `${(state.time % period).toFixed(2)} / ${period.toFixed(0)} s`;
-    $('stats').textContent = `${count} characters, sampling ${state.sampleMs.toFixed(2)} ms, ${state.fps.toFixed(0)} fps`;
+    $('stats').textContent = `${count} characters (${stage.people.count} in view), sampling ${state.sampleMs.toFixed(2)} ms, ${state.fps.toFixed(0)} fps`;
   }
   function frame(now) {
     // Paused, a frame is drawn only when something changes (setTime, toggle, pan, zoom).

@@ -38,12 +38,17 @@ export class Stage {
     this.people.count = count;
     this.people.frustumCulled = false;
     this.people.position.z = 2;
+    // Each character's colour; an instance slot takes its character's when the culling in
+    // `place` gives it another one.
+    this.colours = new Float32Array(3 * count);
     const colour = new THREE.Color();
     for (let i = 0; i < count; i++) {
       if (i < walkers) colour.setHSL(((i * 0.618034) % 1 + 1) % 1, 0.65, 0.45);
       else colour.set(0xc0508a);
+      colour.toArray(this.colours, 3 * i);
       this.people.setColorAt(i, colour);
     }
+    this.slotOf = Int32Array.from({ length: count }, (_, i) => i);
     this.people.instanceMatrix.setUsage(THREE.DynamicDrawUsage);
     this.scene.add(this.people);
     this.layers = new Map();
@@ -69,21 +74,52 @@ export class Stage {
     this.scene.add(object);
   }
 
-  /// Places the characters: `xy` world positions, `heading` radians (walkers only).
-  place(xy, heading, walkers) {
-    const m = this.people.instanceMatrix.array;
-    const n = this.people.count;
+  /// Places the characters in view (a character's radius beyond the edges), one instance
+  /// each, and hides the rest: `xy` world positions, `facing` the walkers' (cos, sin) of
+  /// their heading (standers face east). Zoomed in on a patch, a frame uploads and draws the
+  /// few dozen characters there, not the world's 100k.
+  place(xy, facing, walkers) {
+    const people = this.people;
+    const m = people.instanceMatrix.array;
+    const colours = people.instanceColor.array;
+    const n = this.colours.length / 3;
+    const cam = this.camera;
+    const r = this.world.radius + 0.1;
+    const x0 = this.view.x + cam.left - r;
+    const x1 = this.view.x + cam.right + r;
+    const y0 = this.view.y + cam.bottom - r;
+    const y1 = this.view.y + cam.top + r;
+    let drawn = 0;
+    let recoloured = false;
     for (let i = 0; i < n; i++) {
-      const a = i < walkers ? heading[i] : 0;
-      const c = Math.cos(a);
-      const s = Math.sin(a);
-      const o = 16 * i;
+      const x = xy[2 * i];
+      const y = xy[2 * i + 1];
+      if (x < x0 || x > x1 || y < y0 || y > y1) continue;
+      const c = i < walkers ? facing[2 * i] : 1;
+      const s = i < walkers ? facing[2 * i + 1] : 0;
+      const o = 16 * drawn;
       m[o] = c; m[o + 1] = s; m[o + 2] = 0; m[o + 3] = 0;
       m[o + 4] = -s; m[o + 5] = c; m[o + 6] = 0; m[o + 7] = 0;
       m[o + 8] = 0; m[o + 9] = 0; m[o + 10] = 1; m[o + 11] = 0;
-      m[o + 12] = xy[2 * i]; m[o + 13] = xy[2 * i + 1]; m[o + 14] = 0; m[o + 15] = 1;
+      m[o + 12] = x; m[o + 13] = y; m[o + 14] = 0; m[o + 15] = 1;
+      if (this.slotOf[drawn] !== i) {
+        this.slotOf[drawn] = i;
+        colours[3 * drawn] = this.colours[3 * i];
+        colours[3 * drawn + 1] = this.colours[3 * i + 1];
+        colours[3 * drawn + 2] = this.colours[3 * i + 2];
+        recoloured = true;
+      }
+      drawn++;
     }
-    this.people.instanceMatrix.needsUpdate = true;
+    people.count = drawn;
+    people.instanceMatrix.clearUpdateRanges();
+    people.instanceMatrix.addUpdateRange(0, 16 * drawn);
+    people.instanceMatrix.needsUpdate = true;
+    if (recoloured) {
+      people.instanceColor.clearUpdateRanges();
+      people.instanceColor.addUpdateRange(0, 3 * drawn);
+      people.instanceColor.needsUpdate = true;
+    }
   }
 
   /// Fits the camera to the canvas and the view (centre and the span it shows).

@@ -15,11 +15,10 @@ clock = performance.now();
 const sampler = new Sampler(lib);
 const setupMs = performance.now() - clock;
 const xy = new Float32Array(2 * lib.characters);
-const heading = new Float32Array(lib.walkerCount);
 const times = [];
 for (let k = 0; k < Number(frames); k++) {
   const t0 = performance.now();
-  sampler.sample(3 + k / 60, xy, process.env.NOHEAD ? undefined : heading);
+  sampler.sample(3 + k / 60, xy);
   times.push(performance.now() - t0);
 }
 const first = times[0];

@@ -35,6 +35,11 @@ tasks:
                   build its library first: cargo xtask build-crowd --pipeline
                   assets/bench/painting-100k.ron (BENCHMARKS.md pins it to one core with taskset)
         all       the three in turn (the default)
+  bench viewer [BUILD_DIR]
+      time `crowd view`'s sampler over BUILD_DIR's library (default build/painting, built
+      from assets/pipelines/painting.ron when missing): in Node (viewer/test/bench.mjs), then
+      in headless Chromium with software GL (viewer/test/e2e.mjs bench); prints both as JSON
+      (needs the viewer's npm packages and /usr/bin/chromium, as .ci/run installs them)
   soak [--scenes N] [--from SEED] [--max-patches P]
       build N random paintings (default 200, seeds SEED.., up to P x P patches, default 12)
       with the release `crowd`, check each and hold it to every guarantee; failing scenes stay
@@ -120,6 +125,10 @@ const BENCHES: &[(&str, &str, &str)] = &[
 /// Runs the benchmark named by the first argument (all of them if it names none), passing the
 /// other arguments to criterion.
 fn bench(cargo: &str, manifest: &std::path::Path, args: &[String]) -> ExitCode {
+    if args.first().is_some_and(|a| a == "viewer") {
+        let root = manifest.parent().expect("the manifest is in the workspace");
+        return bench_viewer(cargo, root, args.get(1).map(PathBuf::from));
+    }
     let (which, criterion) = match args.first().map(String::as_str) {
         Some("all") => (None, &args[1..]),
         Some(name) if !name.starts_with('-') => {
@@ -153,6 +162,86 @@ fn bench(cargo: &str, manifest: &std::path::Path, args: &[String]) -> ExitCode {
         }
     }
     ExitCode::SUCCESS
+}
+
+/// `cargo xtask bench viewer`: the page's sampler in Node and in headless Chromium.
+fn bench_viewer(cargo: &str, root: &std::path::Path, dir: Option<PathBuf>) -> ExitCode {
+    if !build_release_crowd(cargo, root) {
+        eprintln!("cannot build crowd");
+        return ExitCode::FAILURE;
+    }
+    let crowd = root.join("target/release/crowd");
+    let dir = dir.unwrap_or_else(|| root.join("build/painting"));
+    if !dir.join("library.crowd").exists() {
+        eprintln!("building {}", dir.display());
+        let built = Command::new(&crowd)
+            .args(["build", "--quiet", "--pipeline"])
+            .arg(root.join("assets/pipelines/painting.ron"))
+            .arg("--output")
+            .arg(&dir)
+            .status()
+            .is_ok_and(|s| s.success());
+        if !built {
+            eprintln!("cannot build {}", dir.display());
+            return ExitCode::FAILURE;
+        }
+    }
+    let node = |args: &[&std::ffi::OsStr]| {
+        Command::new("node")
+            .args(args)
+            .current_dir(root.join("viewer"))
+            .status()
+            .is_ok_and(|s| s.success())
+    };
+    let library = dir.join("library.crowd");
+    eprintln!("sampling in Node (600 frames at 60 fps of crowd time)");
+    if !node(&[
+        "test/bench.mjs".as_ref(),
+        library.as_os_str(),
+        "600".as_ref(),
+    ]) {
+        eprintln!("node viewer/test/bench.mjs failed (run npm ci --prefix viewer first)");
+        return ExitCode::FAILURE;
+    }
+    let mut server = match Command::new(&crowd)
+        .args(["view", "--no-open"])
+        .arg(&dir)
+        .stdout(std::process::Stdio::piped())
+        .spawn()
+    {
+        Ok(child) => child,
+        Err(e) => {
+            eprintln!("cannot start crowd view: {e}");
+            return ExitCode::FAILURE;
+        }
+    };
+    // Its first line names the address it serves.
+    let mut line = String::new();
+    let stdout = server.stdout.take().expect("piped");
+    let _ = std::io::BufRead::read_line(&mut std::io::BufReader::new(stdout), &mut line);
+    let address = line.split_whitespace().find(|w| w.starts_with("http://"));
+    let ok = match address {
+        Some(address) => {
+            eprintln!("sampling and drawing in headless Chromium at {address}");
+            node(&[
+                "test/e2e.mjs".as_ref(),
+                "bench".as_ref(),
+                address.as_ref(),
+                "240".as_ref(),
+            ])
+        }
+        None => {
+            eprintln!("crowd view printed no address: {line:?}");
+            false
+        }
+    };
+    let _ = server.kill();
+    let _ = server.wait();
+    if ok {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::FAILURE
+    }
 }
 
 /// Builds every scene pipeline with `--force` and prints the table of their figures.
