@@ -19,5 +19,6 @@ mod paintings;
 mod patterns;
 mod scenes;
 mod settings;
+mod shards;
 mod view;
 mod warnings;

@@ -25,6 +25,8 @@ pub type MotionOf = (TrajectoriesFile, Vec<PatchMotion>);
 /// The inputs and results of the stages of one command.
 pub struct Artifacts<'p> {
     pub pipeline: &'p PipelineFile,
+    /// Whether this process builds all, a shard or the gathering (`crowd build --shard`).
+    pub split: crate::driver::Split,
     /// Where stage files are read from.
     dir: PathBuf,
     /// A stage's file given at another path (a subcommand's `--input`).
@@ -42,6 +44,7 @@ impl<'p> Artifacts<'p> {
     pub fn new(pipeline: &'p PipelineFile, dir: &Path) -> Artifacts<'p> {
         Artifacts {
             pipeline,
+            split: crate::driver::Split::Whole,
             dir: dir.to_path_buf(),
             given: None,
             bytes: BTreeMap::new(),

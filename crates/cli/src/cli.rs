@@ -76,6 +76,17 @@ pub enum Command {
         /// pipeline estimated to need more is refused before any stage runs.
         #[arg(long, value_name = "SIZE", value_parser = crate::budget::parse_size)]
         max_memory: Option<u64>,
+        /// Do shard I of N (0 <= I < N) of the stages that split: stages 1-4 here, then this
+        /// shard's patches of stage 5 into `shards/collide-I-of-N.ron` (and `.bin`), and no
+        /// more. Copy every shard's `shards/` into one folder and `--gather` there.
+        #[arg(long, value_name = "I/N", value_parser = |s: &str| s.parse::<crowd_core::Shard>(),
+              conflicts_with_all = ["gather", "until", "force"])]
+        shard: Option<crowd_core::Shard>,
+        /// Put stage 5 together from the shard files in `shards/` (every shard of one count,
+        /// made from this painting and settings), then build the rest: the same bytes as one
+        /// process's build.
+        #[arg(long)]
+        gather: bool,
     },
     /// The stages one at a time: `crowd merge`, `crowd graph`, ... (one subcommand per entry
     /// of the stage table).
@@ -405,16 +416,29 @@ pub fn run(cli: Cli) -> Result<()> {
             no_check,
             deny_warnings,
             max_memory,
+            shard,
+            gather,
         } => {
             let file = PipelineFile::load(&pipeline)?;
             let out = output.clone().unwrap_or_else(|| file.output_dir());
+            let split = match (shard, gather) {
+                (Some(shard), _) => driver::Split::Shard(shard),
+                (None, true) => driver::Split::Gather,
+                (None, false) => driver::Split::Whole,
+            };
             let options = BuildOptions {
                 force,
                 output,
                 until,
                 max_memory,
+                split,
             };
             let (_, _lock) = driver::build(&pipeline, &options, &ui)?;
+            if let Some(shard) = shard {
+                let path = crowd_collide::shard::shard_path(&out, shard);
+                ui.say(format!("   shard: {shard} -> {}", path.display()));
+                return Ok(());
+            }
             if !no_check && stage::up_to(until).any(|s| *s == stages::EXPORT) {
                 let limits = (
                     file.pipeline.matching.max_speed,

@@ -36,6 +36,20 @@ pub struct BuildOptions {
     pub output: Option<PathBuf>,
     /// The most memory the build may take, bytes (None: the machine's; `budget.rs`).
     pub max_memory: Option<u64>,
+    /// One process's part of a build split over several, or the gathering of the parts.
+    pub split: Split,
+}
+
+/// How a build shares its work with other processes (DESIGN.md, "Beyond one machine").
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub enum Split {
+    /// All of it here.
+    #[default]
+    Whole,
+    /// Stages 1-4, then this shard's patches of stage 5 into `shards/` (and nothing after).
+    Shard(crowd_core::Shard),
+    /// Stage 5 put together from every shard's file in `shards/`, then the rest.
+    Gather,
 }
 
 /// What happened to one stage in a build.
@@ -60,6 +74,7 @@ pub fn build(
         .clone()
         .unwrap_or_else(|| pipeline.output_dir());
     let mut artifacts = Artifacts::new(&pipeline, &out);
+    artifacts.split = options.split;
     // The layers are read (headers checked, the region held to the maps) before the folder
     // is made: a refused painting leaves no trace.
     artifacts.layers()?;
@@ -96,7 +111,11 @@ fn run_stages(
     // Whether files can be written is proved before the first stage that runs does any work.
     let mut writable = false;
     let mut stale = Vec::new();
-    for stage in stage::up_to(options.until) {
+    let until = match options.split {
+        Split::Shard(_) => Some(&crate::stages::COLLIDE),
+        _ => options.until,
+    };
+    for stage in stage::up_to(until) {
         if !(stage.applies)(artifacts.pipeline) {
             // An edit stage's files from a build that had edits would be read as this one's
             // (`crowd check` reads the latest trajectories in the folder).
@@ -111,7 +130,9 @@ fn run_stages(
         }
         let path = out.join(stage.output);
         let hash = (stage.hash)(artifacts)?;
-        if !options.force && (stage.fresh)(artifacts, &path, hash)? {
+        // A shard's part is its own file, not the stage's: it always runs.
+        let sharded = matches!(options.split, Split::Shard(_)) && *stage == crate::stages::COLLIDE;
+        if !options.force && !sharded && (stage.fresh)(artifacts, &path, hash)? {
             ui.say(format!(
                 "{:>8}: up to date, skipped ({})",
                 stage.name,

@@ -5,6 +5,7 @@
 //! file in place of stage 6's.
 
 use crate::artifacts::Artifacts;
+use crate::driver::Split;
 use crate::stage::{Ran, Stage};
 use crate::ui::Ui;
 use anyhow::{Result, anyhow, bail};
@@ -352,27 +353,46 @@ fn collide(a: &mut Artifacts, out: &Path, hash: Hash, ui: &Ui) -> Result<Ran> {
     let bar = ui.stage_bar(COLLIDE.name);
     let (graph, matched) = (a.graph()?, a.take_motion(&MATCH)?);
     let s = crowd_collide::inputs(a.pipeline);
-    let cleared = crowd_collide::collide_or_first_stall(&graph, &matched.1, &s, &bar);
+    let dir = out.parent().unwrap_or(Path::new("."));
+    let cleared = match a.split {
+        Split::Whole => crowd_collide::collide_or_first_stall(&graph, &matched.1, &s, &bar),
+        Split::Gather => Ok(crowd_collide::shard::gather(dir, hash, &matched.1)?),
+        Split::Shard(shard) => {
+            let parts = crowd_collide::collide_shard(&graph, &matched.1, &s, &bar, shard)
+                .map_err(|stall| collide_stall(&graph, &s, stall))?;
+            let writes = crowd_collide::shard::encode_shard(dir, shard, hash, parts);
+            let folder = dir.join(crowd_collide::shard::SHARDS_DIR);
+            std::fs::create_dir_all(&folder)
+                .map_err(|e| crowd_core::Error::io(&folder, "create the shards folder", e))?;
+            return Ok(Ran::files(writes));
+        }
+    };
     drop(matched);
-    let (motion, reports) = match cleared {
-        Ok(done) => done,
-        Err(stall) => bail!(
-            "stage 5 could not keep {} clear: walker {} and {:?} stay {:.3} m too close at \
+    let (motion, reports) = cleared.map_err(|stall| collide_stall(&graph, &s, stall))?;
+    let (file, writes) = crowd_collide::encode(out, &motion, &reports, &graph, &s, hash);
+    a.made_motion(&COLLIDE, (file, motion));
+    Ok(Ran::files(writes))
+}
+
+/// Stage 5's refusal when a patch stalls.
+fn collide_stall(
+    graph: &crowd_core::PatchGraph,
+    s: &crowd_collide::Inputs,
+    stall: crowd_core::trajectories::Stall,
+) -> anyhow::Error {
+    anyhow!(
+        "stage 5 could not keep {} clear: walker {} and {:?} stay {:.3} m too close at \
              t = {:.2} s, even with walkers let hurry, after collide.max_iterations = {} \
              pushes; no file was written, and the patches after it (busiest first) were not \
              tried. Paint fewer walkers or crossing flows there, or raise \
              collide.max_iterations",
-            crate::warnings::place(&graph, stall.patch),
-            stall.walker,
-            stall.with,
-            -stall.margin_m,
-            stall.t_s,
-            s.max_iterations
-        ),
-    };
-    let (file, writes) = crowd_collide::encode(out, &motion, &reports, &graph, &s, hash);
-    a.made_motion(&COLLIDE, (file, motion));
-    Ok(Ran::files(writes))
+        crate::warnings::place(graph, stall.patch),
+        stall.walker,
+        stall.with,
+        -stall.margin_m,
+        stall.t_s,
+        s.max_iterations
+    )
 }
 
 fn smooth(a: &mut Artifacts, out: &Path, hash: Hash, ui: &Ui) -> Result<Ran> {

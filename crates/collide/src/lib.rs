@@ -13,6 +13,7 @@ mod pause;
 pub mod push;
 pub mod repair;
 pub mod replan;
+pub mod shard;
 
 use crowd_core::PatchGraph;
 use crowd_core::trajectories::PatchMotion;
@@ -288,8 +289,8 @@ pub fn collide(
     inputs: &Inputs,
     progress: &dyn crowd_core::Progress,
 ) -> (Vec<PatchMotion>, Vec<PatchReport>) {
-    match clear_all(graph, motion, inputs, progress, false) {
-        Ok(done) => done,
+    match clear_all(graph, motion, costly_first(motion), inputs, progress, false) {
+        Ok(done) => done.into_iter().unzip(),
         Err(_) => unreachable!("clear_all stops only when asked to"),
     }
 }
@@ -307,16 +308,50 @@ pub fn collide_or_first_stall(
     inputs: &Inputs,
     progress: &dyn crowd_core::Progress,
 ) -> Result<(Vec<PatchMotion>, Vec<PatchReport>), crowd_core::trajectories::Stall> {
-    clear_all(graph, motion, inputs, progress, true)
+    clear_all(graph, motion, costly_first(motion), inputs, progress, true)
+        .map(|done| done.into_iter().unzip())
 }
 
-fn clear_all(
+/// The part of [`collide_or_first_stall`] that `shard` does: its patches (dealt round the
+/// shards busiest first, so that each gets a like share of the work), each with its report,
+/// in patch order. A patch's result depends on it alone, so the parts put together
+/// ([`gather`]) are what one process makes.
+pub fn collide_shard(
     graph: &PatchGraph,
     motion: &[PatchMotion],
     inputs: &Inputs,
     progress: &dyn crowd_core::Progress,
+    shard: crowd_core::Shard,
+) -> Result<Vec<(PatchMotion, PatchReport)>, crowd_core::trajectories::Stall> {
+    clear_all(
+        graph,
+        motion,
+        shard_patches(motion, shard),
+        inputs,
+        progress,
+        true,
+    )
+}
+
+/// The patches `shard` clears, in the order they are started.
+pub fn shard_patches(motion: &[PatchMotion], shard: crowd_core::Shard) -> Vec<usize> {
+    costly_first(motion)
+        .into_iter()
+        .enumerate()
+        .filter(|&(k, _)| shard.deals(k))
+        .map(|(_, p)| p)
+        .collect()
+}
+
+/// Clears the patches `order` (in that order), each with its report, in patch order.
+fn clear_all(
+    graph: &PatchGraph,
+    motion: &[PatchMotion],
+    order: Vec<usize>,
+    inputs: &Inputs,
+    progress: &dyn crowd_core::Progress,
     stop_at_stall: bool,
-) -> Result<(Vec<PatchMotion>, Vec<PatchReport>), crowd_core::trajectories::Stall> {
+) -> Result<Vec<(PatchMotion, PatchReport)>, crowd_core::trajectories::Stall> {
     use std::sync::atomic::{AtomicUsize, Ordering};
     let Inputs {
         period_s,
@@ -325,10 +360,10 @@ fn clear_all(
         speeds,
         ..
     } = *inputs;
-    progress.begin("collide", motion.len() as u64);
+    progress.begin("collide", order.len() as u64);
     // The place, in the order patches are started, of the first that stalled (so far).
     let first_stall = AtomicUsize::new(usize::MAX);
-    let mut done: Vec<(usize, usize, (PatchMotion, PatchReport))> = costly_first(motion)
+    let mut done: Vec<(usize, usize, (PatchMotion, PatchReport))> = order
         .into_iter()
         .enumerate()
         .par_bridge()
@@ -379,7 +414,7 @@ fn clear_all(
         }
     }
     done.sort_unstable_by_key(|d| d.1);
-    Ok(done.into_iter().map(|d| d.2).unzip())
+    Ok(done.into_iter().map(|d| d.2).collect())
 }
 
 /// The patches in the order they are started: most walkers first (ties in patch order), so

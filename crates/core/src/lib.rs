@@ -15,6 +15,7 @@ pub mod maps;
 pub mod patch_graph;
 pub mod patterns;
 pub mod progress;
+pub mod shard;
 pub mod trajectories;
 
 pub use config::{
@@ -29,3 +30,4 @@ pub use patch_graph::{
     Border, BorderAxis, Cell, Interval, Patch, PatchGraph, PatchId, Rect, RequestedDirection,
 };
 pub use progress::Progress;
+pub use shard::Shard;

@@ -1,0 +1,162 @@
+//! A build split over processes (`crowd build --shard I/N`, then `--gather`): the parts put
+//! together are the bytes one process writes, and a missing or stale part is refused.
+
+use crate::util::*;
+use std::path::Path;
+
+/// Runs shards `0/n .. n-1/n` of `pipeline` as separate processes, `at_once` at a time, each
+/// in its own folder under `dir` (as a job runner would), and copies every shard's files into
+/// `gathered/shards`.
+fn run_shards(pipeline: &Path, dir: &Path, n: u32, at_once: u32, gathered: &Path) {
+    let folder = |i: u32| dir.join(format!("shard-{i}"));
+    for batch in (0..n).collect::<Vec<_>>().chunks(at_once as usize) {
+        let running: Vec<_> = batch
+            .iter()
+            .map(|&i| {
+                std::process::Command::new(env!("CARGO_BIN_EXE_crowd"))
+                    .args(["build", "-q", "--pipeline", s(pipeline), "--output"])
+                    .arg(folder(i))
+                    .args(["--shard", &format!("{i}/{n}")])
+                    .output()
+                    .expect("crowd runs")
+            })
+            .collect();
+        for (out, i) in running.iter().zip(batch) {
+            assert!(
+                out.status.success(),
+                "shard {i}/{n}: {}",
+                String::from_utf8_lossy(&out.stderr)
+            );
+        }
+    }
+    for i in 0..n {
+        copy_files(&folder(i).join("shards"), &gathered.join("shards"));
+    }
+}
+
+/// Every file `whole` has (but its times: `timings.ron`, `report.md`), with the same bytes.
+fn assert_same_files(whole: &Path, gathered: &Path, name: &str) {
+    let files = snapshot(whole);
+    assert!(files.len() > 10, "{name}: {} files", files.len());
+    for (file, bytes) in files {
+        let other = std::fs::read(gathered.join(&file))
+            .unwrap_or_else(|e| panic!("{name}: {file} not gathered: {e}"));
+        assert!(
+            other == bytes,
+            "{name}: {file} differs from the one-process build"
+        );
+    }
+}
+
+/// Four shards run as separate processes, two at a time, then gathered, write the same bytes
+/// as the one-process build of `city` and of `ring`.
+#[test]
+fn four_shards_gathered_write_what_one_process_writes() {
+    for name in ["city", "ring"] {
+        let whole = scene(name);
+        let pipeline = scene_pipeline(name);
+        let dir = tempfile::tempdir().unwrap();
+        let gathered = dir.path().join("gathered");
+        run_shards(&pipeline, dir.path(), 4, 2, &gathered);
+        let shard_files = std::fs::read_dir(gathered.join("shards")).unwrap().count();
+        assert_eq!(
+            shard_files, 8,
+            "{name}: four shards, a .ron and a .bin each"
+        );
+        let said = crowd_ok(&[
+            "build",
+            "--pipeline",
+            s(&pipeline),
+            "--output",
+            s(&gathered),
+            "--gather",
+        ]);
+        let said = String::from_utf8_lossy(&said.stderr);
+        assert!(said.contains("collide: built"), "{name}: {said}");
+        assert_same_files(whole, &gathered, name);
+    }
+}
+
+/// Gathering refuses, naming the file, a missing shard and a shard made from other settings,
+/// and writes no file when it does.
+#[test]
+fn gathering_refuses_a_missing_or_stale_shard() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("scene");
+    let painting = crowd_paintings::random(3, crowd_paintings::Limits { max_patches: 6 });
+    let pipeline = painting.write(&scene).unwrap();
+    let gathered = dir.path().join("gathered");
+    run_shards(&pipeline, dir.path(), 3, 3, &gathered);
+    let gather = || {
+        crowd(&[
+            "build",
+            "--pipeline",
+            s(&pipeline),
+            "--output",
+            s(&gathered),
+            "--gather",
+        ])
+    };
+    // One shard missing.
+    let missing = gathered.join("shards/collide-1-of-3.ron");
+    let kept = std::fs::read(&missing).unwrap();
+    std::fs::remove_file(&missing).unwrap();
+    let out = gather();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("collide-1-of-3.ron") && stderr.contains("is missing"),
+        "{stderr}"
+    );
+    assert!(!gathered.join("collided.ron").exists(), "{stderr}");
+    assert!(
+        !gathered.join("graph.ron").exists(),
+        "a refused build writes nothing"
+    );
+    std::fs::write(&missing, kept).unwrap();
+    // A shard of another seed.
+    let text = std::fs::read_to_string(&pipeline).unwrap();
+    let other = scene.join("other.ron");
+    std::fs::write(&other, text.replace("seed: 3,", "seed: 4,")).unwrap();
+    assert_ne!(
+        std::fs::read(&other).unwrap(),
+        text.as_bytes(),
+        "the seed changed"
+    );
+    let stale = dir.path().join("stale");
+    crowd_ok(&[
+        "build",
+        "-q",
+        "--pipeline",
+        s(&other),
+        "--output",
+        s(&stale),
+        "--shard",
+        "2/3",
+    ]);
+    std::fs::copy(
+        stale.join("shards/collide-2-of-3.ron"),
+        gathered.join("shards/collide-2-of-3.ron"),
+    )
+    .unwrap();
+    let out = gather();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("collide-2-of-3.ron") && stderr.contains("was made for other inputs"),
+        "{stderr}"
+    );
+    assert!(!stderr.contains("panicked"), "{stderr}");
+}
+
+/// `--shard` takes I/N with I < N, and says so otherwise.
+#[test]
+fn a_shard_is_named_i_of_n() {
+    let pipeline = scene_pipeline("bands");
+    for bad in ["4/4", "1/0", "x/2", "3"] {
+        let out = crowd(&["build", "--pipeline", s(&pipeline), "--shard", bad]);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{bad}: {stderr}");
+        assert!(stderr.contains("expected I/N"), "{bad}: {stderr}");
+    }
+}
