@@ -160,3 +160,61 @@ fn a_shard_is_named_i_of_n() {
         assert!(stderr.contains("expected I/N"), "{bad}: {stderr}");
     }
 }
+
+/// The job-runner examples of `deploy/` run as each runner runs them: shard 0 given by hand
+/// (`SHARD_INDEX`, a CI matrix), shard 1 as a Kubernetes Indexed Job pod
+/// (`JOB_COMPLETION_INDEX`), shard 2 as a Slurm array task (`slurm/shards.sbatch` with
+/// `SLURM_ARRAY_TASK_ID`, three tasks here); `gather.sh` then writes the one-process bytes.
+#[test]
+fn the_deploy_scripts_shard_and_gather_as_each_job_runner_runs_them() {
+    let name = "ring";
+    let deploy = root().join("deploy");
+    let dir = tempfile::tempdir().unwrap();
+    let shared = dir.path().join("shared");
+    let run = |script: &Path, vars: &[(&str, &str)]| {
+        let out = std::process::Command::new("sh")
+            .arg(script)
+            .env("PIPELINE", scene_pipeline(name))
+            .env("SHARDS", "3")
+            .env("SHARED", &shared)
+            .env("WORK", dir.path())
+            .env("CROWD", env!("CARGO_BIN_EXE_crowd"))
+            .env("DEPLOY", &deploy)
+            .env_remove("SHARD_INDEX")
+            .env_remove("JOB_COMPLETION_INDEX")
+            .env_remove("SLURM_ARRAY_TASK_ID")
+            .envs(vars.iter().copied())
+            .output()
+            .expect("sh runs");
+        (
+            out.status.code(),
+            String::from_utf8_lossy(&out.stderr).into_owned(),
+        )
+    };
+    let shard = deploy.join("shard.sh");
+    let (code, stderr) = run(&shard, &[]);
+    assert_eq!(code, Some(2), "no index: {stderr}");
+    assert!(stderr.contains("no shard index"), "{stderr}");
+    for (script, var, index) in [
+        (&shard, "SHARD_INDEX", "0"),
+        (&shard, "JOB_COMPLETION_INDEX", "1"),
+        (
+            &deploy.join("slurm/shards.sbatch"),
+            "SLURM_ARRAY_TASK_ID",
+            "2",
+        ),
+    ] {
+        let (code, stderr) = run(script, &[(var, index), ("SLURM_ARRAY_TASK_COUNT", "3")]);
+        assert_eq!(code, Some(0), "{var}={index}: {stderr}");
+    }
+    let files = std::fs::read_dir(shared.join("shards")).unwrap().count();
+    assert_eq!(
+        files, 6,
+        "three shards, a .ron and a .bin each, no partial copies"
+    );
+    let gathered = dir.path().join("gathered");
+    let output = gathered.to_str().unwrap();
+    let (code, stderr) = run(&deploy.join("gather.sh"), &[("OUTPUT", output)]);
+    assert_eq!(code, Some(0), "{stderr}");
+    assert_same_files(scene(name), &gathered, name);
+}

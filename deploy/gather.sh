@@ -1,0 +1,17 @@
+#!/bin/sh
+# The gather of a sharded crowd build: every shard's files from "$SHARED/shards", then stage 5
+# put together and stages 6-8 and the check, into OUTPUT: the bytes one process would write.
+#
+#   PIPELINE  the pipeline file
+#   SHARED    the folder the shards wrote to
+#   OUTPUT    the build folder to write
+#   CROWD     the crowd binary (default: crowd on the PATH)
+set -eu
+: "${PIPELINE:?set PIPELINE to the pipeline file}"
+: "${SHARED:?set SHARED to the folder the shards wrote to}"
+: "${OUTPUT:?set OUTPUT to the build folder to write}"
+crowd="${CROWD:-crowd}"
+mkdir -p "$OUTPUT/shards"
+cp "$SHARED"/shards/collide-*-of-*.bin "$SHARED"/shards/collide-*-of-*.ron "$OUTPUT/shards/"
+"$crowd" build --quiet --pipeline "$PIPELINE" --output "$OUTPUT" --gather
+echo "gathered -> $OUTPUT"

@@ -1,0 +1,34 @@
+#!/bin/sh
+# One shard of a crowd build, on any job runner: stages 1-4 and this shard's patches of stage 5,
+# its files copied to "$SHARED/shards" (a volume, or a folder the runner uploads).
+#
+#   PIPELINE  the pipeline file (its layers beside it, as on a workstation)
+#   SHARDS    how many shards the build is split into
+#   SHARED    the folder every shard's files go to and the gather reads
+#   the shard's index, from the first of these that is set:
+#     SHARD_INDEX            (given by hand, or by a CI matrix)
+#     JOB_COMPLETION_INDEX   (a Kubernetes Indexed Job)
+#     SLURM_ARRAY_TASK_ID    (a Slurm array job)
+#   CROWD     the crowd binary (default: crowd on the PATH)
+#   WORK      scratch space for this shard's build folder (default: a temporary folder)
+set -eu
+: "${PIPELINE:?set PIPELINE to the pipeline file}"
+: "${SHARDS:?set SHARDS to the number of shards}"
+: "${SHARED:?set SHARED to the folder the shards write to}"
+index="${SHARD_INDEX:-${JOB_COMPLETION_INDEX:-${SLURM_ARRAY_TASK_ID:-}}}"
+if [ -z "$index" ]; then
+  echo "shard.sh: no shard index: set SHARD_INDEX, or run as a Kubernetes Indexed Job" \
+    "(JOB_COMPLETION_INDEX) or a Slurm array task (SLURM_ARRAY_TASK_ID)" >&2
+  exit 2
+fi
+crowd="${CROWD:-crowd}"
+work="${WORK:-$(mktemp -d)}"
+out="$work/shard-$index"
+"$crowd" build --quiet --pipeline "$PIPELINE" --output "$out" --shard "$index/$SHARDS"
+mkdir -p "$SHARED/shards"
+# Side file first, then the file that names it: a gather never reads a half-copied shard as whole.
+for f in "$out"/shards/*.bin "$out"/shards/*.ron; do
+  cp "$f" "$SHARED/shards/.$(basename "$f").part"
+  mv "$SHARED/shards/.$(basename "$f").part" "$SHARED/shards/$(basename "$f")"
+done
+echo "shard $index/$SHARDS -> $SHARED/shards"
