@@ -1,6 +1,6 @@
 #!/bin/sh
-# The gather of a sharded crowd build: every shard's files from "$SHARED/shards", then stage 5
-# put together and stages 6-8 and the check, into OUTPUT: the bytes one process would write.
+# The gather of a sharded crowd build: every shard's files from "$SHARED/shards", then stages 5
+# and 6 put together and stages 7-8 and the check, into OUTPUT: the bytes one process would write.
 #
 #   PIPELINE  the pipeline file
 #   SHARED    the folder the shards wrote to
@@ -12,6 +12,6 @@ set -eu
 : "${OUTPUT:?set OUTPUT to the build folder to write}"
 crowd="${CROWD:-crowd}"
 mkdir -p "$OUTPUT/shards"
-cp "$SHARED"/shards/collide-*-of-*.bin "$SHARED"/shards/collide-*-of-*.ron "$OUTPUT/shards/"
+cp "$SHARED"/shards/*-of-*.bin "$SHARED"/shards/*-of-*.ron "$OUTPUT/shards/"
 "$crowd" build --quiet --pipeline "$PIPELINE" --output "$OUTPUT" --gather
 echo "gathered -> $OUTPUT"

@@ -1,5 +1,5 @@
 #!/bin/sh
-# One shard of a crowd build, on any job runner: stages 1-4 and this shard's patches of stage 5,
+# One shard of a crowd build, on any job runner: stages 1-4 and this shard's patches of stages 5-6,
 # its files copied to "$SHARED/shards" (a volume, or a folder the runner uploads).
 #
 #   PIPELINE  the pipeline file (its layers beside it, as on a workstation)

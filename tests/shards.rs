@@ -60,8 +60,8 @@ fn four_shards_gathered_write_what_one_process_writes() {
         run_shards(&pipeline, dir.path(), 4, 2, &gathered);
         let shard_files = std::fs::read_dir(gathered.join("shards")).unwrap().count();
         assert_eq!(
-            shard_files, 8,
-            "{name}: four shards, a .ron and a .bin each"
+            shard_files, 16,
+            "{name}: four shards, a .ron and a .bin of stages 5 and 6 each"
         );
         let said = crowd_ok(&[
             "build",
@@ -72,7 +72,9 @@ fn four_shards_gathered_write_what_one_process_writes() {
             "--gather",
         ]);
         let said = String::from_utf8_lossy(&said.stderr);
-        assert!(said.contains("collide: built"), "{name}: {said}");
+        for stage in ["collide", "smooth"] {
+            assert!(said.contains(&format!("{stage}: built")), "{name}: {said}");
+        }
         assert_same_files(whole, &gathered, name);
     }
 }
@@ -113,6 +115,19 @@ fn gathering_refuses_a_missing_or_stale_shard() {
         !gathered.join("graph.ron").exists(),
         "a refused build writes nothing"
     );
+    std::fs::write(&missing, kept).unwrap();
+    // Stage 6's part of one shard missing: stage 5 gathers, stage 6 refuses.
+    let missing = gathered.join("shards/smooth-0-of-3.ron");
+    let kept = std::fs::read(&missing).unwrap();
+    std::fs::remove_file(&missing).unwrap();
+    let out = gather();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("smooth-0-of-3.ron") && stderr.contains("is missing"),
+        "{stderr}"
+    );
+    assert!(!gathered.join("collided.ron").exists(), "{stderr}");
     std::fs::write(&missing, kept).unwrap();
     // A shard of another seed.
     let text = std::fs::read_to_string(&pipeline).unwrap();
@@ -209,8 +224,8 @@ fn the_deploy_scripts_shard_and_gather_as_each_job_runner_runs_them() {
     }
     let files = std::fs::read_dir(shared.join("shards")).unwrap().count();
     assert_eq!(
-        files, 6,
-        "three shards, a .ron and a .bin each, no partial copies"
+        files, 12,
+        "three shards, a .ron and a .bin of two stages each, no partial copies"
     );
     let gathered = dir.path().join("gathered");
     let output = gathered.to_str().unwrap();

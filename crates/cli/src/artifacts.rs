@@ -27,6 +27,12 @@ pub struct Artifacts<'p> {
     pub pipeline: &'p PipelineFile,
     /// Whether this process builds all, a shard or the gathering (`crowd build --shard`).
     pub split: crate::driver::Split,
+    /// The hash of each stage's inputs in this build (skipped or run), by stage name.
+    pub hashes: BTreeMap<&'static str, crowd_core::Hash>,
+    /// What each patch costs, for dealing patches to shards (stage 5 works it out).
+    pub shard_costs: Option<Rc<Vec<u64>>>,
+    /// A shard's stage 5 motion: its own patches and their neighbours, the others empty.
+    pub shard_collided: Option<Vec<PatchMotion>>,
     /// Where stage files are read from.
     dir: PathBuf,
     /// A stage's file given at another path (a subcommand's `--input`).
@@ -45,6 +51,9 @@ impl<'p> Artifacts<'p> {
         Artifacts {
             pipeline,
             split: crate::driver::Split::Whole,
+            hashes: BTreeMap::new(),
+            shard_costs: None,
+            shard_collided: None,
             dir: dir.to_path_buf(),
             given: None,
             bytes: BTreeMap::new(),
@@ -163,6 +172,19 @@ impl<'p> Artifacts<'p> {
 
     /// The motion `stage` (match, collide, smooth) made, taken out: each is read by the next
     /// stage only.
+    /// What each patch costs, for dealing patches to shards: from stage 4's motion (read from
+    /// its file when this build has not got it).
+    pub fn shard_costs(&mut self) -> Result<Rc<Vec<u64>>> {
+        if let Some(costs) = &self.shard_costs {
+            return Ok(costs.clone());
+        }
+        let matched = self.take_motion(&stages::MATCH)?;
+        let costs = Rc::new(crowd_collide::shard::costs(&matched.1));
+        self.made_motion(&stages::MATCH, Rc::unwrap_or_clone(matched));
+        self.shard_costs = Some(costs.clone());
+        Ok(costs)
+    }
+
     pub fn take_motion(&mut self, stage: &'static Stage) -> Result<Rc<MotionOf>> {
         if !self.motion.contains_key(stage.output) {
             let path = self.path(stage.output);

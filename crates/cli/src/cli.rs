@@ -77,12 +77,13 @@ pub enum Command {
         #[arg(long, value_name = "SIZE", value_parser = crate::budget::parse_size)]
         max_memory: Option<u64>,
         /// Do shard I of N (0 <= I < N) of the stages that split: stages 1-4 here, then this
-        /// shard's patches of stage 5 into `shards/collide-I-of-N.ron` (and `.bin`), and no
-        /// more. Copy every shard's `shards/` into one folder and `--gather` there.
+        /// shard's patches of stages 5 and 6 into `shards/` (`collide-I-of-N.ron`,
+        /// `smooth-I-of-N.ron` and their `.bin`), and no more. Copy every shard's `shards/`
+        /// into one folder and `--gather` there.
         #[arg(long, value_name = "I/N", value_parser = |s: &str| s.parse::<crowd_core::Shard>(),
               conflicts_with_all = ["gather", "until", "force"])]
         shard: Option<crowd_core::Shard>,
-        /// Put stage 5 together from the shard files in `shards/` (every shard of one count,
+        /// Put stages 5 and 6 together from the shard files in `shards/` (every shard of one count,
         /// made from this painting and settings), then build the rest: the same bytes as one
         /// process's build.
         #[arg(long)]
@@ -435,8 +436,14 @@ pub fn run(cli: Cli) -> Result<()> {
             };
             let (_, _lock) = driver::build(&pipeline, &options, &ui)?;
             if let Some(shard) = shard {
-                let path = crowd_collide::shard::shard_path(&out, shard);
-                ui.say(format!("   shard: {shard} -> {}", path.display()));
+                for stage in stages::SHARDED {
+                    let path = crowd_core::shard::part_path(&out, stage.kind, shard);
+                    ui.say(format!(
+                        "   shard: {shard} of {} -> {}",
+                        stage.name,
+                        path.display()
+                    ));
+                }
                 return Ok(());
             }
             if !no_check && stage::up_to(until).any(|s| *s == stages::EXPORT) {

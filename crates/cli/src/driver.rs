@@ -46,9 +46,10 @@ pub enum Split {
     /// All of it here.
     #[default]
     Whole,
-    /// Stages 1-4, then this shard's patches of stage 5 into `shards/` (and nothing after).
+    /// Stages 1-4, then this shard's patches of stages 5 and 6 into `shards/` (and nothing
+    /// after).
     Shard(crowd_core::Shard),
-    /// Stage 5 put together from every shard's file in `shards/`, then the rest.
+    /// Stages 5 and 6 put together from every shard's files in `shards/`, then the rest.
     Gather,
 }
 
@@ -112,7 +113,7 @@ fn run_stages(
     let mut writable = false;
     let mut stale = Vec::new();
     let until = match options.split {
-        Split::Shard(_) => Some(&crate::stages::COLLIDE),
+        Split::Shard(_) => Some(&crate::stages::SMOOTH),
         _ => options.until,
     };
     for stage in stage::up_to(until) {
@@ -130,8 +131,10 @@ fn run_stages(
         }
         let path = out.join(stage.output);
         let hash = (stage.hash)(artifacts)?;
+        artifacts.hashes.insert(stage.name, hash);
         // A shard's part is its own file, not the stage's: it always runs.
-        let sharded = matches!(options.split, Split::Shard(_)) && *stage == crate::stages::COLLIDE;
+        let sharded =
+            matches!(options.split, Split::Shard(_)) && crate::stages::SHARDED.contains(&stage);
         if !options.force && !sharded && (stage.fresh)(artifacts, &path, hash)? {
             ui.say(format!(
                 "{:>8}: up to date, skipped ({})",

@@ -32,6 +32,10 @@ pub static STAGES: [&Stage; 8] = [
 ];
 
 /// The stages that write trajectories (`crowd check` reads them), latest first.
+/// The stages that `crowd build --shard` splits by patch (the others run whole in every
+/// shard, or in the gathering).
+pub static SHARDED: [&Stage; 2] = [&COLLIDE, &SMOOTH];
+
 pub static TRAJECTORY_STAGES: [&Stage; 4] = [&EDIT, &SMOOTH, &COLLIDE, &MATCH];
 
 /// Every stage but the edit runs in every build.
@@ -180,8 +184,16 @@ pub static SMOOTH: Stage = Stage {
     version: crowd_smooth::VERSION,
     hash: |a| {
         let (graph, patterns) = (a.bytes(&GRAPH)?, a.bytes(&OPTIMIZE)?);
-        let collided = a.bytes(&COLLIDE)?;
         let inputs = crowd_smooth::inputs(a.pipeline);
+        if let Split::Shard(_) = a.split {
+            // A shard has only its part of stage 5: what that part is made from stands in.
+            return Ok(crowd_smooth::shard::part_hash(
+                a.hashes[COLLIDE.name],
+                &patterns,
+                &inputs,
+            ));
+        }
+        let collided = a.bytes(&COLLIDE)?;
         Ok(crowd_smooth::input_hash(
             &graph, &patterns, &collided, &inputs,
         ))
@@ -356,15 +368,31 @@ fn collide(a: &mut Artifacts, out: &Path, hash: Hash, ui: &Ui) -> Result<Ran> {
     let dir = out.parent().unwrap_or(Path::new("."));
     let cleared = match a.split {
         Split::Whole => crowd_collide::collide_or_first_stall(&graph, &matched.1, &s, &bar),
-        Split::Gather => Ok(crowd_collide::shard::gather(dir, hash, &matched.1)?),
+        Split::Gather => {
+            let costs = std::rc::Rc::new(crowd_collide::shard::costs(&matched.1));
+            a.shard_costs = Some(costs.clone());
+            Ok(crowd_collide::shard::gather(dir, hash, &costs)?)
+        }
         Split::Shard(shard) => {
-            let parts = crowd_collide::collide_shard(&graph, &matched.1, &s, &bar, shard)
+            let costs = std::rc::Rc::new(crowd_collide::shard::costs(&matched.1));
+            a.shard_costs = Some(costs.clone());
+            let own = crowd_collide::shard::owned(&costs, shard);
+            let cleared = crowd_collide::shard::with_neighbours(&graph, &own);
+            let parts = crowd_collide::collide_patches(&graph, &matched.1, &s, &bar, &cleared)
                 .map_err(|stall| collide_stall(&graph, &s, stall))?;
-            let writes = crowd_collide::shard::encode_shard(dir, shard, hash, parts);
-            let folder = dir.join(crowd_collide::shard::SHARDS_DIR);
-            std::fs::create_dir_all(&folder)
-                .map_err(|e| crowd_core::Error::io(&folder, "create the shards folder", e))?;
-            return Ok(Ran::files(writes));
+            let mut motion =
+                vec![crowd_core::trajectories::PatchMotion::default(); graph.patches.len()];
+            let mut mine = Vec::with_capacity(own.len());
+            for (m, report) in parts {
+                if own.binary_search(&(report.patch as usize)).is_ok() {
+                    mine.push((m.clone(), report.clone()));
+                }
+                motion[report.patch as usize] = m;
+            }
+            a.shard_collided = Some(motion);
+            return Ok(Ran::files(shard_writes(dir, || {
+                crowd_collide::shard::encode_shard(dir, shard, hash, mine)
+            })?));
         }
     };
     drop(matched);
@@ -398,13 +426,57 @@ fn collide_stall(
 fn smooth(a: &mut Artifacts, out: &Path, hash: Hash, ui: &Ui) -> Result<Ran> {
     let bar = ui.stage_bar(SMOOTH.name);
     let (graph, patterns) = (a.graph()?, a.patterns()?);
-    let collided = a.take_motion(&COLLIDE)?;
     let inputs = crowd_smooth::inputs(a.pipeline);
-    let (motion, summary) = crowd_smooth::smooth(&graph, &patterns.1, &collided.1, &inputs, &bar);
+    let dir = out.parent().unwrap_or(Path::new("."));
+    let gathered = match a.split {
+        Split::Shard(shard) => {
+            let collided = a.shard_collided.take().expect("stage 5 ran in this shard");
+            let own = crowd_collide::shard::owned(&a.shard_costs()?, shard);
+            let done =
+                crowd_smooth::smooth_patches(&graph, &patterns.1, &collided, &inputs, &bar, &own);
+            let parts = own
+                .iter()
+                .zip(done)
+                .map(|(&p, (m, counts))| (p as u32, m, counts))
+                .collect();
+            return Ok(Ran::files(shard_writes(dir, || {
+                crowd_smooth::shard::encode_shard(dir, shard, hash, parts)
+            })?));
+        }
+        Split::Gather => {
+            let costs = a.shard_costs()?;
+            let owns = |shard| {
+                crowd_collide::shard::owned(&costs, shard)
+                    .into_iter()
+                    .map(|p| p as u32)
+                    .collect()
+            };
+            let part = crowd_smooth::shard::part_hash(
+                a.hashes[COLLIDE.name],
+                &a.bytes(&OPTIMIZE)?,
+                &inputs,
+            );
+            Some(crowd_smooth::shard::gather(dir, part, costs.len(), owns)?)
+        }
+        Split::Whole => None,
+    };
+    let collided = a.take_motion(&COLLIDE)?;
+    let (motion, summary) = match gathered {
+        Some(done) => done,
+        None => crowd_smooth::smooth(&graph, &patterns.1, &collided.1, &inputs, &bar),
+    };
     let (file, writes) = crowd_smooth::encode(out, &motion, summary, &collided.0, &inputs, hash);
     drop(collided);
     a.made_motion(&SMOOTH, (file, motion));
     Ok(Ran::files(writes))
+}
+
+/// A shard's files (`encode`), in `dir/shards`, made first so that they can be written.
+fn shard_writes(dir: &Path, encode: impl FnOnce() -> files::Writes) -> Result<files::Writes> {
+    let folder = dir.join(crowd_core::shard::SHARDS_DIR);
+    std::fs::create_dir_all(&folder)
+        .map_err(|e| crowd_core::Error::io(&folder, "create the shards folder", e))?;
+    Ok(encode())
 }
 
 fn edit(a: &mut Artifacts, out: &Path, hash: Hash, ui: &Ui) -> Result<Ran> {

@@ -312,35 +312,19 @@ pub fn collide_or_first_stall(
         .map(|done| done.into_iter().unzip())
 }
 
-/// The part of [`collide_or_first_stall`] that `shard` does: its patches (dealt round the
-/// shards busiest first, so that each gets a like share of the work), each with its report,
-/// in patch order. A patch's result depends on it alone, so the parts put together
-/// ([`gather`]) are what one process makes.
-pub fn collide_shard(
+/// [`collide_or_first_stall`] on `patches` only (busiest first), each with its report, in
+/// patch order: a shard's part ([`shard`]). A patch's result depends on it alone, so the
+/// parts put together are what one process makes.
+pub fn collide_patches(
     graph: &PatchGraph,
     motion: &[PatchMotion],
     inputs: &Inputs,
     progress: &dyn crowd_core::Progress,
-    shard: crowd_core::Shard,
+    patches: &[usize],
 ) -> Result<Vec<(PatchMotion, PatchReport)>, crowd_core::trajectories::Stall> {
-    clear_all(
-        graph,
-        motion,
-        shard_patches(motion, shard),
-        inputs,
-        progress,
-        true,
-    )
-}
-
-/// The patches `shard` clears, in the order they are started.
-pub fn shard_patches(motion: &[PatchMotion], shard: crowd_core::Shard) -> Vec<usize> {
-    costly_first(motion)
-        .into_iter()
-        .enumerate()
-        .filter(|&(k, _)| shard.deals(k))
-        .map(|(_, p)| p)
-        .collect()
+    let mut order = patches.to_vec();
+    order.sort_by_key(|&p| (std::cmp::Reverse(motion[p].trajectories.len()), p));
+    clear_all(graph, motion, order, inputs, progress, true)
 }
 
 /// Clears the patches `order` (in that order), each with its report, in patch order.

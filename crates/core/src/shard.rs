@@ -2,8 +2,13 @@
 //! (`crowd build --shard I/N`), whose files `crowd build --gather` puts together into the
 //! bytes one process would have written (DESIGN.md, "Beyond one machine").
 
+use crate::error::{Error, Result};
+use crate::files::{Header, SideFile, Writes};
+use crate::trajectories::{PatchMotion, decode_motion, encode_motion};
+use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
 use std::fmt;
+use std::path::{Path, PathBuf};
 use std::str::FromStr;
 
 /// Shard `index` of `count` (`index < count`, `count >= 1`).
@@ -27,11 +32,31 @@ impl Shard {
         self.count
     }
 
-    /// Whether the item at `position` in a list dealt round the shards (the first to shard 0,
-    /// the next to shard 1, ...) is this shard's. Dealt from a list sorted costliest first,
-    /// every shard gets a like share of the work.
-    pub fn deals(self, position: usize) -> bool {
-        position % self.count as usize == self.index as usize
+    /// Its run of items `0..costs.len()`: the runs of the shards, in order, one after another,
+    /// each of about the same total cost. Items next to each other in the list (patches in
+    /// row order) stay together, so a shard's patches neighbour few of other shards'.
+    pub fn run(self, costs: &[u64]) -> std::ops::Range<usize> {
+        let total: u128 = costs.iter().map(|&c| u128::from(c)).sum();
+        let n = u128::from(self.count);
+        // Item k starts shard s's run when the cost before it first reaches total * s / n.
+        let start_of = |s: u128| -> usize {
+            let goal = total * s;
+            let mut before = 0u128;
+            for (k, &c) in costs.iter().enumerate() {
+                if before * n >= goal {
+                    return k;
+                }
+                before += u128::from(c);
+            }
+            costs.len()
+        };
+        let i = u128::from(self.index);
+        let end = if self.index + 1 == self.count {
+            costs.len()
+        } else {
+            start_of(i + 1)
+        };
+        start_of(i).min(end)..end
     }
 
     /// The name its files carry: `2-of-8` (0-based, as `--shard 2/8` says).
@@ -61,6 +86,180 @@ impl FromStr for Shard {
     }
 }
 
+/// The folder, in a build folder, that shard files go to and are gathered from.
+pub const SHARDS_DIR: &str = "shards";
+
+/// One shard's part of a stage that splits by patch: its patches (in patch order), a report
+/// of type `R` for each, and their motion in the side file. The header's hash is of what the
+/// whole stage reads, so a part made from another painting or other settings is never
+/// gathered.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Part<R> {
+    pub header: Header,
+    pub shard: Shard,
+    pub patches: Vec<u32>,
+    pub reports: Vec<R>,
+    pub motion: SideFile,
+}
+
+/// Where `shard`'s part of the stage `stage` lies in the build folder `dir`:
+/// `shards/STAGE-I-of-N.ron` (its motion beside it, `.bin`).
+pub fn part_path(dir: &Path, stage: &str, shard: Shard) -> PathBuf {
+    dir.join(SHARDS_DIR)
+        .join(format!("{stage}-{}.ron", shard.tag()))
+}
+
+/// The files of `shard`'s part of a stage (`header` names it): `parts` are its patches, in
+/// patch order, each with its motion and report.
+pub fn encode_part<R: Serialize>(
+    dir: &Path,
+    header: Header,
+    shard: Shard,
+    parts: Vec<(u32, PatchMotion, R)>,
+) -> Writes {
+    let path = part_path(dir, &header.stage, shard);
+    let mut patches = Vec::with_capacity(parts.len());
+    let mut motion = Vec::with_capacity(parts.len());
+    let mut reports = Vec::with_capacity(parts.len());
+    for (p, m, r) in parts {
+        patches.push(p);
+        motion.push(m);
+        reports.push(r);
+    }
+    let bytes = encode_motion(&motion);
+    let (side, record) = SideFile::beside(&path, &bytes);
+    let file = Part {
+        header,
+        shard,
+        patches,
+        reports,
+        motion: record,
+    };
+    let ron = crate::files::to_ron(&file).into_bytes();
+    vec![(side, bytes), (path, ron)]
+}
+
+/// Every patch's motion and report (`patches` of them), put together from the parts of the
+/// stage `header` names in `dir/shards`: all N parts of one count, each made for `header`
+/// and holding exactly the patches `owns(shard)` gives it (sorted). Refused, naming the file,
+/// when one is missing, stale or holds other patches.
+pub fn gather_parts<R: DeserializeOwned + Clone>(
+    dir: &Path,
+    header: &Header,
+    patches: usize,
+    owns: impl Fn(Shard) -> Vec<u32>,
+) -> Result<Vec<(PatchMotion, R)>> {
+    let count = part_count(dir, &header.stage)?;
+    let mut all: Vec<Option<(PatchMotion, R)>> = vec![None; patches];
+    for index in 0..count {
+        let shard = Shard::new(index, count).expect("index < count");
+        let path = part_path(dir, &header.stage, shard);
+        if !path.exists() {
+            return Err(Error::stage_file(
+                &path,
+                format!(
+                    "is missing: gathering {count} shards needs every one of them \
+                     (run `crowd build --shard {shard}` and copy its {SHARDS_DIR}/ here)"
+                ),
+            ));
+        }
+        let file: Part<R> = crate::files::read_ron(&path)?;
+        if file.header != *header || file.shard != shard {
+            return Err(Error::stage_file(
+                &path,
+                format!(
+                    "was made for other inputs (stage {} version {}, inputs {}, shard {}) than \
+                     this build's (version {}, inputs {}, shard {shard}): run that shard again \
+                     on this painting and settings",
+                    file.header.stage,
+                    file.header.version,
+                    file.header.input_hash.short(),
+                    file.shard,
+                    header.version,
+                    header.input_hash.short()
+                ),
+            ));
+        }
+        let mine = owns(shard);
+        if file.patches != mine || file.reports.len() != mine.len() {
+            return Err(Error::stage_file(
+                &path,
+                format!("holds patches other than the {} its shard does", mine.len()),
+            ));
+        }
+        let motion = decode_motion(&path, &file.motion.read(&path)?)?;
+        if motion.len() != mine.len() {
+            return Err(Error::stage_file(
+                &path,
+                format!(
+                    "has motion for {} patches, not its {}",
+                    motion.len(),
+                    mine.len()
+                ),
+            ));
+        }
+        for ((m, r), p) in motion.into_iter().zip(file.reports).zip(mine) {
+            all[p as usize] = Some((m, r));
+        }
+    }
+    all.into_iter()
+        .enumerate()
+        .map(|(p, part)| {
+            part.ok_or_else(|| {
+                Error::stage_file(
+                    &dir.join(SHARDS_DIR),
+                    format!("has no shard holding patch {p}"),
+                )
+            })
+        })
+        .collect()
+}
+
+/// How many shards the parts of `stage` in `dir/shards` are of: one count for all of them.
+fn part_count(dir: &Path, stage: &str) -> Result<u32> {
+    let folder = dir.join(SHARDS_DIR);
+    let entries =
+        std::fs::read_dir(&folder).map_err(|e| Error::io(&folder, "read the shards folder", e))?;
+    let prefix = format!("{stage}-");
+    let mut counts = Vec::new();
+    for entry in entries {
+        let entry = entry.map_err(|e| Error::io(&folder, "read the shards folder", e))?;
+        let name = entry.file_name().to_string_lossy().into_owned();
+        let Some(tag) = name
+            .strip_prefix(&prefix)
+            .and_then(|n| n.strip_suffix(".ron"))
+        else {
+            continue;
+        };
+        match tag.split_once("-of-").map(|(_, n)| n.parse::<u32>()) {
+            Some(Ok(n)) if n > 0 => counts.push(n),
+            _ => {
+                return Err(Error::stage_file(
+                    &entry.path(),
+                    format!("is not named as a shard file ({stage}-I-of-N.ron)"),
+                ));
+            }
+        }
+    }
+    counts.sort_unstable();
+    counts.dedup();
+    match counts.as_slice() {
+        [n] => Ok(*n),
+        [] => Err(Error::stage_file(
+            &folder,
+            format!(
+                "holds no shard file of stage {stage} ({stage}-I-of-N.ron): run `crowd build \
+                 --shard I/N` for every I and copy each one's {SHARDS_DIR}/ folder here"
+            ),
+        )),
+        many => Err(Error::stage_file(
+            &folder,
+            format!("holds {stage} shard files of {many:?} shards at once: keep one build's"),
+        )),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -79,14 +278,23 @@ mod tests {
     }
 
     #[test]
-    fn every_position_is_dealt_to_exactly_one_shard() {
-        for count in 1..6 {
-            for position in 0..40 {
-                let owners = (0..count)
-                    .filter(|&i| Shard::new(i, count).unwrap().deals(position))
-                    .count();
-                assert_eq!(owners, 1);
+    fn the_runs_cover_every_item_once_with_like_costs() {
+        let costs: Vec<u64> = (0..97u64).map(|k| 1 + (k * 37) % 11).collect();
+        let total: u64 = costs.iter().sum();
+        for count in 1..9 {
+            let mut next = 0;
+            for i in 0..count {
+                let run = Shard::new(i, count).unwrap().run(&costs);
+                assert_eq!(run.start, next, "{count} shards: runs follow one another");
+                next = run.end;
+                let cost: u64 = costs[run].iter().sum();
+                assert!(
+                    cost.abs_diff(total / u64::from(count)) <= 11,
+                    "{count} shards: shard {i} costs {cost} of {total}"
+                );
             }
+            assert_eq!(next, costs.len());
         }
+        assert_eq!(Shard::new(2, 4).unwrap().run(&[]), 0..0);
     }
 }

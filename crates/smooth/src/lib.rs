@@ -12,6 +12,7 @@
 
 pub mod average;
 pub mod curve;
+pub mod shard;
 pub mod spline;
 
 /// What the stage's unit tests build their walks from.
@@ -87,7 +88,24 @@ pub fn smooth(
     inputs: &Inputs,
     progress: &dyn crowd_core::Progress,
 ) -> (Vec<PatchMotion>, SmoothingSummary) {
-    progress.begin("smooth", motion.len() as u64);
+    let all: Vec<usize> = (0..motion.len()).collect();
+    let results = smooth_patches(graph, crossings, motion, inputs, progress, &all);
+    let summary = summary_of(results.iter().map(|r| r.1));
+    (results.into_iter().map(|r| r.0).collect(), summary)
+}
+
+/// [`smooth`] of `patches` only, each with its counts (smoothed, kept straight, dropped
+/// points), in the order given: a shard's part ([`shard`]). `motion` needs only those patches
+/// and their neighbours (the pieces that meet at their crossings); the others may be empty.
+pub fn smooth_patches(
+    graph: &PatchGraph,
+    crossings: &[Crossing],
+    motion: &[PatchMotion],
+    inputs: &Inputs,
+    progress: &dyn crowd_core::Progress,
+    patches: &[usize],
+) -> Vec<(PatchMotion, [u64; 3])> {
+    progress.begin("smooth", patches.len() as u64);
     let s = &inputs.settings;
     let limits = curve::Limits {
         side_m: graph.world.patch_side_m,
@@ -99,10 +117,10 @@ pub fn smooth(
         band_m: graph.radius_m,
     };
     let velocities = crossing_velocities(crossings.len(), motion);
-    let results: Vec<(PatchMotion, [u64; 3])> = motion
+    patches
         .par_iter()
-        .enumerate()
-        .map(|(p, m)| {
+        .map(|&p| {
+            let m = &motion[p];
             let obstacles = crowd_geometry::obstacles_near(graph, p);
             let patch = Patch {
                 side_m: limits.side_m,
@@ -121,22 +139,22 @@ pub fn smooth(
             progress.advance(1);
             out
         })
-        .collect();
+        .collect()
+}
+
+/// The stage's summary from each patch's counts (smoothed, kept straight, dropped points).
+pub fn summary_of(counts: impl Iterator<Item = [u64; 3]>) -> SmoothingSummary {
     let mut summary = SmoothingSummary {
         smoothed: 0,
         kept_straight: 0,
         dropped_points: 0,
     };
-    let motion = results
-        .into_iter()
-        .map(|(m, [smoothed, kept, dropped])| {
-            summary.smoothed += smoothed;
-            summary.kept_straight += kept;
-            summary.dropped_points += dropped;
-            m
-        })
-        .collect();
-    (motion, summary)
+    for [smoothed, kept, dropped] in counts {
+        summary.smoothed += smoothed;
+        summary.kept_straight += kept;
+        summary.dropped_points += dropped;
+    }
+    summary
 }
 
 /// The velocity of every crossing for the curves on both of its sides: the mean of the two

@@ -1,0 +1,53 @@
+//! Stage 6 split over processes: a shard smooths the patches it owns (the run stage 5's
+//! shard module deals it), from the collided motion of those patches and their neighbours,
+//! and writes them with their counts to `shards/smooth-I-of-N.ron` (and `.bin`). Its header
+//! carries [`part_hash`]: stage 5's input hash (what the collided motion is made from), the
+//! patterns and stage 6's settings, which the gathering build, holding all of these, checks.
+
+use crate::{Inputs, SmoothingSummary};
+use crowd_core::files::{Header, Writes};
+use crowd_core::shard::{encode_part, gather_parts};
+use crowd_core::trajectories::PatchMotion;
+use crowd_core::{Hash, Hasher, Result, Shard};
+use std::path::Path;
+
+/// What a shard's part of stage 6 is made from: stage 5's input hash, the patterns file's
+/// bytes and the settings (a shard has not the collided file whose bytes stage 6's own hash
+/// covers: only its part of it).
+pub fn part_hash(collide_hash: Hash, patterns: &[u8], inputs: &Inputs) -> Hash {
+    Hasher::new(crate::STAGE, crate::VERSION)
+        .value("stage 5 inputs", &collide_hash)
+        .file("patterns file", patterns)
+        .value("inputs", inputs)
+        .finish()
+}
+
+/// The files of `shard`'s part: `parts` its own patches (index, motion, counts), in patch
+/// order.
+pub fn encode_shard(
+    dir: &Path,
+    shard: Shard,
+    hash: Hash,
+    parts: Vec<(u32, PatchMotion, [u64; 3])>,
+) -> Writes {
+    encode_part(
+        dir,
+        Header::new(crate::STAGE, crate::VERSION, hash),
+        shard,
+        parts,
+    )
+}
+
+/// Stage 6's motion for every patch and its summary, from every shard's part in
+/// `dir/shards` (each made for `hash`, holding the patches `owns` gives its shard).
+pub fn gather(
+    dir: &Path,
+    hash: Hash,
+    patches: usize,
+    owns: impl Fn(Shard) -> Vec<u32>,
+) -> Result<(Vec<PatchMotion>, SmoothingSummary)> {
+    let header = Header::new(crate::STAGE, crate::VERSION, hash);
+    let parts: Vec<(PatchMotion, [u64; 3])> = gather_parts(dir, &header, patches, owns)?;
+    let summary = crate::summary_of(parts.iter().map(|p| p.1));
+    Ok((parts.into_iter().map(|p| p.0).collect(), summary))
+}
