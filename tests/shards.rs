@@ -164,10 +164,26 @@ fn gathering_refuses_a_missing_or_stale_shard() {
     assert!(!stderr.contains("panicked"), "{stderr}");
 }
 
-/// `--shard` takes I/N with I < N, and says so otherwise.
+/// `--shard` takes I/N with I < N, and says so otherwise; `--gather` without shard files
+/// says how to make them, and leaves no folder behind.
 #[test]
 fn a_shard_is_named_i_of_n() {
     let pipeline = scene_pipeline("bands");
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    let stderr = crowd_err(&[
+        "build",
+        "--pipeline",
+        s(&pipeline),
+        "--output",
+        s(&out),
+        "--gather",
+    ]);
+    assert!(
+        stderr.contains("holds no shard file") && stderr.contains("--shard I/N"),
+        "{stderr}"
+    );
+    assert!(!out.exists(), "a refused gather leaves no folder");
     for bad in ["4/4", "1/0", "x/2", "3"] {
         let out = crowd(&["build", "--pipeline", s(&pipeline), "--shard", bad]);
         let stderr = String::from_utf8_lossy(&out.stderr);

@@ -219,8 +219,20 @@ pub fn gather_parts<R: DeserializeOwned + Clone>(
 /// How many shards the parts of `stage` in `dir/shards` are of: one count for all of them.
 fn part_count(dir: &Path, stage: &str) -> Result<u32> {
     let folder = dir.join(SHARDS_DIR);
-    let entries =
-        std::fs::read_dir(&folder).map_err(|e| Error::io(&folder, "read the shards folder", e))?;
+    let none = || {
+        Error::stage_file(
+            &folder,
+            format!(
+                "holds no shard file of stage {stage} ({stage}-I-of-N.ron): run `crowd build \
+                 --shard I/N` for every I and copy each one's {SHARDS_DIR}/ folder here"
+            ),
+        )
+    };
+    let entries = match std::fs::read_dir(&folder) {
+        Ok(entries) => entries,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Err(none()),
+        Err(e) => return Err(Error::io(&folder, "read the shards folder", e)),
+    };
     let prefix = format!("{stage}-");
     let mut counts = Vec::new();
     for entry in entries {
@@ -246,13 +258,7 @@ fn part_count(dir: &Path, stage: &str) -> Result<u32> {
     counts.dedup();
     match counts.as_slice() {
         [n] => Ok(*n),
-        [] => Err(Error::stage_file(
-            &folder,
-            format!(
-                "holds no shard file of stage {stage} ({stage}-I-of-N.ron): run `crowd build \
-                 --shard I/N` for every I and copy each one's {SHARDS_DIR}/ folder here"
-            ),
-        )),
+        [] => Err(none()),
         many => Err(Error::stage_file(
             &folder,
             format!("holds {stage} shard files of {many:?} shards at once: keep one build's"),
