@@ -31,4 +31,15 @@ for f in "$out"/shards/*.bin "$out"/shards/*.ron; do
   cp "$f" "$SHARED/shards/.$(basename "$f").part"
   mv "$SHARED/shards/.$(basename "$f").part" "$SHARED/shards/$(basename "$f")"
 done
+# Shard 0 also leaves its stage 1-4 files (the same in every shard) for the gather, which then
+# need not make them again (it checks them against its inputs, and remakes any that differ).
+if [ "$index" = 0 ]; then
+  mkdir -p "$SHARED/stages"
+  for f in "$out"/*; do
+    name="$(basename "$f")"
+    [ -f "$f" ] && [ "$name" != timings.ron ] || continue
+    cp "$f" "$SHARED/stages/.$name.part"
+    mv "$SHARED/stages/.$name.part" "$SHARED/stages/$name"
+  done
+fi
 echo "shard $index/$SHARDS -> $SHARED/shards"

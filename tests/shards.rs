@@ -195,7 +195,8 @@ fn a_shard_is_named_i_of_n() {
 /// The job-runner examples of `deploy/` run as each runner runs them: shard 0 given by hand
 /// (`SHARD_INDEX`, a CI matrix), shard 1 as a Kubernetes Indexed Job pod
 /// (`JOB_COMPLETION_INDEX`), shard 2 as a Slurm array task (`slurm/shards.sbatch` with
-/// `SLURM_ARRAY_TASK_ID`, three tasks here); `gather.sh` then writes the one-process bytes.
+/// `SLURM_ARRAY_TASK_ID`, three tasks here); `gather.sh` then writes the one-process bytes,
+/// making none of stages 1-4 again (shard 0 left them).
 #[test]
 fn the_deploy_scripts_shard_and_gather_as_each_job_runner_runs_them() {
     let name = "ring";
@@ -248,4 +249,13 @@ fn the_deploy_scripts_shard_and_gather_as_each_job_runner_runs_them() {
     let (code, stderr) = run(&deploy.join("gather.sh"), &[("OUTPUT", output)]);
     assert_eq!(code, Some(0), "{stderr}");
     assert_same_files(scene(name), &gathered, name);
+    // Stages 1-4 came from shard 0: the gather ran none of them.
+    let timings = std::fs::read_to_string(gathered.join("timings.ron")).unwrap();
+    for stage in ["merge", "graph", "optimize", "match"] {
+        assert!(
+            !timings.contains(&format!("\"{stage}\"")),
+            "{stage} ran: {timings}"
+        );
+    }
+    assert!(timings.contains("\"collide\""), "{timings}");
 }

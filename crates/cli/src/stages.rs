@@ -31,11 +31,11 @@ pub static STAGES: [&Stage; 8] = [
     &MERGE, &GRAPH, &OPTIMIZE, &MATCH, &COLLIDE, &SMOOTH, &EDIT, &EXPORT,
 ];
 
-/// The stages that write trajectories (`crowd check` reads them), latest first.
 /// The stages that `crowd build --shard` splits by patch (the others run whole in every
 /// shard, or in the gathering).
 pub static SHARDED: [&Stage; 2] = [&COLLIDE, &SMOOTH];
 
+/// The stages that write trajectories (`crowd check` reads them), latest first.
 pub static TRAJECTORY_STAGES: [&Stage; 4] = [&EDIT, &SMOOTH, &COLLIDE, &MATCH];
 
 /// Every stage but the edit runs in every build.
