@@ -172,15 +172,27 @@ impl<'p> Artifacts<'p> {
 
     /// The motion `stage` (match, collide, smooth) made, taken out: each is read by the next
     /// stage only.
-    /// What each patch costs, for dealing patches to shards: from stage 4's motion (read from
-    /// its file when this build has not got it).
+    /// What each patch costs, for dealing patches to shards ([`crowd_core::shard::costs`]):
+    /// from stage 4's motion when this build has it, else from its file's counts alone (no
+    /// trajectory decoded).
     pub fn shard_costs(&mut self) -> Result<Rc<Vec<u64>>> {
         if let Some(costs) = &self.shard_costs {
             return Ok(costs.clone());
         }
-        let matched = self.take_motion(&stages::MATCH)?;
-        let costs = Rc::new(crowd_collide::shard::costs(&matched.1));
-        self.made_motion(&stages::MATCH, Rc::unwrap_or_clone(matched));
+        let costs = match self.motion.get(stages::MATCH.output) {
+            Some(matched) => {
+                let m = &matched.1;
+                crowd_core::shard::costs(m.len(), |p| m[p].trajectories.len())
+            }
+            None => {
+                let path = self.path(stages::MATCH.output);
+                let file: TrajectoriesFile = files::read_ron(&path)?;
+                let bytes = file.motion.read(&path)?;
+                let index = crowd_core::trajectories::MotionIndex::of(&path, &bytes)?;
+                crowd_core::shard::costs(index.patches(), |p| index.trajectories(p) as usize)
+            }
+        };
+        let costs = Rc::new(costs);
         self.shard_costs = Some(costs.clone());
         Ok(costs)
     }

@@ -12,7 +12,7 @@ use anyhow::{Result, anyhow, bail};
 use crowd_core::files::{self, Header};
 use crowd_core::maps::MergeFile;
 use crowd_core::patterns::Patterns;
-use crowd_core::trajectories::TrajectoriesFile;
+use crowd_core::trajectories::{PatchMotion, TrajectoriesFile};
 use crowd_core::{Hash, PatchGraph};
 use std::path::Path;
 
@@ -363,40 +363,44 @@ fn matching(a: &mut Artifacts, out: &Path, hash: Hash, ui: &Ui) -> Result<Ran> {
 
 fn collide(a: &mut Artifacts, out: &Path, hash: Hash, ui: &Ui) -> Result<Ran> {
     let bar = ui.stage_bar(COLLIDE.name);
-    let (graph, matched) = (a.graph()?, a.take_motion(&MATCH)?);
+    let graph = a.graph()?;
     let s = crowd_collide::inputs(a.pipeline);
     let dir = out.parent().unwrap_or(Path::new("."));
-    let cleared = match a.split {
-        Split::Whole => crowd_collide::collide_or_first_stall(&graph, &matched.1, &s, &bar),
-        Split::Gather => {
-            let costs = std::rc::Rc::new(crowd_collide::shard::costs(&matched.1));
-            a.shard_costs = Some(costs.clone());
-            Ok(crowd_collide::shard::gather(dir, hash, &costs)?)
+    let (motion, reports) = match a.split {
+        Split::Whole => {
+            let matched = a.take_motion(&MATCH)?;
+            crowd_collide::collide_or_first_stall(&graph, &matched.1, &s, &bar)
+                .map_err(|stall| collide_stall(&graph, &s, stall))?
         }
+        Split::Gather => crowd_collide::shard::gather(dir, hash, &a.shard_costs()?)?,
         Split::Shard(shard) => {
-            let costs = std::rc::Rc::new(crowd_collide::shard::costs(&matched.1));
-            a.shard_costs = Some(costs.clone());
-            let own = crowd_collide::shard::owned(&costs, shard);
+            let own: Vec<usize> = shard.run(&a.shard_costs()?).collect();
             let cleared = crowd_collide::shard::with_neighbours(&graph, &own);
+            let matched = a.take_motion(&MATCH)?;
             let parts = crowd_collide::collide_patches(&graph, &matched.1, &s, &bar, &cleared)
                 .map_err(|stall| collide_stall(&graph, &s, stall))?;
-            let mut motion =
-                vec![crowd_core::trajectories::PatchMotion::default(); graph.patches.len()];
+            drop(matched);
+            // Its own patches go to its part; they and their neighbours, to its stage 6.
+            let mut motion = vec![PatchMotion::default(); graph.patches.len()];
             let mut mine = Vec::with_capacity(own.len());
             for (m, report) in parts {
-                if own.binary_search(&(report.patch as usize)).is_ok() {
-                    mine.push((m.clone(), report.clone()));
+                let p = report.patch as usize;
+                motion[p] = m;
+                if own.binary_search(&p).is_ok() {
+                    mine.push(report);
                 }
-                motion[report.patch as usize] = m;
             }
+            let part = mine
+                .into_iter()
+                .map(|r| (&motion[r.patch as usize], r))
+                .collect();
+            let writes = shard_writes(dir, || {
+                crowd_collide::shard::encode_shard(dir, shard, hash, part)
+            })?;
             a.shard_collided = Some(motion);
-            return Ok(Ran::files(shard_writes(dir, || {
-                crowd_collide::shard::encode_shard(dir, shard, hash, mine)
-            })?));
+            return Ok(Ran::files(writes));
         }
     };
-    drop(matched);
-    let (motion, reports) = cleared.map_err(|stall| collide_stall(&graph, &s, stall))?;
     let (file, writes) = crowd_collide::encode(out, &motion, &reports, &graph, &s, hash);
     a.made_motion(&COLLIDE, (file, motion));
     Ok(Ran::files(writes))
@@ -431,32 +435,28 @@ fn smooth(a: &mut Artifacts, out: &Path, hash: Hash, ui: &Ui) -> Result<Ran> {
     let gathered = match a.split {
         Split::Shard(shard) => {
             let collided = a.shard_collided.take().expect("stage 5 ran in this shard");
-            let own = crowd_collide::shard::owned(&a.shard_costs()?, shard);
+            let own: Vec<usize> = shard.run(&a.shard_costs()?).collect();
             let done =
                 crowd_smooth::smooth_patches(&graph, &patterns.1, &collided, &inputs, &bar, &own);
-            let parts = own
+            let part = own
                 .iter()
-                .zip(done)
-                .map(|(&p, (m, counts))| (p as u32, m, counts))
+                .zip(&done)
+                .map(|(&p, (m, counts))| (p as u32, m, *counts))
                 .collect();
             return Ok(Ran::files(shard_writes(dir, || {
-                crowd_smooth::shard::encode_shard(dir, shard, hash, parts)
+                crowd_smooth::shard::encode_shard(dir, shard, hash, part)
             })?));
         }
         Split::Gather => {
-            let costs = a.shard_costs()?;
-            let owns = |shard| {
-                crowd_collide::shard::owned(&costs, shard)
-                    .into_iter()
-                    .map(|p| p as u32)
-                    .collect()
-            };
-            let part = crowd_smooth::shard::part_hash(
-                a.hashes[COLLIDE.name],
-                &a.bytes(&OPTIMIZE)?,
-                &inputs,
-            );
-            Some(crowd_smooth::shard::gather(dir, part, costs.len(), owns)?)
+            // What each part says it is made from: stage 5's inputs, the patterns, the settings.
+            let collide_hash = a.hashes[COLLIDE.name];
+            let made_from =
+                crowd_smooth::shard::part_hash(collide_hash, &a.bytes(&OPTIMIZE)?, &inputs);
+            Some(crowd_smooth::shard::gather(
+                dir,
+                made_from,
+                &a.shard_costs()?,
+            )?)
         }
         Split::Whole => None,
     };

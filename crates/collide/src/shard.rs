@@ -1,9 +1,10 @@
 //! Stage 5 split over processes. A shard owns a run of patches (in patch order, of like cost:
-//! [`owned`]) and clears them and their neighbours ([`with_neighbours`]: stage 6 of a patch
-//! needs the pieces its neighbours walk up to their shared crossings); it writes its own
-//! patches, with their reports, to `shards/collide-I-of-N.ron` (and `.bin`). The gathering
-//! build reads every shard's part back ([`gather`]) and hands them, in patch order, to the
-//! encoder one process uses, so `collided.ron` and `collided.bin` are the same bytes.
+//! [`crowd_core::Shard::run`]) and clears them and their neighbours ([`with_neighbours`]:
+//! stage 6 of a patch needs the pieces its neighbours walk up to their shared crossings); it
+//! writes its own patches, with their reports, to `shards/collide-I-of-N.ron` (and `.bin`).
+//! The gathering build reads every shard's part back ([`gather`]) and hands them, in patch
+//! order, to the encoder one process uses, so `collided.ron` and `collided.bin` are the same
+//! bytes.
 
 use crate::PatchReport;
 use crowd_core::files::{Header, Writes};
@@ -11,20 +12,6 @@ use crowd_core::shard::{encode_part, gather_parts};
 use crowd_core::trajectories::PatchMotion;
 use crowd_core::{Hash, PatchGraph, Result, Shard};
 use std::path::Path;
-
-/// What each patch costs the stages that split, for dealing patches to shards: its
-/// trajectories in stage 4's `matched`, plus one.
-pub fn costs(matched: &[PatchMotion]) -> Vec<u64> {
-    matched
-        .iter()
-        .map(|m| m.trajectories.len() as u64 + 1)
-        .collect()
-}
-
-/// The patches `shard` owns: its run of like cost ([`costs`]) in patch order.
-pub fn owned(costs: &[u64], shard: Shard) -> Vec<usize> {
-    shard.run(costs).collect()
-}
 
 /// `patches` and every patch next to one of them (sharing a border side), sorted.
 pub fn with_neighbours(graph: &PatchGraph, patches: &[usize]) -> Vec<usize> {
@@ -50,12 +37,12 @@ pub fn header(hash: Hash) -> Header {
     Header::new(crate::STAGE, crate::VERSION, hash)
 }
 
-/// The files of `shard`'s part: `parts` its own patches, in patch order.
+/// The files of `shard`'s part: `parts` its own patches (motion and report), in patch order.
 pub fn encode_shard(
     dir: &Path,
     shard: Shard,
     hash: Hash,
-    parts: Vec<(PatchMotion, PatchReport)>,
+    parts: Vec<(&PatchMotion, PatchReport)>,
 ) -> Writes {
     let parts = parts.into_iter().map(|(m, r)| (r.patch, m, r)).collect();
     encode_part(dir, header(hash), shard, parts)
@@ -68,8 +55,6 @@ pub fn gather(
     hash: Hash,
     costs: &[u64],
 ) -> Result<(Vec<PatchMotion>, Vec<PatchReport>)> {
-    let owns = |shard| owned(costs, shard).into_iter().map(|p| p as u32).collect();
-    let parts: Vec<(PatchMotion, PatchReport)> =
-        gather_parts(dir, &header(hash), costs.len(), owns)?;
+    let parts: Vec<(PatchMotion, PatchReport)> = gather_parts(dir, &header(hash), costs)?;
     Ok(parts.into_iter().unzip())
 }

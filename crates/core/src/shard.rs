@@ -110,13 +110,20 @@ pub fn part_path(dir: &Path, stage: &str, shard: Shard) -> PathBuf {
         .join(format!("{stage}-{}.ron", shard.tag()))
 }
 
+/// What each patch costs the stages that split, for dealing patches to shards
+/// ([`Shard::run`]): its trajectories in stage 4's motion, plus one. `counts` gives patch
+/// `p`'s trajectories.
+pub fn costs(patches: usize, counts: impl Fn(usize) -> usize) -> Vec<u64> {
+    (0..patches).map(|p| counts(p) as u64 + 1).collect()
+}
+
 /// The files of `shard`'s part of a stage (`header` names it): `parts` are its patches, in
 /// patch order, each with its motion and report.
 pub fn encode_part<R: Serialize>(
     dir: &Path,
     header: Header,
     shard: Shard,
-    parts: Vec<(u32, PatchMotion, R)>,
+    parts: Vec<(u32, &PatchMotion, R)>,
 ) -> Writes {
     let path = part_path(dir, &header.stage, shard);
     let mut patches = Vec::with_capacity(parts.len());
@@ -140,18 +147,17 @@ pub fn encode_part<R: Serialize>(
     vec![(side, bytes), (path, ron)]
 }
 
-/// Every patch's motion and report (`patches` of them), put together from the parts of the
-/// stage `header` names in `dir/shards`: all N parts of one count, each made for `header`
-/// and holding exactly the patches `owns(shard)` gives it (sorted). Refused, naming the file,
-/// when one is missing, stale or holds other patches.
+/// Every patch's motion and report, put together from the parts of the stage `header` names
+/// in `dir/shards`: all N parts of one count, each made for `header` and holding exactly the
+/// patches its shard's run of `costs` ([`costs`]) gives it. Refused, naming the file, when
+/// one is missing, stale or holds other patches.
 pub fn gather_parts<R: DeserializeOwned + Clone>(
     dir: &Path,
     header: &Header,
-    patches: usize,
-    owns: impl Fn(Shard) -> Vec<u32>,
+    costs: &[u64],
 ) -> Result<Vec<(PatchMotion, R)>> {
     let count = part_count(dir, &header.stage)?;
-    let mut all: Vec<Option<(PatchMotion, R)>> = vec![None; patches];
+    let mut all: Vec<Option<(PatchMotion, R)>> = vec![None; costs.len()];
     for index in 0..count {
         let shard = Shard::new(index, count).expect("index < count");
         let path = part_path(dir, &header.stage, shard);
@@ -181,7 +187,7 @@ pub fn gather_parts<R: DeserializeOwned + Clone>(
                 ),
             ));
         }
-        let mine = owns(shard);
+        let mine: Vec<u32> = shard.run(costs).map(|p| p as u32).collect();
         if file.patches != mine || file.reports.len() != mine.len() {
             return Err(Error::stage_file(
                 &path,

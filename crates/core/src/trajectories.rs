@@ -167,8 +167,8 @@ const MAGIC: &[u8; 8] = b"CRWDTRAJ";
 /// The patches are encoded in parallel, each into its own part of one buffer sized up front:
 /// painting's 412 MB took most of a second on one core, and growing it by doubling copied and
 /// first-touched it twice over.
-pub fn encode_motion(patches: &[PatchMotion]) -> Vec<u8> {
-    let sizes: Vec<usize> = patches.iter().map(encoded_size).collect();
+pub fn encode_motion<P: std::borrow::Borrow<PatchMotion> + Sync>(patches: &[P]) -> Vec<u8> {
+    let sizes: Vec<usize> = patches.iter().map(|p| encoded_size(p.borrow())).collect();
     let mut out = vec![0u8; HEAD_BYTES + sizes.iter().sum::<usize>()];
     let (head, mut rest) = out.split_at_mut(HEAD_BYTES);
     head[..8].copy_from_slice(MAGIC);
@@ -182,7 +182,7 @@ pub fn encode_motion(patches: &[PatchMotion]) -> Vec<u8> {
     parts
         .into_par_iter()
         .zip(patches)
-        .for_each(|(part, p)| encode_patch(p, part));
+        .for_each(|(part, p)| encode_patch(p.borrow(), part));
     out
 }
 

@@ -1,5 +1,5 @@
-//! Stage 6 split over processes: a shard smooths the patches it owns (the run stage 5's
-//! shard module deals it), from the collided motion of those patches and their neighbours,
+//! Stage 6 split over processes: a shard smooths the patches it owns (its run, as in stage
+//! 5), from the collided motion of those patches and their neighbours,
 //! and writes them with their counts to `shards/smooth-I-of-N.ron` (and `.bin`). Its header
 //! carries [`part_hash`]: stage 5's input hash (what the collided motion is made from), the
 //! patterns and stage 6's settings, which the gathering build, holding all of these, checks.
@@ -28,7 +28,7 @@ pub fn encode_shard(
     dir: &Path,
     shard: Shard,
     hash: Hash,
-    parts: Vec<(u32, PatchMotion, [u64; 3])>,
+    parts: Vec<(u32, &PatchMotion, [u64; 3])>,
 ) -> Writes {
     encode_part(
         dir,
@@ -39,15 +39,14 @@ pub fn encode_shard(
 }
 
 /// Stage 6's motion for every patch and its summary, from every shard's part in
-/// `dir/shards` (each made for `hash`, holding the patches `owns` gives its shard).
+/// `dir/shards` (each made for `hash`, holding the patches its shard owns by `costs`).
 pub fn gather(
     dir: &Path,
     hash: Hash,
-    patches: usize,
-    owns: impl Fn(Shard) -> Vec<u32>,
+    costs: &[u64],
 ) -> Result<(Vec<PatchMotion>, SmoothingSummary)> {
     let header = Header::new(crate::STAGE, crate::VERSION, hash);
-    let parts: Vec<(PatchMotion, [u64; 3])> = gather_parts(dir, &header, patches, owns)?;
+    let parts: Vec<(PatchMotion, [u64; 3])> = gather_parts(dir, &header, costs)?;
     let summary = crate::summary_of(parts.iter().map(|p| p.1));
     Ok((parts.into_iter().map(|p| p.0).collect(), summary))
 }
