@@ -148,10 +148,17 @@ pub fn edit_patch(
     // to its plan's fastest piece), changes velocity between pieces no more than
     // [`MAX_JOLT`] (or its plan's roughest change) and stays in the patch: drawn through
     // the steps alone, or, if that fails, through every point of the plan as well.
+    // Each walker's limits, from its plan (measured once, not at every attempt).
+    let limits: Vec<(f64, f64)> = before
+        .iter()
+        .map(|tr| {
+            let allowed = cx.max_speed.max(fastest(tr)) + 1e-9;
+            (allowed, MAX_JOLT.max(roughest(tr)) + 1e-9)
+        })
+        .collect();
     let attempt = |j: usize, level: u32, held: &[f64]| -> Option<Trajectory> {
         let scale = 0.5f64.powi(level as i32);
-        let allowed = cx.max_speed.max(fastest(&before[j])) + 1e-9;
-        let jolt = MAX_JOLT.max(roughest(&before[j])) + 1e-9;
+        let (allowed, jolt) = limits[j];
         [Points::Steps, Points::Plan]
             .into_iter()
             .find_map(|points| {
