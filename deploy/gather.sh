@@ -11,6 +11,10 @@ set -eu
 : "${SHARED:?set SHARED to the folder the shards wrote to}"
 : "${OUTPUT:?set OUTPUT to the build folder to write}"
 crowd="${CROWD:-crowd}"
+if ! ls "$SHARED"/shards/*-of-*.ron >/dev/null 2>&1; then
+  echo "gather.sh: no shard files in $SHARED/shards: run deploy/shard.sh for every shard first" >&2
+  exit 1
+fi
 mkdir -p "$OUTPUT/shards"
 # Stages 1-4 as shard 0 made them, where it left them (checked again, not trusted).
 if [ -d "$SHARED/stages" ]; then

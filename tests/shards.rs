@@ -207,6 +207,11 @@ fn the_deploy_scripts_shard_and_gather_as_each_job_runner_runs_them() {
     let (code, stderr) = run(&shard, &[]);
     assert_eq!(code, Some(2), "no index: {stderr}");
     assert!(stderr.contains("no shard index"), "{stderr}");
+    let early = dir.path().join("early");
+    let (code, stderr) = run(&deploy.join("gather.sh"), &[("OUTPUT", s(&early))]);
+    assert_eq!(code, Some(1), "a gather before any shard: {stderr}");
+    assert!(stderr.contains("no shard files"), "{stderr}");
+    assert!(!early.exists(), "a refused gather makes no folder");
     for (script, var, index) in [
         (&shard, "SHARD_INDEX", "0"),
         (&shard, "JOB_COMPLETION_INDEX", "1"),
