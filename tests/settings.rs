@@ -175,7 +175,36 @@ fn optimize_settings_refuse_what_the_optimiser_cannot_use() {
             "10001",
             "from 1 to 10000 optimisation",
         ),
+        (BANDS, "optimize.region_patches", "Some(0)", "a region side"),
+        (
+            BANDS,
+            "optimize.region_patches",
+            "Some(5000)",
+            "a region side",
+        ),
     ]);
+}
+
+/// A painting read as people per m2 takes no totals, and no density it cannot mean.
+#[test]
+fn people_per_square_metre_refuses_totals_and_bad_densities() {
+    let per_m2 = |w: &str| format!("0,\n    people: PerSquareMetre(walkers: {w}, standers: 0.0)");
+    all_refused(&[(
+        BANDS,
+        "walkers",
+        "500,\n    people: PerSquareMetre(walkers: 0.1, standers: 0.0)",
+        "leave `walkers` out",
+    )]);
+    for bad in ["-0.1", "NaN", "11.0"] {
+        let dir = tempfile::tempdir().unwrap();
+        let (pipeline, _) = broken(dir.path(), BANDS, "walkers", &per_m2(bad));
+        let err = crowd_err(&["build", "-q", "--pipeline", s(&pipeline)]);
+        assert!(
+            err.contains("`people.walkers` is ") && err.contains("people per m2"),
+            "{bad}: {err}"
+        );
+        assert!(!dir.path().join("out").exists());
+    }
 }
 
 #[test]

@@ -20,5 +20,6 @@ mod patterns;
 mod scenes;
 mod settings;
 mod shards;
+mod strokes;
 mod view;
 mod warnings;

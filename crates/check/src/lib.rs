@@ -138,6 +138,7 @@ pub(crate) mod tests {
         let inputs = crowd_graph::GraphInputs {
             walkers: 10,
             standers: 0,
+            people: crowd_core::config::People::Counted,
             patch_side_m: 8.0,
             radius_m: 0.3,
             rho_max: 0.35,

@@ -160,8 +160,13 @@ fn run_stages(
             .peak_mb
             .map(|mb| format!(", peak {mb:.0} MB"))
             .unwrap_or_default();
+        let note = ran
+            .note
+            .as_ref()
+            .map(|n| format!(" ({n})"))
+            .unwrap_or_default();
         ui.say(format!(
-            "{:>8}: built in {:.3} s{peak} -> {}",
+            "{:>8}: built in {:.3} s{peak} -> {}{note}",
             stage.name,
             run.seconds,
             path.display()

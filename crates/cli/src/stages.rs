@@ -109,7 +109,12 @@ pub static OPTIMIZE: Stage = Stage {
     about: "Stage 3: place the crossings of every border (reads the graph)",
     reads: &[GRAPH_FILE],
     output: PATTERNS_FILE,
-    writes: &["patterns.bin", "optimize.csv", PATTERNS_FILE],
+    writes: &[
+        "patterns.bin",
+        "optimize.csv",
+        crowd_optimize::REGIONS_FILE,
+        PATTERNS_FILE,
+    ],
     kind: Patterns::STAGE,
     version: Patterns::VERSION,
     hash: |a| {
@@ -336,13 +341,31 @@ fn optimize(a: &mut Artifacts, out: &Path, hash: Hash, ui: &Ui) -> Result<Ran> {
     let bar = ui.stage_bar(OPTIMIZE.name);
     let graph = a.graph()?;
     let s = crowd_optimize::inputs(a.pipeline);
-    let outcome =
-        crowd_optimize::optimize(&graph, &s.settings, &s.matching, s.period_s, s.seed, &bar);
+    // The last build's regions: those whose inputs are unchanged are not optimised again.
+    let known = std::fs::read(out.with_file_name(crowd_optimize::REGIONS_FILE))
+        .ok()
+        .and_then(|bytes| crowd_optimize::known::decode(&bytes))
+        .unwrap_or_default();
+    let outcome = crowd_optimize::optimize_reusing(
+        &graph,
+        &s.settings,
+        &s.matching,
+        s.period_s,
+        s.seed,
+        &known,
+        &bar,
+    );
     if outcome.crossings.is_empty() {
         crate::warnings::no_walker(&graph, a.pipeline)?;
     }
     let (patterns, writes) = crowd_optimize::encode(out, &outcome, &s, hash);
-    let note = format!("E = {:.4}", outcome.error.e);
+    let note = format!(
+        "E = {:.4}, {} of {} regions optimised ({} reused)",
+        outcome.error.e,
+        outcome.regions - outcome.reused,
+        outcome.regions,
+        outcome.reused
+    );
     a.made_patterns((patterns, outcome.crossings));
     Ok(Ran {
         note: Some(note),

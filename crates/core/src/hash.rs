@@ -26,6 +26,11 @@ impl Hash {
         &self.0
     }
 
+    /// The hash whose bytes these are (as [`Hash::as_bytes`] gave them).
+    pub fn from_bytes(bytes: [u8; 32]) -> Hash {
+        Hash(bytes)
+    }
+
     /// The first 16 hex digits, for messages.
     pub fn short(&self) -> String {
         self.to_string()[..16].to_string()

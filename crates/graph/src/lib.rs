@@ -15,7 +15,7 @@ mod cells;
 mod components;
 mod density;
 
-use crowd_core::config::{GraphSettings, PipelineFile};
+use crowd_core::config::{GraphSettings, People, PipelineFile};
 use crowd_core::files::Header;
 use crowd_core::patch_graph::{Dropped, World};
 use crowd_core::{Error, Hash, Hasher, MergedMaps, Patch, PatchGraph, PatchId, Progress, Result};
@@ -27,6 +27,7 @@ use std::path::Path;
 pub struct GraphInputs {
     pub walkers: u64,
     pub standers: u64,
+    pub people: People,
     pub patch_side_m: f64,
     pub radius_m: f64,
     /// No patch is asked for more characters per m2 than this (`optimize.rho_max`).
@@ -128,7 +129,9 @@ pub fn build_graph(
     let layout = cells::Layout::new(maps, side_px, cols, rows);
     progress.begin("graph", rows as u64 + 2);
     let stats = cells::measure(maps, &layout, progress);
-    check_walkers(maps, inputs)?;
+    if inputs.people.is_counted() {
+        check_walkers(maps, inputs)?;
+    }
 
     let s = &inputs.settings;
     let mut empty = Vec::new();
@@ -152,6 +155,77 @@ pub fn build_graph(
         });
     }
     let area = inputs.patch_side_m * inputs.patch_side_m;
+    let (walker_density, stander_density) = match inputs.people {
+        People::Counted => counted(&kept, inputs, area)?,
+        People::PerSquareMetre { walkers, standers } => {
+            // Standers first (they are fixed), walkers under what the standers leave.
+            let s: Vec<f64> = kept
+                .iter()
+                .map(|c| (standers * c.mean_standers).min(inputs.rho_max))
+                .collect();
+            let w = kept
+                .iter()
+                .zip(&s)
+                .map(|(c, s)| (walkers * c.mean_walkers).min((inputs.rho_max - s).max(0.0)))
+                .collect();
+            (w, s)
+        }
+    };
+    let requested = |densities: &[f64]| (densities.iter().sum::<f64>() * area).round() as u64;
+    let (walkers_requested, standers_requested) = match inputs.people {
+        People::Counted => (inputs.walkers, inputs.standers),
+        People::PerSquareMetre { .. } => (requested(&walker_density), requested(&stander_density)),
+    };
+
+    let mut patches: Vec<Patch> = kept
+        .iter()
+        .enumerate()
+        .map(|(i, c)| Patch {
+            id: PatchId(i as u32),
+            cell: c.cell,
+            walker_density: walker_density[i],
+            stander_density: stander_density[i],
+            direction: c.direction(s.direction_min_weight),
+            obstacle_coverage: c.coverage,
+            obstacles: c.obstacles.clone(),
+            component: 0,
+        })
+        .collect();
+    progress.advance(1);
+    let min_opening = s.min_opening_m.unwrap_or(2.0 * inputs.radius_m);
+    let mut borders = borders::find(maps, &layout, &patches, min_opening, inputs.radius_m);
+    borders::close_cut_off_regions(maps, &layout, &patches, &mut borders, inputs.radius_m);
+    let components = components::label(&mut patches, &borders, area);
+    progress.advance(1);
+
+    Ok(PatchGraph {
+        header: Header::new(PatchGraph::STAGE, PatchGraph::VERSION, input_hash),
+        world,
+        walkers_requested,
+        standers_requested,
+        radius_m: inputs.radius_m,
+        dropped: Dropped {
+            empty,
+            blocked,
+            uncovered_strip_m: DVec2::new(
+                (maps.width() - cols * side_px) as f64,
+                (maps.height() - rows * side_px) as f64,
+            ) * mpp,
+        },
+        components,
+        patches,
+        borders,
+    })
+}
+
+/// Walker and stander densities per kept patch when the pipeline gives totals: the people are
+/// poured in under the cap, standers first (they are fixed), walkers into what the standers
+/// leave (see `density`).
+fn counted(
+    kept: &[&cells::CellStats],
+    inputs: &GraphInputs,
+    area: f64,
+) -> std::result::Result<(Vec<f64>, Vec<f64>), GraphProblem> {
     // Sums in patch order, on one thread: the scale factor is bit-identical on every run.
     let painted_walkers: f64 = kept.iter().map(|c| c.mean_walkers).sum();
     let painted_standers: f64 = kept.iter().map(|c| c.mean_standers).sum();
@@ -199,46 +273,7 @@ pub fn build_graph(
                 &walker_weights,
                 " with the standers",
             ))?;
-
-    let mut patches: Vec<Patch> = kept
-        .iter()
-        .enumerate()
-        .map(|(i, c)| Patch {
-            id: PatchId(i as u32),
-            cell: c.cell,
-            walker_density: walker_density[i],
-            stander_density: stander_density[i],
-            direction: c.direction(s.direction_min_weight),
-            obstacle_coverage: c.coverage,
-            obstacles: c.obstacles.clone(),
-            component: 0,
-        })
-        .collect();
-    progress.advance(1);
-    let min_opening = s.min_opening_m.unwrap_or(2.0 * inputs.radius_m);
-    let mut borders = borders::find(maps, &layout, &patches, min_opening, inputs.radius_m);
-    borders::close_cut_off_regions(maps, &layout, &patches, &mut borders, inputs.radius_m);
-    let components = components::label(&mut patches, &borders, area);
-    progress.advance(1);
-
-    Ok(PatchGraph {
-        header: Header::new(PatchGraph::STAGE, PatchGraph::VERSION, input_hash),
-        world,
-        walkers_requested: inputs.walkers,
-        standers_requested: inputs.standers,
-        radius_m: inputs.radius_m,
-        dropped: Dropped {
-            empty,
-            blocked,
-            uncovered_strip_m: DVec2::new(
-                (maps.width() - cols * side_px) as f64,
-                (maps.height() - rows * side_px) as f64,
-            ) * mpp,
-        },
-        components,
-        patches,
-        borders,
-    })
+    Ok((walker_density, stander_density))
 }
 
 fn check_walkers(maps: &MergedMaps, inputs: &GraphInputs) -> std::result::Result<(), GraphProblem> {
@@ -257,6 +292,7 @@ pub fn inputs(pipeline: &PipelineFile) -> GraphInputs {
     GraphInputs {
         walkers: p.walkers,
         standers: p.standers,
+        people: p.people,
         patch_side_m: p.patch_side_m,
         radius_m: p.radius_m,
         rho_max: p.optimize.rho_max,

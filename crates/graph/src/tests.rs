@@ -26,6 +26,7 @@ fn inputs(walkers: u64) -> GraphInputs {
     GraphInputs {
         walkers,
         standers: 0,
+        people: crowd_core::config::People::Counted,
         patch_side_m: 4.0,
         radius_m: 0.3,
         rho_max: 0.35,
@@ -294,5 +295,51 @@ fn a_gap_narrower_than_a_character_with_room_splits_a_patch() {
             start: 0.0,
             end: 1.0
         }]
+    );
+}
+
+/// Read as people per m2, the paint asks its density where it is: a stroke changes the patches
+/// under it and no other (shared-out totals would thin every other patch), under rho_max.
+#[test]
+fn per_square_metre_a_stroke_changes_only_the_patches_under_it() {
+    let per_m2 = GraphInputs {
+        walkers: 0,
+        people: crowd_core::config::People::PerSquareMetre {
+            walkers: 0.2,
+            standers: 0.0,
+        },
+        ..inputs(0)
+    };
+    let mut m = maps(16, 8, |_, _| false);
+    m.walkers = Grid::filled(16, 8, 0.5);
+    let before = build_graph(&m, &per_m2, Hash::of(b"test"), &()).unwrap();
+    assert!(
+        before
+            .patches
+            .iter()
+            .all(|p| (p.walker_density - 0.1).abs() < 1e-6)
+    );
+    for y in 0..4 {
+        for x in 0..4 {
+            m.walkers.as_mut_slice()[(y * 16 + x) as usize] = 4.0;
+        }
+    }
+    let after = build_graph(&m, &per_m2, Hash::of(b"test"), &()).unwrap();
+    // The painted 4 x 4 pixels are one patch (rows run from the north in the maps).
+    let changed: Vec<(Cell, f64)> = before
+        .patches
+        .iter()
+        .zip(&after.patches)
+        .filter(|(a, b)| a.walker_density != b.walker_density)
+        .map(|(_, b)| (b.cell, b.walker_density))
+        .collect();
+    assert_eq!(
+        changed,
+        vec![(Cell { col: 0, row: 1 }, 0.35)],
+        "capped at rho_max"
+    );
+    assert_eq!(
+        after.walkers_requested,
+        (0.1f64 * 16.0 * 7.0 + 0.35 * 16.0).round() as u64
     );
 }

@@ -22,7 +22,8 @@ const MAX_LEAN: f64 = 0.6;
 /// crossings turned.
 pub fn align(state: &mut State) -> usize {
     let st = &*state;
-    let found: Vec<Vec<(u32, DVec2)>> = (0..st.links.len())
+    let found: Vec<Vec<(u32, DVec2)>> = st
+        .own_patches()
         .into_par_iter()
         .map(|p| {
             let (entries, exits) = st.endpoints(p);
@@ -59,7 +60,7 @@ pub fn align(state: &mut State) -> usize {
     for (b, wanted) in want.iter().enumerate() {
         for (i, &d) in wanted.iter().enumerate() {
             let c = state.crossings[b][i];
-            if d.length_squared() < 1e-12 {
+            if state.held[b] || d.length_squared() < 1e-12 {
                 continue;
             }
             let across = state.normal(b, c.way);

@@ -13,8 +13,10 @@
 //! directed patch; its rounds count as iterations in the log.
 
 pub mod align;
+pub mod known;
 pub mod mutate;
 pub mod polish;
+pub mod region;
 pub mod regression;
 pub mod retime;
 pub mod search;
@@ -31,6 +33,7 @@ use mutate::Step;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
+use region::{Cut, Region, RegionInputs, SeamRule, Solved, Sums};
 use search::{Costs, Mode, Net};
 use state::State;
 
@@ -57,6 +60,11 @@ pub struct Outcome {
     pub log: Vec<IterationFigures>,
     pub iterations: u32,
     pub converged: bool,
+    /// Regions the world was cut into, and how many of them were taken from an earlier build.
+    pub regions: usize,
+    pub reused: usize,
+    /// Every region's result, for the next build to reuse ([`Known`]).
+    pub solved: Vec<Solved>,
 }
 
 /// A patch's two error terms: requested minus measured density, and, if the patch asks for a
@@ -67,6 +75,23 @@ pub fn patch_terms(patch: &crowd_core::Patch, requested: f64, m: &Measured) -> (
         .direction
         .map(|d| 1.0 - d.dir.dot(m.direction.unwrap_or(DVec2::ZERO)));
     (requested - m.density, direction)
+}
+
+impl Sums {
+    /// E_rho, E_d and E (Crowd Art eq. 4-6) of the summed patches.
+    pub fn error(&self, rho_max: f64) -> SceneError {
+        let e_rho = (self.squares / self.patches.max(1) as f64).sqrt() / rho_max;
+        let e_d = if self.directed > 0 {
+            self.direction / self.directed as f64
+        } else {
+            0.0
+        };
+        SceneError {
+            e_rho,
+            e_d,
+            e: e_rho + e_d,
+        }
+    }
 }
 
 /// E_rho, E_d and E (Crowd Art eq. 4-6) of measured patches.
@@ -152,45 +177,237 @@ pub fn optimize(
     seed: u64,
     progress: &dyn Progress,
 ) -> Outcome {
+    let known = Known::new();
+    optimize_reusing(graph, settings, matching, period_s, seed, &known, progress)
+}
+
+/// Regions solved by an earlier build, by their [`Region::hash`].
+pub type Known = std::collections::HashMap<crowd_core::Hash, Solved>;
+
+/// [`optimize`], taking every region whose hash is in `known` from there instead of solving it
+/// again: the same result, since a region's hash holds everything its result depends on.
+pub fn optimize_reusing(
+    graph: &PatchGraph,
+    settings: &OptimizeSettings,
+    matching: &MatchSettings,
+    period_s: f64,
+    seed: u64,
+    known: &Known,
+    progress: &dyn Progress,
+) -> Outcome {
     let side = graph.world.patch_side_m;
     let regression = regression::fit(side, period_s, matching, 60, seed);
-    let mut state = State::new(graph, matching, period_s, stander_counts(graph));
-    let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    start(&mut state, &regression, settings.rho_max, &mut rng);
-    retime::retime(&mut state);
-    enforce_rho_max(&mut state, settings.rho_max);
-    let net = Net::new(&state);
-    let rho_max = settings.rho_max;
-
-    let figures = |state: &State, iteration: u32| {
-        let e = scene_error(graph, &state.requested, &state.measured, rho_max);
-        IterationFigures {
-            iteration,
-            e_rho: e.e_rho,
-            e_d: e.e_d,
-            e: e.e,
-            crossings: state.crossing_count() as u64,
-        }
+    let cut = Cut::new(graph, settings.region_patches);
+    let standers = region::stander_counts(graph, &cut);
+    let rule = SeamRule {
+        regression: &regression,
+        rho_max: settings.rho_max,
+        matching,
+        period_s,
+        seed,
     };
-    let mut log = vec![figures(&state, 0)];
-    let mut best = (log[0].e, state.crossings.clone(), 0u32);
+    let seams = region::seam_crossings(graph, &cut, &rule);
+    let inputs = RegionInputs {
+        settings,
+        matching,
+        period_s,
+        seed,
+        regression: &regression,
+    };
+    progress.begin("optimize", cut.regions.len() as u64);
+    let solved: Vec<(Region, Solved, bool)> = cut
+        .regions
+        .par_iter()
+        .map(|r| {
+            let region = Region::new(graph, r, &standers, &seams, cut.side);
+            let hash = region.hash(&inputs);
+            let (solved, reused) = match known.get(&hash) {
+                Some(s) => (s.clone(), true),
+                None => (solve(&region, hash, &inputs), false),
+            };
+            progress.advance(1);
+            (region, solved, reused)
+        })
+        .collect();
+    gather(
+        graph,
+        settings.rho_max,
+        regression,
+        &standers,
+        seams,
+        solved,
+    )
+}
+
+/// One region optimised (Algorithm 1 with its seams held, then the polish).
+pub fn solve(region: &Region, hash: crowd_core::Hash, inputs: &RegionInputs) -> Solved {
+    let mut state = State::with_held(
+        &region.graph,
+        inputs.matching,
+        inputs.period_s,
+        region.standers.clone(),
+        region.own.clone(),
+        region.held.clone(),
+    );
+    for (l, seam) in region.seams.iter().enumerate() {
+        if region.held[l] {
+            state.crossings[l] = seam.clone();
+        }
+    }
+    let seed = region::seed_at(inputs.seed, region.block, 0);
+    let run = run(&mut state, inputs.regression, inputs.settings, seed);
+    let crossings = state
+        .crossings
+        .iter()
+        .enumerate()
+        .filter(|(l, _)| !region.held[*l])
+        .flat_map(|(_, list)| list.iter().copied())
+        .collect();
+    let measured = state
+        .own_patches()
+        .into_iter()
+        .map(|p| state.measured[p])
+        .collect();
+    Solved {
+        hash,
+        crossings,
+        measured,
+        log: run.log,
+        iterations: run.iterations,
+        converged: run.converged,
+    }
+}
+
+/// The world's result from its regions' (each in its own numbering) and the seams.
+fn gather(
+    graph: &PatchGraph,
+    rho_max: f64,
+    regression: Regression,
+    standers: &[u32],
+    seams: Vec<Vec<Crossing>>,
+    regions: Vec<(Region, Solved, bool)>,
+) -> Outcome {
+    let unmeasured = Measured {
+        density: 0.0,
+        direction: None,
+        standers: 0,
+    };
+    let mut measured = vec![unmeasured; graph.patches.len()];
+    let mut crossings: Vec<Crossing> = seams.into_iter().flatten().collect();
+    let seam_count = crossings.len() as u64;
+    let steps = regions.iter().map(|r| r.1.log.len()).max().unwrap_or(1);
+    let mut log = vec![Sums::default(); steps];
+    let (mut iterations, mut converged, mut reused) = (0, true, 0);
+    for (region, solved, was_reused) in &regions {
+        let own = (0..region.own.len()).filter(|&l| region.own[l]);
+        for (l, m) in own.zip(&solved.measured) {
+            measured[region.patches[l]] = *m;
+        }
+        crossings.extend(solved.crossings.iter().map(|c| Crossing {
+            border: region.borders[c.border as usize] as u32,
+            ..*c
+        }));
+        for (i, sums) in log.iter_mut().enumerate() {
+            if let Some(s) = solved.log.get(i).or(solved.log.last()) {
+                *sums += *s;
+            }
+        }
+        iterations = iterations.max(solved.iterations);
+        converged &= solved.converged;
+        reused += usize::from(*was_reused);
+    }
+    crossings.sort_by(|a, b| a.border.cmp(&b.border).then(a.t.total_cmp(&b.t)));
+    let area = graph.patch_area();
+    let requested: Vec<f64> = graph
+        .patches
+        .iter()
+        .zip(standers)
+        .map(|(p, &s)| p.walker_density + s as f64 / area)
+        .collect();
+    let log = log
+        .into_iter()
+        .enumerate()
+        .map(|(i, sums)| {
+            let e = sums.error(rho_max);
+            IterationFigures {
+                iteration: i as u32,
+                e_rho: e.e_rho,
+                e_d: e.e_d,
+                e: e.e,
+                crossings: sums.crossings + seam_count,
+            }
+        })
+        .collect();
+    Outcome {
+        error: scene_error(graph, &requested, &measured, rho_max),
+        worst: worst_patches(graph, &requested, &measured, rho_max, 10),
+        crossings,
+        measured,
+        regression,
+        log,
+        iterations,
+        converged,
+        regions: regions.len(),
+        reused,
+        solved: regions.into_iter().map(|r| r.1).collect(),
+    }
+}
+
+/// What [`run`] leaves besides the state: the error sums of every step and how it stopped.
+struct Run {
+    log: Vec<Sums>,
+    iterations: u32,
+    converged: bool,
+}
+
+/// The error sums of a state's own patches (crossings: those it may change).
+fn sums(state: &State) -> Sums {
+    let mut sums = Sums::default();
+    for p in state.own_patches() {
+        let patch = &state.graph.patches[p];
+        let (density, direction) = patch_terms(patch, state.requested[p], &state.measured[p]);
+        sums.squares += density * density;
+        sums.patches += 1;
+        if let Some(d) = direction {
+            sums.direction += d;
+            sums.directed += 1;
+        }
+    }
+    sums.crossings = (0..state.crossings.len())
+        .filter(|&k| !state.held[k])
+        .map(|k| state.crossings[k].len() as u64)
+        .sum();
+    sums
+}
+
+/// Algorithm 1 on one state: the start, the loop of steps until E settles, the alignment and
+/// the polish.
+fn run(state: &mut State, regression: &Regression, settings: &OptimizeSettings, seed: u64) -> Run {
+    let rho_max = settings.rho_max;
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    start(state, regression, rho_max, &mut rng);
+    retime::retime(state);
+    enforce_rho_max(state, rho_max);
+    let net = Net::new(state);
+
+    let mut log = vec![sums(state)];
+    let mut best = (log[0].error(rho_max).e, state.crossings.clone(), 0u32);
     let mut converged = false;
     let mut iterations = 0;
-    progress.begin("optimize", settings.max_iterations as u64);
     for iteration in 1..=settings.max_iterations {
         iterations = iteration;
         if iteration % RETIME_EVERY == 0 && iteration <= RETIME_UNTIL {
-            retime::retime(&mut state);
-            enforce_rho_max(&mut state, rho_max);
+            retime::retime(state);
+            enforce_rho_max(state, rho_max);
         }
-        step(&mut state, &net, &regression, settings, iteration, seed);
-        let f = figures(&state, iteration);
+        step(state, &net, regression, settings, iteration, seed);
+        let f = sums(state);
         log.push(f);
-        progress.advance(1);
-        if f.e < best.0 - settings.tolerance {
-            best = (f.e, state.crossings.clone(), iteration);
-        } else if f.e < best.0 {
-            best.0 = f.e;
+        let e = f.error(rho_max).e;
+        if e < best.0 - settings.tolerance {
+            best = (e, state.crossings.clone(), iteration);
+        } else if e < best.0 {
+            best.0 = e;
             best.1 = state.crossings.clone();
         }
         if iteration - best.2 >= settings.patience {
@@ -200,39 +417,29 @@ pub fn optimize(
     }
     state.crossings = best.1;
     state.remeasure_all();
-    enforce_rho_max(&mut state, rho_max);
+    enforce_rho_max(state, rho_max);
     // Velocities are turned towards the lines before the polish, and the crossings it adds
     // after: a pair's least time depends on its band pieces (stage 4 adds a period where they
     // leave the way too little time at max_speed), so what the polish measures is what ships.
-    align::align(&mut state);
+    align::align(state);
     state.remeasure_all();
-    enforce_rho_max(&mut state, rho_max);
+    enforce_rho_max(state, rho_max);
     polish::polish(
-        &mut state,
+        state,
         rho_max,
         POLISH_ROUNDS,
         settings.tolerance,
         seed,
         |state| {
             iterations += 1;
-            log.push(figures(state, iterations));
+            log.push(sums(state));
         },
     );
-    if align::align(&mut state) > 0 {
+    if align::align(state) > 0 {
         state.remeasure_all();
-        enforce_rho_max(&mut state, rho_max);
+        enforce_rho_max(state, rho_max);
     }
-
-    let error = scene_error(graph, &state.requested, &state.measured, rho_max);
-    let worst = worst_patches(graph, &state.requested, &state.measured, rho_max, 10);
-    let mut crossings: Vec<Crossing> = state.crossings.into_iter().flatten().collect();
-    crossings.sort_by(|a, b| a.border.cmp(&b.border).then(a.t.total_cmp(&b.t)));
-    Outcome {
-        crossings,
-        measured: state.measured,
-        error,
-        worst,
-        regression,
+    Run {
         log,
         iterations,
         converged,
@@ -240,22 +447,21 @@ pub fn optimize(
 }
 
 /// Entry pairs per patch that the regression predicts for a density (at most rho_max).
-fn pairs_for(density: f64, regression: &Regression, rho_max: f64) -> f64 {
+pub(crate) fn pairs_for(density: f64, regression: &Regression, rho_max: f64) -> f64 {
     ((density.min(rho_max) - regression.intercept) / regression.slope).max(0.0)
 }
 
-/// The start: on every open border, as many crossings each way as the two patches need on
-/// average per border (balanced, so parity holds), then nothing above rho_max.
+/// The start: on every open border not held, as many crossings each way as the two patches
+/// need on average per border (balanced, so parity holds), then nothing above rho_max.
 fn start(state: &mut State, regression: &Regression, rho_max: f64, rng: &mut ChaCha8Rng) {
-    let area = state.graph.patch_area();
     let need: Vec<f64> = (0..state.links.len())
         .map(|p| {
-            let walkers = state.requested[p] - state.standers[p] as f64 / area;
-            pairs_for(walkers, regression, rho_max) / state.links[p].len().max(1) as f64
+            let walkers = state.graph.patches[p].walker_density;
+            pairs_for(walkers, regression, rho_max) / state.open_borders(p).max(1) as f64
         })
         .collect();
     for (k, b) in state.graph.borders.iter().enumerate() {
-        if b.open.is_empty() {
+        if b.open.is_empty() || state.held[k] {
             continue;
         }
         let pairs = ((need[b.a.0 as usize] + need[b.b.0 as usize]) / 2.0).round() as u32;
@@ -511,8 +717,11 @@ pub fn input_hash(graph_file_bytes: &[u8], inputs: &Inputs) -> crowd_core::Hash 
     .finish()
 }
 
-/// Stage 3's files, encoded: the crossings side file, `patterns.ron`, and the per-step figures
-/// as CSV (`optimize.csv`), all beside `out`.
+/// The cache of every region's result, beside `patterns.ron` ([`known`]).
+pub const REGIONS_FILE: &str = "regions.bin";
+
+/// Stage 3's files, encoded: the crossings side file, `patterns.ron`, the per-step figures
+/// as CSV (`optimize.csv`) and the regions' cache (`regions.bin`), all beside `out`.
 pub fn encode(
     out: &std::path::Path,
     outcome: &Outcome,
@@ -550,6 +759,10 @@ pub fn encode(
     let ron = crowd_core::files::to_stage_ron(&patterns).into_bytes();
     let writes = vec![
         (side, bytes),
+        (
+            out.with_file_name(REGIONS_FILE),
+            known::encode(&outcome.solved),
+        ),
         (out.with_file_name("optimize.csv"), csv.into_bytes()),
         (out.to_path_buf(), ron),
     ];

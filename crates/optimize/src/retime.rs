@@ -27,7 +27,8 @@ pub fn retime(state: &mut State) -> usize {
         offsets[b] + i
     };
     // next[c] = (crossing after c, time walked between them).
-    let pairs: Vec<Vec<(usize, usize, f64)>> = (0..state.links.len())
+    let pairs: Vec<Vec<(usize, usize, f64)>> = state
+        .own_patches()
         .into_par_iter()
         .map(|p| {
             let ctx = state.context(p);
@@ -71,7 +72,9 @@ pub fn retime(state: &mut State) -> usize {
         while c != usize::MAX && !seen[c] {
             seen[c] = true;
             let (b, i) = location[c];
-            if let Some(new_t) = nudge(state, b, i, t + walk) {
+            if state.held[b] {
+                // A held crossing keeps its time: the walker goes on from it.
+            } else if let Some(new_t) = nudge(state, b, i, t + walk) {
                 state.crossings[b][i].t = new_t;
                 retimed += 1;
             }

@@ -34,8 +34,16 @@ pub struct State<'a> {
     pub settings: &'a MatchSettings,
     pub period_s: f64,
     pub spacing: Spacing,
-    /// Per patch, its neighbours through borders with an open interval.
+    /// Per patch, its neighbours through open borders whose crossings may change.
     pub links: Vec<Vec<Link>>,
+    /// Per patch, its ways through held borders (a region's seams): their crossings count in
+    /// the patch's measurement, but no cycle, turn or re-timing changes them.
+    pub fixed: Vec<Vec<Link>>,
+    /// Per border, whether its crossings are held.
+    pub held: Vec<bool>,
+    /// Per patch, whether it is optimised here (a region's own patches; the patches across its
+    /// seams are there only to carry the seams' crossings, and are never measured).
+    pub own: Vec<bool>,
     /// Per border, its crossings.
     pub crossings: Vec<Vec<Crossing>>,
     /// Standing characters per patch (fixed: they follow the static density).
@@ -56,12 +64,29 @@ impl<'a> State<'a> {
         standers: Vec<u32>,
     ) -> State<'a> {
         let n = graph.patches.len();
+        let (own, held) = (vec![true; n], vec![false; graph.borders.len()]);
+        State::with_held(graph, settings, period_s, standers, own, held)
+    }
+
+    /// A state whose `held` borders keep their crossings and whose patches not `own` are never
+    /// measured (see [`crate::region`]).
+    pub fn with_held(
+        graph: &'a PatchGraph,
+        settings: &'a MatchSettings,
+        period_s: f64,
+        standers: Vec<u32>,
+        own: Vec<bool>,
+        held: Vec<bool>,
+    ) -> State<'a> {
+        let n = graph.patches.len();
         let mut links = vec![Vec::new(); n];
+        let mut fixed = vec![Vec::new(); n];
         for (k, b) in graph.borders.iter().enumerate() {
             if b.open.is_empty() {
                 continue;
             }
             let (a, c) = (b.a.0 as usize, b.b.0 as usize);
+            let links = if held[k] { &mut fixed } else { &mut links };
             links[a].push(Link {
                 to: c,
                 border: k,
@@ -86,6 +111,9 @@ impl<'a> State<'a> {
             period_s,
             spacing: Spacing::new(graph),
             links,
+            fixed,
+            held,
+            own,
             crossings: vec![Vec::new(); graph.borders.len()],
             measured: vec![
                 Measured {
@@ -112,6 +140,9 @@ impl<'a> State<'a> {
             period_s: self.period_s,
             spacing: self.spacing.clone(),
             links: self.links.clone(),
+            fixed: self.fixed.clone(),
+            held: self.held.clone(),
+            own: self.own.clone(),
             crossings: self.crossings.clone(),
             standers: self.standers.clone(),
             measured: self.measured.clone(),
@@ -126,13 +157,11 @@ impl<'a> State<'a> {
 
     /// Entries and exits of a patch, from the crossings of its borders.
     pub fn endpoints(&self, patch: usize) -> (Vec<Endpoint>, Vec<Endpoint>) {
-        let count: usize = self.links[patch]
-            .iter()
-            .map(|l| self.crossings[l.border].len())
-            .sum();
+        let ways = || self.links[patch].iter().chain(&self.fixed[patch]);
+        let count: usize = ways().map(|l| self.crossings[l.border].len()).sum();
         let (mut entries, mut exits) = (Vec::with_capacity(count), Vec::with_capacity(count));
         let side = self.graph.world.patch_side_m;
-        for link in &self.links[patch] {
+        for link in ways() {
             let border = &self.graph.borders[link.border];
             for (i, c) in self.crossings[link.border].iter().enumerate() {
                 let (a, b) = crowd_core::patterns::border_point(border, side, c.s);
@@ -190,9 +219,20 @@ impl<'a> State<'a> {
         }
     }
 
+    /// Measures every patch optimised here.
     pub fn remeasure_all(&mut self) {
-        let all: Vec<usize> = (0..self.graph.patches.len()).collect();
+        let all = self.own_patches();
         self.remeasure(&all);
+    }
+
+    /// The patches optimised here, in order.
+    pub fn own_patches(&self) -> Vec<usize> {
+        (0..self.own.len()).filter(|&p| self.own[p]).collect()
+    }
+
+    /// Open borders of a patch, held or not.
+    pub fn open_borders(&self, patch: usize) -> usize {
+        self.links[patch].len() + self.fixed[patch].len()
     }
 
     /// Unit vector across a border in the way of the crossing.

@@ -22,7 +22,7 @@ pub use edits::{
     DEFAULT_Q, Edit, EditKind, EditLimits, MAX_MEET_PEOPLE, MAX_VORTICITY, check_edits_on_map,
     validate_edits,
 };
-pub use pipeline::{LayerKind, LayerSpec, Pipeline, PipelineFile, Scene};
+pub use pipeline::{LayerKind, LayerSpec, People, Pipeline, PipelineFile, Scene};
 pub use settings::{
     CollideSettings, ExportSettings, GraphSettings, MatchSettings, MergeSettings, OptimizeSettings,
     SmoothSettings,

@@ -19,11 +19,18 @@ use std::path::{Path, PathBuf};
 pub struct Pipeline {
     /// The painted layers and their scale.
     pub scene: Scene,
-    /// Walking (exogenous) characters in the whole scene.
+    /// Walking (exogenous) characters in the whole scene, shared out by the `Density` layer
+    /// (with `people: Counted`, the default).
+    #[serde(default)]
     pub walkers: u64,
-    /// Standing (endogenous, static) characters in the whole scene.
+    /// Standing (endogenous, static) characters in the whole scene, shared out by the
+    /// `Static` layer (with `people: Counted`).
     #[serde(default)]
     pub standers: u64,
+    /// How the painted layers become people: totals shared out over the painting, or a
+    /// density per painted pixel, which keeps a brush stroke's change where it was painted.
+    #[serde(default, skip_serializing_if = "People::is_counted")]
+    pub people: People,
     /// Side of the square crowd patches, in metres.
     pub patch_side_m: f64,
     /// Period of the animation, in seconds.
@@ -73,6 +80,25 @@ pub struct LayerSpec {
 
 fn one() -> f64 {
     1.0
+}
+
+/// How the `Density` and `Static` layers become people per m2 (under `optimize.rho_max`).
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub enum People {
+    /// `walkers` and `standers` are totals, shared out in proportion to the paint: a brighter
+    /// stroke anywhere thins the crowd everywhere else.
+    #[default]
+    Counted,
+    /// The paint is a density: a pixel painted full asks this many walkers and standers per m2,
+    /// a half-painted one half as many. A stroke changes only the patches under it.
+    PerSquareMetre { walkers: f64, standers: f64 },
+}
+
+impl People {
+    pub fn is_counted(&self) -> bool {
+        *self == People::Counted
+    }
 }
 
 /// The painted layer kinds of DESIGN.md.
@@ -147,6 +173,39 @@ impl Pipeline {
             ));
         }
         let has = |kind: LayerKind| self.scene.layers.iter().any(|l| l.kind == kind);
+        if let People::PerSquareMetre { walkers, standers } = self.people {
+            for (field, count) in [("walkers", self.walkers), ("standers", self.standers)] {
+                if count > 0 {
+                    return Err(invalid(
+                        field,
+                        format!(
+                            "is {count}, but `people: PerSquareMetre(..)` takes the numbers \
+                             from the painting; leave `{field}` out"
+                        ),
+                    ));
+                }
+            }
+            let per_m2 = "people per m2 where a pixel is painted full, from 0 to 10";
+            for (field, value) in [("people.walkers", walkers), ("people.standers", standers)] {
+                require((0.0..=10.0).contains(&value), field, Num(value), per_m2)?;
+            }
+            if walkers > 0.0 && !has(LayerKind::Density) {
+                return Err(invalid(
+                    "people.walkers",
+                    "asks for walkers but the scene has no `Density` layer saying where they \
+                     walk"
+                        .to_string(),
+                ));
+            }
+            if standers > 0.0 && !has(LayerKind::Static) {
+                return Err(invalid(
+                    "people.standers",
+                    "asks for standers but the scene has no `Static` layer saying where they \
+                     stand"
+                        .to_string(),
+                ));
+            }
+        }
         if self.walkers > 0 && !has(LayerKind::Density) {
             return Err(invalid(
                 "walkers",

@@ -89,6 +89,12 @@ pub struct OptimizeSettings {
     /// The loop stops when E has improved by less than this over the last `patience` steps.
     pub tolerance: f64,
     pub patience: u32,
+    /// Side, in patches, of the square regions optimised apart (none: the world is one
+    /// region). The crossings on a border between two regions are placed once and held, so a
+    /// change re-optimises only the regions it touches and stage 3 holds one region at a time;
+    /// but a flow across a seam gets walkers against it there (ARCHITECTURE.md, "Stage 3 by
+    /// region").
+    pub region_patches: Option<u32>,
 }
 
 impl Default for OptimizeSettings {
@@ -98,6 +104,7 @@ impl Default for OptimizeSettings {
             max_iterations: 400,
             tolerance: 5e-4,
             patience: 30,
+            region_patches: None,
         }
     }
 }
@@ -126,8 +133,20 @@ impl OptimizeSettings {
             self.patience,
             Self::MOST_ITERATIONS,
             "from 1 to 10000 steps to wait for E to gain `tolerance`",
-        )
+        )?;
+        match self.region_patches {
+            Some(side) => count_up_to(
+                "optimize.region_patches",
+                side,
+                Self::MOST_REGION_PATCHES,
+                "a region side from 1 to 4096 patches, or None for one region",
+            ),
+            None => Ok(()),
+        }
     }
+
+    /// The largest region side `region_patches` may ask for.
+    pub const MOST_REGION_PATCHES: u32 = 4096;
 
     /// The most steps `max_iterations` and `patience` may ask for.
     pub const MOST_ITERATIONS: u32 = 10_000;

@@ -1,0 +1,142 @@
+//! A brush stroke rebuilt: with the painting read as people per m2 and stage 3 by region, a
+//! stroke inside one region re-optimises that region alone, and the rebuild writes the bytes of
+//! a build from scratch of the new painting.
+
+use crate::util::*;
+use crowd_core::{Cell, PatchGraph};
+use std::path::Path;
+
+const SIDE: u32 = 16;
+
+/// `city`'s layers, read as densities, in regions of 16 patches.
+fn city_pipeline(dir: &Path) -> std::path::PathBuf {
+    let layers = shared_scenes().join("city");
+    for name in ["density", "static", "direction", "obstacles"] {
+        let file = format!("{name}.png");
+        std::fs::copy(layers.join(&file), dir.join(&file)).unwrap();
+    }
+    let text = format!(
+        "(\n    scene: (\n        meters_per_pixel: 1.0,\n        layers: [\n            \
+         (kind: Density, path: \"density.png\"),\n            (kind: Static, path: \
+         \"static.png\"),\n            (kind: Direction, path: \"direction.png\"),\n            \
+         (kind: Obstacles, path: \"obstacles.png\"),\n        ],\n    ),\n    people: \
+         PerSquareMetre(walkers: 0.1, standers: 0.02),\n    patch_side_m: 8.0,\n    period_s: \
+         20.0,\n    radius_m: 0.3,\n    seed: 1,\n    optimize: (region_patches: \
+         Some({SIDE})),\n    output: \"out\",\n)\n"
+    );
+    let path = dir.join("pipeline.ron");
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+/// A patch whose four neighbours are patches of its own region, none on a seam: a disc over it
+/// and them is a stroke inside one region.
+fn inner_patch(graph: &PatchGraph) -> Cell {
+    let inside = |c: Cell| {
+        (1..SIDE - 1).contains(&(c.col % SIDE)) && (1..SIDE - 1).contains(&(c.row % SIDE))
+    };
+    graph
+        .patches
+        .iter()
+        .map(|p| p.cell)
+        .find(|&c| {
+            inside(c)
+                && [(1, 0), (-1, 0), (0, 1), (0, -1)].iter().all(|(dx, dy)| {
+                    let n = Cell {
+                        col: (c.col as i64 + dx) as u32,
+                        row: (c.row as i64 + dy) as u32,
+                    };
+                    inside(n) && graph.patch_at(n).is_some()
+                })
+        })
+        .expect("city has a patch inside a region")
+}
+
+/// Paints a disc of full density, 5 m in radius, at the middle of `cell` (8 m patches, 1 m
+/// pixels, rows from the north): the patch and its four neighbours.
+fn paint_disc(density: &Path, cell: Cell) {
+    let mut image = image::open(density).unwrap().to_luma8();
+    let h = image.height() as f64;
+    let (cx, cy) = (
+        cell.col as f64 * 8.0 + 4.0,
+        h - (cell.row as f64 * 8.0 + 4.0),
+    );
+    for (x, y, p) in image.enumerate_pixels_mut() {
+        let (dx, dy) = (x as f64 + 0.5 - cx, y as f64 + 0.5 - cy);
+        if dx * dx + dy * dy <= 25.0 {
+            p.0 = [255];
+        }
+    }
+    image.save(density).unwrap();
+}
+
+/// What a build printed (its progress lines go to stderr).
+fn said(out: &std::process::Output) -> String {
+    String::from_utf8_lossy(&out.stdout).into_owned() + &String::from_utf8_lossy(&out.stderr)
+}
+
+/// The number in "N of M regions optimised" of a build's output, and M.
+fn regions_optimised(stdout: &str) -> (u32, u32) {
+    let line = stdout
+        .lines()
+        .find(|l| l.contains("regions optimised"))
+        .unwrap_or_else(|| panic!("stage 3 says how much it redid:\n{stdout}"));
+    let words: Vec<&str> = line.split_whitespace().collect();
+    let at = words.iter().position(|w| *w == "of").unwrap();
+    let number = |w: &str| {
+        w.trim_matches(|c: char| !c.is_ascii_digit())
+            .parse()
+            .unwrap()
+    };
+    (number(words[at - 1]), number(words[at + 1]))
+}
+
+#[test]
+fn a_stroke_inside_one_region_reoptimises_it_alone_and_rebuilds_the_bytes_of_a_fresh_build() {
+    let dir = tempfile::tempdir().unwrap();
+    let pipeline = city_pipeline(dir.path());
+    let out = dir.path().join("out");
+    let first = crowd_ok(&["build", "--pipeline", s(&pipeline)]);
+    let (optimised, regions) = regions_optimised(&said(&first));
+    assert_eq!((optimised, regions), (16, 16), "city is 50 x 50 patches");
+
+    let graph = PatchGraph::load(&out.join("graph.ron")).unwrap();
+    let cell = inner_patch(&graph);
+    paint_disc(&dir.path().join("density.png"), cell);
+    let again = crowd_ok(&["build", "--pipeline", s(&pipeline)]);
+    let stdout = said(&again);
+    assert_eq!(
+        regions_optimised(&stdout),
+        (1, 16),
+        "a stroke at {cell:?} re-optimises its region alone:\n{stdout}"
+    );
+    let changed = PatchGraph::load(&out.join("graph.ron")).unwrap();
+    let moved: Vec<Cell> = graph
+        .patches
+        .iter()
+        .zip(&changed.patches)
+        .filter(|(a, b)| a.walker_density != b.walker_density)
+        .map(|(a, _)| a.cell)
+        .collect();
+    assert!(
+        (1..=5).contains(&moved.len()) && moved.contains(&cell),
+        "the stroke changed the patches under it: {moved:?}"
+    );
+
+    // The same painting built from nothing, in another folder.
+    let scratch = dir.path().join("scratch");
+    crowd_ok(&[
+        "build",
+        "-q",
+        "--pipeline",
+        s(&pipeline),
+        "--output",
+        s(&scratch),
+    ]);
+    let files = snapshot(&scratch);
+    assert!(files.len() > 10, "{} files", files.len());
+    for (file, bytes) in files {
+        let rebuilt = std::fs::read(out.join(&file)).unwrap();
+        assert!(rebuilt == bytes, "{file} differs from a build from scratch");
+    }
+}
