@@ -1,6 +1,7 @@
 //! A brush stroke rebuilt: with the painting read as people per m2 and stage 3 by region, a
-//! stroke inside one region re-optimises that region alone, and the rebuild writes the bytes of
-//! a build from scratch of the new painting.
+//! stroke inside one region re-optimises that region alone, stages 4-6 compute again only the
+//! patches whose inputs changed (at least 90 % are reused), and the rebuild writes the bytes
+//! of a build from scratch of the new painting.
 
 use crate::util::*;
 use crowd_core::{Cell, PatchGraph};
@@ -75,6 +76,22 @@ fn said(out: &std::process::Output) -> String {
     String::from_utf8_lossy(&out.stdout).into_owned() + &String::from_utf8_lossy(&out.stderr)
 }
 
+/// The numbers in stage `stage`'s "N of M patches reused".
+fn patches_reused(said: &str, stage: &str) -> (u32, u32) {
+    let line = said
+        .lines()
+        .find(|l| l.trim_start().starts_with(&format!("{stage}:")) && l.contains("patches reused"))
+        .unwrap_or_else(|| panic!("{stage} says what it reused:\n{said}"));
+    let words: Vec<&str> = line.split_whitespace().collect();
+    let at = words.iter().rposition(|w| *w == "of").unwrap();
+    let number = |w: &str| {
+        w.trim_matches(|c: char| !c.is_ascii_digit())
+            .parse()
+            .unwrap()
+    };
+    (number(words[at - 1]), number(words[at + 1]))
+}
+
 /// The number in "N of M regions optimised" of a build's output, and M.
 fn regions_optimised(stdout: &str) -> (u32, u32) {
     let line = stdout
@@ -92,7 +109,7 @@ fn regions_optimised(stdout: &str) -> (u32, u32) {
 }
 
 #[test]
-fn a_stroke_inside_one_region_reoptimises_it_alone_and_rebuilds_the_bytes_of_a_fresh_build() {
+fn a_stroke_reuses_nine_patches_in_ten_and_rebuilds_the_bytes_of_a_fresh_build() {
     let dir = tempfile::tempdir().unwrap();
     let pipeline = city_pipeline(dir.path());
     let out = dir.path().join("out");
@@ -110,6 +127,18 @@ fn a_stroke_inside_one_region_reoptimises_it_alone_and_rebuilds_the_bytes_of_a_f
         (1, 16),
         "a stroke at {cell:?} re-optimises its region alone:\n{stdout}"
     );
+    // Stages 4-6 compute again only the patches whose inputs changed.
+    let mut reused = Vec::new();
+    for stage in ["match", "collide", "smooth"] {
+        let (kept, total) = patches_reused(&stdout, stage);
+        assert_eq!(total as usize, graph.patches.len());
+        assert!(
+            10 * kept >= 9 * total,
+            "{stage} reused {kept} of {total} patches:\n{stdout}"
+        );
+        reused.push((stage, kept, total));
+    }
+    eprintln!("reused after the stroke: {reused:?}");
     let changed = PatchGraph::load(&out.join("graph.ron")).unwrap();
     let moved: Vec<Cell> = graph
         .patches
@@ -138,5 +167,19 @@ fn a_stroke_inside_one_region_reoptimises_it_alone_and_rebuilds_the_bytes_of_a_f
     for (file, bytes) in files {
         let rebuilt = std::fs::read(out.join(&file)).unwrap();
         assert!(rebuilt == bytes, "{file} differs from a build from scratch");
+    }
+
+    // Every stage forced to run again with nothing changed reuses every region and patch.
+    let forced = said(&crowd_ok(&["build", "--pipeline", s(&pipeline), "--force"]));
+    assert_eq!(regions_optimised(&forced), (0, 16), "{forced}");
+    for stage in ["match", "collide", "smooth"] {
+        let (kept, total) = patches_reused(&forced, stage);
+        assert_eq!(kept, total, "{stage}: {forced}");
+    }
+    for (file, bytes) in snapshot(&scratch) {
+        assert!(
+            std::fs::read(out.join(&file)).unwrap() == bytes,
+            "{file} after --force"
+        );
     }
 }

@@ -13,6 +13,7 @@ pub mod inspect;
 pub mod memory;
 pub mod report;
 pub mod report_md;
+pub mod reuse;
 pub mod stage;
 pub mod stages;
 pub mod ui;

@@ -6,14 +6,17 @@
 
 use crate::artifacts::Artifacts;
 use crate::driver::Split;
+use crate::reuse;
 use crate::stage::{Ran, Stage};
 use crate::ui::Ui;
 use anyhow::{Result, anyhow, bail};
 use crowd_core::files::{self, Header};
 use crowd_core::maps::MergeFile;
+use crowd_core::patch_keys::Seen;
 use crowd_core::patterns::Patterns;
 use crowd_core::trajectories::{PatchMotion, TrajectoriesFile};
 use crowd_core::{Hash, PatchGraph};
+use rayon::prelude::*;
 use std::path::Path;
 
 /// The stage files, by the stage that writes them (side files are named in them).
@@ -145,7 +148,7 @@ pub static MATCH: Stage = Stage {
             the patterns beside the input)",
     reads: &[GRAPH_FILE, PATTERNS_FILE],
     output: TRAJECTORIES_FILE,
-    writes: &["trajectories.bin", TRAJECTORIES_FILE],
+    writes: &["trajectories.bin", "trajectories.keys", TRAJECTORIES_FILE],
     kind: TrajectoriesFile::STAGE,
     version: TrajectoriesFile::VERSION,
     hash: |a| {
@@ -164,7 +167,7 @@ pub static COLLIDE: Stage = Stage {
     about: "Stage 5: push walkers apart (reads the trajectories and the graph beside them)",
     reads: &[GRAPH_FILE, TRAJECTORIES_FILE],
     output: COLLIDED_FILE,
-    writes: &["collided.bin", COLLIDED_FILE],
+    writes: &["collided.bin", "collided.keys", COLLIDED_FILE],
     kind: crowd_collide::STAGE,
     version: crowd_collide::VERSION,
     hash: |a| {
@@ -184,7 +187,7 @@ pub static SMOOTH: Stage = Stage {
             and patterns beside them)",
     reads: &[GRAPH_FILE, PATTERNS_FILE, COLLIDED_FILE],
     output: SMOOTHED_FILE,
-    writes: &["smoothed.bin", SMOOTHED_FILE],
+    writes: &["smoothed.bin", "smoothed.keys", SMOOTHED_FILE],
     kind: crowd_smooth::STAGE,
     version: crowd_smooth::VERSION,
     hash: |a| {
@@ -378,10 +381,33 @@ fn matching(a: &mut Artifacts, out: &Path, hash: Hash, ui: &Ui) -> Result<Ran> {
     let (graph, patterns) = (a.graph()?, a.patterns()?);
     let (patterns, crossings) = (&patterns.0, &patterns.1);
     let inputs = crowd_match::inputs(a.pipeline);
-    let motion = crowd_match::match_all(&graph, crossings, &patterns.measured, &inputs, &bar);
+    let measured = &patterns.measured;
+    let seen = Seen::new(&graph, crossings);
+    let keys: Vec<Hash> = (0..graph.patches.len())
+        .into_par_iter()
+        .map(|p| crowd_match::patch_key(&seen, p, measured[p].standers, &inputs))
+        .collect();
+    let previous = reuse::Previous::load(out);
+    let mut motion = reuse::reusable(previous.as_ref(), &keys, &seen.tables);
+    drop(previous);
+    let todo: Vec<usize> = (0..motion.len()).filter(|&p| motion[p].is_none()).collect();
+    let made = crowd_match::match_patches(&graph, crossings, measured, &inputs, &bar, &todo);
+    for (&p, m) in todo.iter().zip(made) {
+        motion[p] = Some((m, Vec::new()));
+    }
+    let motion: Vec<PatchMotion> = motion
+        .into_iter()
+        .map(|m| m.expect("every patch").0)
+        .collect();
     let (file, writes) = crowd_match::encode(out, &motion, &graph, &inputs, hash);
+    let extra = vec![Vec::new(); keys.len()];
+    let writes = with_keys(out, writes, file.motion.hash, keys, &seen.tables, extra);
+    let note = reuse::note(motion.len() - todo.len(), motion.len());
     a.made_motion(&MATCH, (file, motion));
-    Ok(Ran::files(writes))
+    Ok(Ran {
+        note: Some(note),
+        ..Ran::files(writes)
+    })
 }
 
 fn collide(a: &mut Artifacts, out: &Path, hash: Hash, ui: &Ui) -> Result<Ran> {
@@ -389,13 +415,52 @@ fn collide(a: &mut Artifacts, out: &Path, hash: Hash, ui: &Ui) -> Result<Ran> {
     let graph = a.graph()?;
     let s = crowd_collide::inputs(a.pipeline);
     let dir = out.parent().unwrap_or(Path::new("."));
-    let (motion, reports) = match a.split {
+    match a.split {
         Split::Whole => {
             let matched = a.take_motion(&MATCH)?;
-            crowd_collide::collide_or_first_stall(&graph, &matched.1, &s, &bar)
-                .map_err(|stall| collide_stall(&graph, &s, stall))?
+            let patterns = a.patterns()?;
+            let seen = Seen::new(&graph, &patterns.1);
+            let matched_motion: &[PatchMotion] = &matched.1;
+            let keys: Vec<Hash> = (0..graph.patches.len())
+                .into_par_iter()
+                .map(|p| crowd_collide::patch_key(&seen, p, &matched_motion[p], &s))
+                .collect();
+            let previous = reuse::Previous::load(out);
+            let mut done = reuse::reusable(previous.as_ref(), &keys, &seen.tables);
+            drop(previous);
+            let todo: Vec<usize> = (0..done.len()).filter(|&p| done[p].is_none()).collect();
+            let made = crowd_collide::collide_patches(&graph, &matched.1, &s, &bar, &todo)
+                .map_err(|stall| collide_stall(&graph, &s, stall))?;
+            drop(matched);
+            for (m, report) in made {
+                let p = report.patch as usize;
+                done[p] = Some((m, ron::to_string(&report)?.into_bytes()));
+            }
+            let mut motion = Vec::with_capacity(done.len());
+            let mut reports = Vec::with_capacity(done.len());
+            for d in done {
+                let (m, bytes) = d.expect("every patch cleared or reused");
+                reports.push(ron::from_str(std::str::from_utf8(&bytes)?)?);
+                motion.push(m);
+            }
+            let note = reuse::note(motion.len() - todo.len(), motion.len());
+            finish_collide(a, out, hash, (motion, reports), (keys, seen.tables), note)
         }
-        Split::Gather => crowd_collide::shard::gather(dir, hash, &a.shard_costs()?)?,
+        Split::Gather => {
+            let gathered = crowd_collide::shard::gather(dir, hash, &a.shard_costs()?)?;
+            // The keys a whole build would leave, so that the next build reuses patches.
+            let matched = a.take_motion(&MATCH)?;
+            let patterns = a.patterns()?;
+            let seen = Seen::new(&graph, &patterns.1);
+            let matched_motion: &[PatchMotion] = &matched.1;
+            let keys: Vec<Hash> = (0..graph.patches.len())
+                .into_par_iter()
+                .map(|p| crowd_collide::patch_key(&seen, p, &matched_motion[p], &s))
+                .collect();
+            drop(matched);
+            let note = "gathered".to_string();
+            finish_collide(a, out, hash, gathered, (keys, seen.tables), note)
+        }
         Split::Shard(shard) => {
             let own: Vec<usize> = shard.run(&a.shard_costs()?).collect();
             let cleared = crowd_collide::shard::with_neighbours(&graph, &own);
@@ -421,12 +486,33 @@ fn collide(a: &mut Artifacts, out: &Path, hash: Hash, ui: &Ui) -> Result<Ran> {
                 crowd_collide::shard::encode_shard(dir, shard, hash, part)
             })?;
             a.shard_collided = Some(motion);
-            return Ok(Ran::files(writes));
+            Ok(Ran::files(writes))
         }
-    };
+    }
+}
+
+/// Stage 5's files from every patch's motion and report, with the keys of each patch.
+fn finish_collide(
+    a: &mut Artifacts,
+    out: &Path,
+    hash: Hash,
+    (motion, reports): (Vec<PatchMotion>, Vec<crowd_collide::PatchReport>),
+    (keys, tables): (Vec<Hash>, Vec<crowd_core::patch_keys::Table>),
+    note: String,
+) -> Result<Ran> {
+    let graph = a.graph()?;
+    let s = crowd_collide::inputs(a.pipeline);
     let (file, writes) = crowd_collide::encode(out, &motion, &reports, &graph, &s, hash);
+    let extra = reports
+        .iter()
+        .map(|r| ron::to_string(r).map(String::into_bytes))
+        .collect::<std::result::Result<Vec<_>, _>>()?;
+    let writes = with_keys(out, writes, file.motion.hash, keys, &tables, extra);
     a.made_motion(&COLLIDE, (file, motion));
-    Ok(Ran::files(writes))
+    Ok(Ran {
+        note: Some(note),
+        ..Ran::files(writes)
+    })
 }
 
 /// Stage 5's refusal when a patch stalls.
@@ -484,14 +570,72 @@ fn smooth(a: &mut Artifacts, out: &Path, hash: Hash, ui: &Ui) -> Result<Ran> {
         Split::Whole => None,
     };
     let collided = a.take_motion(&COLLIDE)?;
-    let (motion, summary) = match gathered {
-        Some(done) => done,
-        None => crowd_smooth::smooth(&graph, &patterns.1, &collided.1, &inputs, &bar),
+    let seen = Seen::new(&graph, &patterns.1);
+    let collided_motion: &[PatchMotion] = &collided.1;
+    let keys: Vec<Hash> = (0..graph.patches.len())
+        .into_par_iter()
+        .map(|p| crowd_smooth::patch_key(&seen, p, collided_motion, &inputs))
+        .collect();
+    let counted = |counts: [u64; 3]| counts.iter().flat_map(|c| c.to_le_bytes()).collect();
+    let (mut done, todo) = match gathered {
+        Some(parts) => {
+            let done = parts
+                .into_iter()
+                .map(|(m, c)| Some((m, counted(c))))
+                .collect();
+            (done, Vec::new())
+        }
+        None => {
+            let previous = reuse::Previous::load(out);
+            let done = reuse::reusable(previous.as_ref(), &keys, &seen.tables);
+            let todo: Vec<usize> = (0..done.len()).filter(|&p| done[p].is_none()).collect();
+            (done, todo)
+        }
     };
+    let made = crowd_smooth::smooth_patches(&graph, &patterns.1, &collided.1, &inputs, &bar, &todo);
+    for (&p, (m, counts)) in todo.iter().zip(made) {
+        done[p] = Some((m, counted(counts)));
+    }
+    let mut motion = Vec::with_capacity(done.len());
+    let mut counts = Vec::with_capacity(done.len());
+    let mut extra = Vec::with_capacity(done.len());
+    for d in done {
+        let (m, bytes) = d.expect("every patch smoothed or reused");
+        let count = |i: usize| {
+            bytes
+                .get(8 * i..8 * i + 8)
+                .and_then(|b| b.try_into().ok())
+                .map_or(0, u64::from_le_bytes)
+        };
+        counts.push([count(0), count(1), count(2)]);
+        motion.push(m);
+        extra.push(bytes);
+    }
+    let summary = crowd_smooth::summary_of(counts.into_iter());
     let (file, writes) = crowd_smooth::encode(out, &motion, summary, &collided.0, &inputs, hash);
     drop(collided);
+    let writes = with_keys(out, writes, file.motion.hash, keys, &seen.tables, extra);
+    let note = reuse::note(motion.len() - todo.len(), motion.len());
     a.made_motion(&SMOOTH, (file, motion));
-    Ok(Ran::files(writes))
+    Ok(Ran {
+        note: Some(note),
+        ..Ran::files(writes)
+    })
+}
+
+/// A stage's writes with its keys file put before its stage file (which comes last).
+fn with_keys(
+    out: &Path,
+    mut writes: files::Writes,
+    side: Hash,
+    keys: Vec<Hash>,
+    tables: &[crowd_core::patch_keys::Table],
+    extra: Vec<Vec<u8>>,
+) -> files::Writes {
+    let seal = writes.pop().expect("the stage file comes last");
+    writes.push(reuse::keys_file(out, side, keys, tables, extra));
+    writes.push(seal);
+    writes
 }
 
 /// A shard's files (`encode`), in `dir/shards`, made first so that they can be written.

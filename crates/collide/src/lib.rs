@@ -415,6 +415,26 @@ fn costly_first(motion: &[PatchMotion]) -> Vec<usize> {
 pub const STAGE: &str = "collide";
 pub const VERSION: u32 = 16;
 
+/// Everything patch `p`'s stage 5 depends on, hashed: its stage 4 motion (in its own
+/// numbering of its crossings), its surroundings (the obstacles near it), its index (its
+/// random stream) and the settings.
+pub fn patch_key(
+    seen: &crowd_core::patch_keys::Seen,
+    p: usize,
+    matched: &PatchMotion,
+    inputs: &Inputs,
+) -> crowd_core::Hash {
+    let motion = crowd_core::patch_keys::local_bytes(&seen.tables[p], matched);
+    let mut h = crowd_core::Hasher::new("collide patch", VERSION);
+    h.value("world", &seen.graph.world)
+        .value("radius", &seen.graph.radius_m)
+        .value("index", &p)
+        .value("surroundings", &seen.surroundings(p))
+        .part("motion", &motion)
+        .value("inputs", inputs);
+    h.finish()
+}
+
 /// What stage 5 reads of a pipeline besides its input files.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct Inputs {

@@ -13,6 +13,7 @@ pub mod grid;
 pub mod hash;
 pub mod maps;
 pub mod patch_graph;
+pub mod patch_keys;
 pub mod patterns;
 pub mod progress;
 pub mod shard;

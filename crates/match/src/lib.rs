@@ -277,6 +277,51 @@ pub fn match_all(
         .collect()
 }
 
+/// The motion of the patches `patches` only (in that order; in parallel): a rebuild computes
+/// the patches whose [`patch_key`] changed.
+pub fn match_patches(
+    graph: &PatchGraph,
+    crossings: &[Crossing],
+    measured: &[Measured],
+    inputs: &Inputs,
+    progress: &dyn crowd_core::Progress,
+    patches: &[usize],
+) -> Vec<PatchMotion> {
+    use rayon::prelude::*;
+    let matcher = Matcher::new(graph, crossings, &inputs.settings, inputs.period_s);
+    progress.begin("match", patches.len() as u64);
+    patches
+        .par_iter()
+        .map(|&p| {
+            let m = matcher.motion(p, measured[p].standers, inputs.seed);
+            progress.advance(1);
+            m
+        })
+        .collect()
+}
+
+/// Everything patch `p`'s stage 4 depends on, hashed: its surroundings (its crossings, its
+/// borders, the patches around it), its standers, its index (standers are placed with a seed
+/// of it) and the settings.
+pub fn patch_key(
+    seen: &crowd_core::patch_keys::Seen,
+    p: usize,
+    standers: u32,
+    inputs: &Inputs,
+) -> crowd_core::Hash {
+    use crowd_core::trajectories::TrajectoriesFile;
+    crowd_core::Hasher::new("match patch", TrajectoriesFile::VERSION)
+        .value("world", &seen.graph.world)
+        .value("radius", &seen.graph.radius_m)
+        .value("index", &p)
+        .value("standers", &standers)
+        .value("surroundings", &seen.surroundings(p))
+        .value("period", &inputs.period_s)
+        .value("seed", &inputs.seed)
+        .value("settings", &inputs.settings)
+        .finish()
+}
+
 /// Stage 4's files, encoded: the motion side file, then `trajectories.ron`.
 pub fn encode(
     out: &std::path::Path,

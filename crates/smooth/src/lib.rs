@@ -42,6 +42,33 @@ use rayon::prelude::*;
 pub const STAGE: &str = "smooth";
 pub const VERSION: u32 = 10;
 
+/// Everything patch `p`'s stage 6 depends on, hashed: its stage 5 motion and its four
+/// neighbours' (each in its own numbering, with its crossings: the velocity at a crossing is
+/// what both sides walk there), its surroundings and the settings.
+pub fn patch_key(
+    seen: &crowd_core::patch_keys::Seen,
+    p: usize,
+    collided: &[PatchMotion],
+    inputs: &Inputs,
+) -> Hash {
+    use crowd_core::patch_keys::{local_bytes, neighbours};
+    let mut h = crowd_core::Hasher::new("smooth patch", VERSION);
+    h.value("world", &seen.graph.world)
+        .value("radius", &seen.graph.radius_m)
+        .value("surroundings", &seen.surroundings(p))
+        .part("motion", &local_bytes(&seen.tables[p], &collided[p]))
+        .value("inputs", inputs);
+    for q in neighbours(seen.graph, p) {
+        match q {
+            Some(q) => h
+                .value("neighbour crossings", &seen.surroundings(q).crossings)
+                .part("neighbour", &local_bytes(&seen.tables[q], &collided[q])),
+            None => h.part("no neighbour", &[]),
+        };
+    }
+    h.finish()
+}
+
 /// What stage 6 reads of a pipeline besides its input files.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct Inputs {

@@ -4,7 +4,7 @@
 //! carries [`part_hash`]: stage 5's input hash (what the collided motion is made from), the
 //! patterns and stage 6's settings, which the gathering build, holding all of these, checks.
 
-use crate::{Inputs, SmoothingSummary};
+use crate::Inputs;
 use crowd_core::files::{Header, Writes};
 use crowd_core::shard::{encode_part, gather_parts};
 use crowd_core::trajectories::PatchMotion;
@@ -40,13 +40,7 @@ pub fn encode_shard(
 
 /// Stage 6's motion for every patch and its summary, from every shard's part in
 /// `dir/shards` (each made for `hash`, holding the patches its shard owns by `costs`).
-pub fn gather(
-    dir: &Path,
-    hash: Hash,
-    costs: &[u64],
-) -> Result<(Vec<PatchMotion>, SmoothingSummary)> {
+pub fn gather(dir: &Path, hash: Hash, costs: &[u64]) -> Result<Vec<(PatchMotion, [u64; 3])>> {
     let header = Header::new(crate::STAGE, crate::VERSION, hash);
-    let parts: Vec<(PatchMotion, [u64; 3])> = gather_parts(dir, &header, costs)?;
-    let summary = crate::summary_of(parts.iter().map(|p| p.1));
-    Ok((parts.into_iter().map(|p| p.0).collect(), summary))
+    gather_parts(dir, &header, costs)
 }

@@ -1,0 +1,93 @@
+//! Patch-level reuse for stages 4-6, at the edge: the last build's keys (`STAGE.keys`) and
+//! its side file are read before the stage runs; every patch whose key is unchanged is taken
+//! from there (renumbered to the new patterns), and only the rest is computed. The files are
+//! then the bytes of a build from scratch (`tests/strokes.rs`).
+
+use crowd_core::Hash;
+use crowd_core::patch_keys::{Keys, Record, Table};
+use crowd_core::trajectories::{MotionIndex, PatchMotion, TrajectoriesFile};
+use std::path::{Path, PathBuf};
+
+/// The keys file beside a stage file.
+pub fn keys_path(stage_file: &Path) -> PathBuf {
+    stage_file.with_extension("keys")
+}
+
+/// A stage's output of the last build, where its keys belong to it.
+pub struct Previous {
+    keys: Keys,
+    bytes: Vec<u8>,
+    index: MotionIndex,
+    side: PathBuf,
+}
+
+impl Previous {
+    /// The last build's `stage_file` and its keys; `None` when either is missing, damaged,
+    /// of another version or not of the same build.
+    pub fn load(stage_file: &Path) -> Option<Previous> {
+        let keys = Keys::decode(&std::fs::read(keys_path(stage_file)).ok()?)?;
+        let file: TrajectoriesFile = crowd_core::files::read_ron(stage_file).ok()?;
+        if file.motion.hash != keys.side {
+            return None;
+        }
+        let bytes = file.motion.read(stage_file).ok()?;
+        let side = stage_file.with_file_name(&file.motion.file);
+        let index = MotionIndex::of(&side, &bytes).ok()?;
+        (index.patches() == keys.patches.len()).then_some(Previous {
+            keys,
+            bytes,
+            index,
+            side,
+        })
+    }
+
+    /// Patch `p`'s motion (numbered by `table`) and figures, if its key was `key`.
+    pub fn take(&self, p: usize, key: Hash, table: &Table) -> Option<(PatchMotion, &[u8])> {
+        let record = self.keys.patches.get(p).filter(|r| r.key == key)?;
+        let motion = self.index.decode(&self.side, &self.bytes, p).ok()?;
+        Some((record.table.renumber(table, motion), &record.extra))
+    }
+}
+
+/// Per patch, what the last build left that still holds (`None`: compute it).
+pub fn reusable(
+    previous: Option<&Previous>,
+    keys: &[Hash],
+    tables: &[Table],
+) -> Vec<Option<(PatchMotion, Vec<u8>)>> {
+    use rayon::prelude::*;
+    (0..keys.len())
+        .into_par_iter()
+        .map(|p| {
+            let (m, extra) = previous?.take(p, keys[p], &tables[p])?;
+            Some((m, extra.to_vec()))
+        })
+        .collect()
+}
+
+/// The keys file of a stage whose side file hashes to `side`.
+pub fn keys_file(
+    stage_file: &Path,
+    side: Hash,
+    keys: Vec<Hash>,
+    tables: &[Table],
+    extra: Vec<Vec<u8>>,
+) -> (PathBuf, Vec<u8>) {
+    let patches = keys
+        .into_iter()
+        .zip(tables)
+        .zip(extra)
+        .map(|((key, table), extra)| Record {
+            key,
+            table: table.clone(),
+            extra,
+        })
+        .collect();
+    let keys = Keys { side, patches };
+    (keys_path(stage_file), keys.encode())
+}
+
+/// "N of M patches reused", for a stage's line.
+pub fn note(reused: usize, total: usize) -> String {
+    format!("{reused} of {total} patches reused")
+}
