@@ -571,11 +571,7 @@ fn smooth(a: &mut Artifacts, out: &Path, hash: Hash, ui: &Ui) -> Result<Ran> {
     };
     let collided = a.take_motion(&COLLIDE)?;
     let seen = Seen::new(&graph, &patterns.1);
-    let collided_motion: &[PatchMotion] = &collided.1;
-    let keys: Vec<Hash> = (0..graph.patches.len())
-        .into_par_iter()
-        .map(|p| crowd_smooth::patch_key(&seen, p, collided_motion, &inputs))
-        .collect();
+    let keys = crowd_smooth::patch_keys(&seen, &collided.1, &inputs);
     let counted = |counts: [u64; 3]| counts.iter().flat_map(|c| c.to_le_bytes()).collect();
     let (mut done, todo) = match gathered {
         Some(parts) => {

@@ -36,6 +36,20 @@ pub fn fill(img: &mut GrayImage, r: Rect, level: u8) {
     }
 }
 
+/// Paints a hard disc of `level` (a round brush), centre and radius in pixels; returns how
+/// many pixels it covered.
+pub fn disc(img: &mut GrayImage, cx: f64, cy: f64, radius: f64, level: u8) -> usize {
+    let mut painted = 0;
+    for (x, y, p) in img.enumerate_pixels_mut() {
+        let (dx, dy) = (x as f64 + 0.5 - cx, y as f64 + 0.5 - cy);
+        if dx * dx + dy * dy <= radius * radius {
+            *p = Luma([level]);
+            painted += 1;
+        }
+    }
+    painted
+}
+
 /// Adds a soft disc (a blob of paint) of peak `level` and radius `radius` pixels.
 pub fn blob(img: &mut GrayImage, cx: f64, cy: f64, radius: f64, level: u8) {
     let (w, h) = img.dimensions();
@@ -114,5 +128,22 @@ pub fn pocket(img: &mut GrayImage, r: Rect) {
         if edge {
             img.put_pixel(x, y, Luma([255]));
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_disc_paints_the_pixels_whose_centres_are_within_its_radius() {
+        let mut img = GrayImage::new(20, 20);
+        let painted = disc(&mut img, 10.0, 10.0, 3.0, 200);
+        // Pixel centres (x + 0.5, y + 0.5) within 3 of (10, 10): rows of 6, 6, 4 columns
+        // out from the middle on each side, 32 in all.
+        assert_eq!(painted, 32);
+        assert_eq!(img.get_pixel(10, 10).0, [200]);
+        assert_eq!(img.get_pixel(13, 10).0, [0]);
+        assert_eq!(img.pixels().filter(|p| p.0 == [200]).count(), painted);
     }
 }

@@ -4,7 +4,7 @@
 
 use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand};
-use crowd_paintings::{Limits, random, verdict};
+use crowd_paintings::{Limits, brush, random, verdict};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
@@ -28,6 +28,22 @@ enum Task {
         max_patches: u32,
         #[arg(long)]
         out: PathBuf,
+    },
+    /// Paint one brush stroke into a gray layer, in place: a full disc (what an artist's
+    /// round brush leaves), to time the rebuild it causes.
+    Stroke {
+        /// The gray PNG layer to paint on.
+        #[arg(long)]
+        layer: PathBuf,
+        /// The disc's centre, in pixels from the top-left corner: `X,Y`.
+        #[arg(long, value_parser = parse_point)]
+        at: (f64, f64),
+        /// The disc's radius, in pixels.
+        #[arg(long)]
+        radius: f64,
+        /// The gray level painted, 0-255.
+        #[arg(long, default_value_t = 255)]
+        level: u8,
     },
     /// Build the paintings of seeds FROM.. FROM+SCENES-1 and check every guarantee.
     Soak {
@@ -57,6 +73,22 @@ fn main() -> Result<()> {
             println!("{}", pipeline.display());
             Ok(())
         }
+        Task::Stroke {
+            layer,
+            at,
+            radius,
+            level,
+        } => {
+            let mut image = image::open(&layer)
+                .with_context(|| format!("{}: not a readable image", layer.display()))?
+                .to_luma8();
+            let painted = brush::disc(&mut image, at.0, at.1, radius, level);
+            image
+                .save(&layer)
+                .with_context(|| format!("{}: cannot write", layer.display()))?;
+            println!("{}: {painted} pixels painted", layer.display());
+            Ok(())
+        }
         Task::Soak {
             crowd,
             scenes,
@@ -65,6 +97,21 @@ fn main() -> Result<()> {
             out,
         } => soak(&crowd, from..from + scenes, Limits { max_patches }, &out),
     }
+}
+
+/// `X,Y` as two numbers.
+fn parse_point(text: &str) -> std::result::Result<(f64, f64), String> {
+    let (x, y) = text
+        .split_once(',')
+        .ok_or_else(|| format!("expected X,Y, got {text:?}"))?;
+    let number = |v: &str| {
+        v.trim()
+            .parse::<f64>()
+            .ok()
+            .filter(|v| v.is_finite())
+            .ok_or_else(|| format!("expected a number, got {v:?}"))
+    };
+    Ok((number(x)?, number(y)?))
 }
 
 /// What became of one painting.

@@ -42,31 +42,41 @@ use rayon::prelude::*;
 pub const STAGE: &str = "smooth";
 pub const VERSION: u32 = 10;
 
-/// Everything patch `p`'s stage 6 depends on, hashed: its stage 5 motion and its four
-/// neighbours' (each in its own numbering, with its crossings: the velocity at a crossing is
-/// what both sides walk there), its surroundings and the settings.
-pub fn patch_key(
+/// Everything each patch's stage 6 depends on, hashed: its stage 5 motion and its four
+/// neighbours' (each in its own numbering, with its surroundings: the velocity at a crossing is
+/// what both sides walk there), its surroundings and the settings. Each patch's own part is
+/// hashed once, then combined with its neighbours'.
+pub fn patch_keys(
     seen: &crowd_core::patch_keys::Seen,
-    p: usize,
     collided: &[PatchMotion],
     inputs: &Inputs,
-) -> Hash {
+) -> Vec<Hash> {
     use crowd_core::patch_keys::{local_bytes, neighbours};
-    let mut h = crowd_core::Hasher::new("smooth patch", VERSION);
-    h.value("world", &seen.graph.world)
-        .value("radius", &seen.graph.radius_m)
-        .value("surroundings", &seen.surroundings(p))
-        .part("motion", &local_bytes(&seen.tables[p], &collided[p]))
-        .value("inputs", inputs);
-    for q in neighbours(seen.graph, p) {
-        match q {
-            Some(q) => h
-                .value("neighbour crossings", &seen.surroundings(q).crossings)
-                .part("neighbour", &local_bytes(&seen.tables[q], &collided[q])),
-            None => h.part("no neighbour", &[]),
-        };
-    }
-    h.finish()
+    use rayon::prelude::*;
+    let n = collided.len();
+    let own: Vec<Hash> = (0..n)
+        .into_par_iter()
+        .map(|p| {
+            let mut h = crowd_core::Hasher::new("smooth patch part", VERSION);
+            h.value("surroundings", &seen.surroundings(p))
+                .part("motion", &local_bytes(&seen.tables[p], &collided[p]));
+            h.finish()
+        })
+        .collect();
+    (0..n)
+        .into_par_iter()
+        .map(|p| {
+            let mut h = crowd_core::Hasher::new("smooth patch", VERSION);
+            h.value("world", &seen.graph.world)
+                .value("radius", &seen.graph.radius_m)
+                .value("inputs", inputs)
+                .value("own", &own[p]);
+            for q in neighbours(seen.graph, p) {
+                h.value("neighbour", &q.map(|q| own[q]));
+            }
+            h.finish()
+        })
+        .collect()
 }
 
 /// What stage 6 reads of a pipeline besides its input files.
