@@ -183,3 +183,30 @@ fn a_stroke_reuses_nine_patches_in_ten_and_rebuilds_the_bytes_of_a_fresh_build()
         );
     }
 }
+
+/// The caches are only caches: cut, emptied or swapped between stages, a rebuild computes
+/// everything again and writes the same bytes.
+#[test]
+fn damaged_caches_are_missed_reuse_never_an_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let pipeline = city_pipeline(dir.path());
+    let out = dir.path().join("out");
+    crowd_ok(&["build", "-q", "--pipeline", s(&pipeline)]);
+    let before = snapshot(&out);
+    let cut = |name: &str| {
+        let path = out.join(name);
+        let bytes = std::fs::read(&path).unwrap();
+        std::fs::write(&path, &bytes[..bytes.len() / 2]).unwrap();
+    };
+    cut("regions.bin");
+    cut("trajectories.keys");
+    std::fs::write(out.join("collided.keys"), b"").unwrap();
+    std::fs::copy(out.join("trajectories.keys"), out.join("smoothed.keys")).unwrap();
+    let again = said(&crowd_ok(&["build", "--pipeline", s(&pipeline), "--force"]));
+    assert_eq!(regions_optimised(&again), (16, 16), "{again}");
+    for stage in ["match", "collide", "smooth"] {
+        assert_eq!(patches_reused(&again, stage).0, 0, "{stage}: {again}");
+    }
+    assert!(!again.contains("panicked"), "{again}");
+    assert_eq!(snapshot(&out), before);
+}
