@@ -205,6 +205,28 @@ fn people_per_square_metre_refuses_totals_and_bad_densities() {
         );
         assert!(!dir.path().join("out").exists());
     }
+    // Nobody at all, and more than the machine could hold, are refused before any stage too.
+    for (densities, expected, extra) in [
+        (
+            "walkers: 0.0, standers: 0.0",
+            "asks for no walker and no stander",
+            vec![],
+        ),
+        (
+            "walkers: 0.3, standers: 0.0",
+            "`people` asks for up to",
+            vec!["--max-memory", "1000000"],
+        ),
+    ] {
+        let dir = tempfile::tempdir().unwrap();
+        let value = format!("0,\n    people: PerSquareMetre({densities})");
+        let (pipeline, _) = broken(dir.path(), BANDS, "walkers", &value);
+        let mut args = vec!["build", "-q", "--pipeline", s(&pipeline)];
+        args.extend(extra);
+        let err = crowd_err(&args);
+        assert!(err.contains(expected), "{densities}: {err}");
+        assert!(!dir.path().join("out").exists());
+    }
 }
 
 #[test]

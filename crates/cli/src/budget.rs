@@ -15,7 +15,7 @@
 //! | painting | 95,000 | 20 s | 2.81-3.39 GB | 3.37 GB |
 //! | bands, period 600 s | 1,100 | 600 s | 313 MB | 336 MB |
 
-use crowd_core::config::PipelineFile;
+use crowd_core::config::{People, PipelineFile};
 
 /// Memory of a build whatever its size, bytes: the binary, the maps, the graph.
 const BASE: f64 = 40e6;
@@ -27,8 +27,28 @@ const PERIOD_POWER: f64 = 0.6;
 /// The estimated peak memory of building `pipeline`, bytes.
 pub fn estimate(pipeline: &PipelineFile) -> f64 {
     let p = &pipeline.pipeline;
-    let characters = p.walkers as f64 + p.standers as f64;
-    BASE + characters * PER_WALKER * (p.period_s / 20.0).powf(PERIOD_POWER)
+    BASE + characters(pipeline) * PER_WALKER * (p.period_s / 20.0).powf(PERIOD_POWER)
+}
+
+/// The characters a build may place: the totals, or with `people: PerSquareMetre(..)` the
+/// most the painted scene can hold (every pixel painted full, under `optimize.rho_max`; the
+/// layers' sizes are read from their headers).
+fn characters(pipeline: &PipelineFile) -> f64 {
+    let p = &pipeline.pipeline;
+    match p.people {
+        People::Counted => p.walkers as f64 + p.standers as f64,
+        People::PerSquareMetre { walkers, standers } => {
+            let (w, h) = p
+                .scene
+                .layers
+                .iter()
+                .filter_map(|l| image::image_dimensions(pipeline.resolve(&l.path)).ok())
+                .fold((0u32, 0u32), |(w, h), (lw, lh)| (w.max(lw), h.max(lh)));
+            let area = w as f64 * h as f64 * p.scene.meters_per_pixel.powi(2);
+            let rho = p.optimize.rho_max;
+            area * (walkers.min(rho) + standers.min(rho)).min(rho)
+        }
+    }
 }
 
 /// The memory a build may take by default: the machine's (`MemTotal`), where the system says.
@@ -52,6 +72,21 @@ pub fn check(pipeline: &PipelineFile, limit: Option<u64>) -> crowd_core::Result<
         return Ok(());
     }
     let p = &pipeline.pipeline;
+    if let People::PerSquareMetre { .. } = p.people {
+        return Err(pipeline.field_error(
+            "people",
+            format!(
+                "asks for up to {:.0} characters where the layers are painted full, over a {} \
+                 s period: the build could need about {} at peak, more than the {} of \
+                 {source}; lower the densities (or `period_s`), or raise --max-memory if the \
+                 machine has more to give",
+                characters(pipeline),
+                p.period_s,
+                size(need),
+                size(limit as f64)
+            ),
+        ));
+    }
     Err(pipeline.field_error(
         "walkers",
         format!(

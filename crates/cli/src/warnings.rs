@@ -199,10 +199,22 @@ fn density_figures(graph: &PatchGraph) -> String {
 /// that one walker crossing a patch is already far more than it asks.
 pub fn no_walker(graph: &PatchGraph, pipeline: &PipelineFile) -> Result<()> {
     let asked = graph.walkers_requested;
+    let p = &pipeline.pipeline;
     if asked == 0 {
+        if let crowd_core::config::People::PerSquareMetre { walkers, .. } = p.people
+            && walkers > 0.0
+        {
+            bail!(
+                "{}: stage 3 placed no walker: `people.walkers` is {walkers} per m2 where the \
+                 `Density` layer is painted full, and the painting asks for fewer than one \
+                 walker in all ({}); paint brighter or raise `people.walkers`; no file was \
+                 written",
+                pipeline.path.display(),
+                density_figures(graph)
+            );
+        }
         return Ok(());
     }
-    let p = &pipeline.pipeline;
     if reachable_walkers(graph) < 0.5 {
         bail!(
             "{}: stage 3 placed no walker: the {asked} walkers asked (`walkers`) are all painted \
@@ -215,10 +227,14 @@ pub fn no_walker(graph: &PatchGraph, pipeline: &PipelineFile) -> Result<()> {
     let side = graph.world.patch_side_m;
     let one = 1.0 / (p.matching.comfort_speed * p.period_s * side);
     let size = graph.world.size_m;
+    let field = match p.people {
+        crowd_core::config::People::Counted => "walkers",
+        crowd_core::config::People::PerSquareMetre { .. } => "people.walkers",
+    };
     bail!(
-        "{}: stage 3 placed no walker: {asked} walkers (`walkers`) over {} patches of {side} m \
+        "{}: stage 3 placed no walker: {asked} walkers (`{field}`) over {} patches of {side} m \
          ({}) is sparser than one walker crossing a patch once a period makes it (about {one:.4} \
-         per m2 over the {} s period), so the nearest crowd is an empty one; raise `walkers`, \
+         per m2 over the {} s period), so the nearest crowd is an empty one; raise `{field}`, \
          paint them into a smaller area, or lower `scene.meters_per_pixel` (the maps cover \
          {:.0} x {:.0} m); no file was written",
         pipeline.path.display(),

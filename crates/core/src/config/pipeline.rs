@@ -189,6 +189,14 @@ impl Pipeline {
             for (field, value) in [("people.walkers", walkers), ("people.standers", standers)] {
                 require((0.0..=10.0).contains(&value), field, Num(value), per_m2)?;
             }
+            if walkers <= 0.0 && standers <= 0.0 {
+                return Err(invalid(
+                    "people",
+                    "asks for no walker and no stander (both densities are 0): expected a \
+                     density of people per m2 above 0 for at least one"
+                        .to_string(),
+                ));
+            }
             if walkers > 0.0 && !has(LayerKind::Density) {
                 return Err(invalid(
                     "people.walkers",
