@@ -214,7 +214,7 @@ fn people_per_square_metre_refuses_totals_and_bad_densities() {
         ),
         (
             "walkers: 0.3, standers: 0.0",
-            "`people` asks for up to",
+            "`people` asks for about",
             vec!["--max-memory", "1000000"],
         ),
     ] {

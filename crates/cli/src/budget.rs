@@ -15,7 +15,7 @@
 //! | painting | 95,000 | 20 s | 2.81-3.39 GB | 3.37 GB |
 //! | bands, period 600 s | 1,100 | 600 s | 313 MB | 336 MB |
 
-use crowd_core::config::{People, PipelineFile};
+use crowd_core::config::{LayerKind, People, PipelineFile};
 
 /// Memory of a build whatever its size, bytes: the binary, the maps, the graph.
 const BASE: f64 = 40e6;
@@ -30,25 +30,36 @@ pub fn estimate(pipeline: &PipelineFile) -> f64 {
     BASE + characters(pipeline) * PER_WALKER * (p.period_s / 20.0).powf(PERIOD_POWER)
 }
 
-/// The characters a build may place: the totals, or with `people: PerSquareMetre(..)` the
-/// most the painted scene can hold (every pixel painted full, under `optimize.rho_max`; the
-/// layers' sizes are read from their headers).
+/// The characters a build may place: the totals, or with `people: PerSquareMetre(..)` what
+/// the paint asks (each `Density` and `Static` layer's paint summed over its pixels, times its
+/// weight, the density and the pixel's area; a layer that cannot be read counts as painted
+/// full, and merge will say what is wrong with it).
 fn characters(pipeline: &PipelineFile) -> f64 {
     let p = &pipeline.pipeline;
-    match p.people {
-        People::Counted => p.walkers as f64 + p.standers as f64,
-        People::PerSquareMetre { walkers, standers } => {
-            let (w, h) = p
-                .scene
-                .layers
-                .iter()
-                .filter_map(|l| image::image_dimensions(pipeline.resolve(&l.path)).ok())
-                .fold((0u32, 0u32), |(w, h), (lw, lh)| (w.max(lw), h.max(lh)));
-            let area = w as f64 * h as f64 * p.scene.meters_per_pixel.powi(2);
-            let rho = p.optimize.rho_max;
-            area * (walkers.min(rho) + standers.min(rho)).min(rho)
-        }
-    }
+    let People::PerSquareMetre { walkers, standers } = p.people else {
+        return p.walkers as f64 + p.standers as f64;
+    };
+    let rho = p.optimize.rho_max;
+    let pixel_m2 = p.scene.meters_per_pixel.powi(2);
+    p.scene
+        .layers
+        .iter()
+        .filter_map(|l| {
+            let per_m2 = match l.kind {
+                LayerKind::Density => walkers.min(rho),
+                LayerKind::Static => standers.min(rho),
+                _ => return None,
+            };
+            let path = pipeline.resolve(&l.path);
+            let paint = match image::open(&path) {
+                Ok(image) => image.to_luma32f().pixels().map(|v| f64::from(v.0[0])).sum(),
+                Err(_) => {
+                    image::image_dimensions(&path).map_or(0.0, |(w, h)| f64::from(w) * f64::from(h))
+                }
+            };
+            Some(paint * l.weight.max(0.0) * per_m2 * pixel_m2)
+        })
+        .sum()
 }
 
 /// The memory a build may take by default: the machine's (`MemTotal`), where the system says.
@@ -76,8 +87,8 @@ pub fn check(pipeline: &PipelineFile, limit: Option<u64>) -> crowd_core::Result<
         return Err(pipeline.field_error(
             "people",
             format!(
-                "asks for up to {:.0} characters where the layers are painted full, over a {} \
-                 s period: the build could need about {} at peak, more than the {} of \
+                "asks for about {:.0} characters as the layers are painted, over a {} s \
+                 period: the build could need about {} at peak, more than the {} of \
                  {source}; lower the densities (or `period_s`), or raise --max-memory if the \
                  machine has more to give",
                 characters(pipeline),
