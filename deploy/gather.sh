@@ -6,6 +6,7 @@
 #   SHARED    the folder the shards wrote to
 #   OUTPUT    the build folder to write
 #   CROWD     the crowd binary (default: crowd on the PATH)
+#   MAX_MEMORY bytes the build may take (`--max-memory`; default: the machine's)
 set -eu
 : "${PIPELINE:?set PIPELINE to the pipeline file}"
 : "${SHARED:?set SHARED to the folder the shards wrote to}"
@@ -21,5 +22,7 @@ if [ -d "$SHARED/stages" ]; then
   cp "$SHARED"/stages/* "$OUTPUT/"
 fi
 cp "$SHARED"/shards/*-of-*.bin "$SHARED"/shards/*-of-*.ron "$OUTPUT/shards/"
-"$crowd" build --quiet --pipeline "$PIPELINE" --output "$OUTPUT" --gather
+set -- build --quiet --pipeline "$PIPELINE" --output "$OUTPUT" --gather
+if [ -n "${MAX_MEMORY:-}" ]; then set -- "$@" --max-memory "$MAX_MEMORY"; fi
+"$crowd" "$@"
 echo "gathered -> $OUTPUT"

@@ -11,6 +11,8 @@
 #     SLURM_ARRAY_TASK_ID    (a Slurm array job)
 #   CROWD     the crowd binary (default: crowd on the PATH)
 #   WORK      scratch space for this shard's build folder (default: a temporary folder)
+#   MAX_MEMORY bytes the build may take (`--max-memory`; default: the machine's), for a world
+#             whose one-process estimate is above the machine though a shard is not
 set -eu
 : "${PIPELINE:?set PIPELINE to the pipeline file}"
 : "${SHARDS:?set SHARDS to the number of shards}"
@@ -24,7 +26,9 @@ fi
 crowd="${CROWD:-crowd}"
 work="${WORK:-$(mktemp -d)}"
 out="$work/shard-$index"
-"$crowd" build --quiet --pipeline "$PIPELINE" --output "$out" --shard "$index/$SHARDS"
+set -- build --quiet --pipeline "$PIPELINE" --output "$out" --shard "$index/$SHARDS"
+if [ -n "${MAX_MEMORY:-}" ]; then set -- "$@" --max-memory "$MAX_MEMORY"; fi
+"$crowd" "$@"
 mkdir -p "$SHARED/shards"
 # Side file first, then the file that names it: a gather never reads a half-copied shard as whole.
 for f in "$out"/shards/*.bin "$out"/shards/*.ron; do
