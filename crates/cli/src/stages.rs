@@ -420,29 +420,31 @@ fn collide(a: &mut Artifacts, out: &Path, hash: Hash, ui: &Ui) -> Result<Ran> {
             let matched = a.take_motion(&MATCH)?;
             let patterns = a.patterns()?;
             let seen = Seen::new(&graph, &patterns.1);
-            let matched_motion: &[PatchMotion] = &matched.1;
-            let keys: Vec<Hash> = (0..graph.patches.len())
-                .into_par_iter()
-                .map(|p| crowd_collide::patch_key(&seen, p, &matched_motion[p], &s))
-                .collect();
+            let keys = collide_keys(&seen, &matched.1, &s);
             let previous = reuse::Previous::load(out);
-            let mut done = reuse::reusable(previous.as_ref(), &keys, &seen.tables);
+            let reused = reuse::reusable(previous.as_ref(), &keys, &seen.tables);
             drop(previous);
+            // A reused patch's report is its figures in the keys file.
+            let mut done: Vec<Option<(PatchMotion, crowd_collide::PatchReport)>> = reused
+                .into_iter()
+                .map(|r| {
+                    let (m, bytes) = r?;
+                    let report = ron::from_str(std::str::from_utf8(&bytes).ok()?).ok()?;
+                    Some((m, report))
+                })
+                .collect();
             let todo: Vec<usize> = (0..done.len()).filter(|&p| done[p].is_none()).collect();
             let made = crowd_collide::collide_patches(&graph, &matched.1, &s, &bar, &todo)
                 .map_err(|stall| collide_stall(&graph, &s, stall))?;
             drop(matched);
             for (m, report) in made {
                 let p = report.patch as usize;
-                done[p] = Some((m, ron::to_string(&report)?.into_bytes()));
+                done[p] = Some((m, report));
             }
-            let mut motion = Vec::with_capacity(done.len());
-            let mut reports = Vec::with_capacity(done.len());
-            for d in done {
-                let (m, bytes) = d.expect("every patch cleared or reused");
-                reports.push(ron::from_str(std::str::from_utf8(&bytes)?)?);
-                motion.push(m);
-            }
+            let (motion, reports): (Vec<_>, Vec<_>) = done
+                .into_iter()
+                .map(|d| d.expect("every patch cleared or reused"))
+                .unzip();
             let note = reuse::note(motion.len() - todo.len(), motion.len());
             finish_collide(a, out, hash, (motion, reports), (keys, seen.tables), note)
         }
@@ -452,11 +454,7 @@ fn collide(a: &mut Artifacts, out: &Path, hash: Hash, ui: &Ui) -> Result<Ran> {
             let matched = a.take_motion(&MATCH)?;
             let patterns = a.patterns()?;
             let seen = Seen::new(&graph, &patterns.1);
-            let matched_motion: &[PatchMotion] = &matched.1;
-            let keys: Vec<Hash> = (0..graph.patches.len())
-                .into_par_iter()
-                .map(|p| crowd_collide::patch_key(&seen, p, &matched_motion[p], &s))
-                .collect();
+            let keys = collide_keys(&seen, &matched.1, &s);
             drop(matched);
             let note = "gathered".to_string();
             finish_collide(a, out, hash, gathered, (keys, seen.tables), note)
@@ -489,6 +487,14 @@ fn collide(a: &mut Artifacts, out: &Path, hash: Hash, ui: &Ui) -> Result<Ran> {
             Ok(Ran::files(writes))
         }
     }
+}
+
+/// Every patch's stage 5 key ([`crowd_collide::patch_key`]), in parallel.
+fn collide_keys(seen: &Seen, matched: &[PatchMotion], s: &crowd_collide::Inputs) -> Vec<Hash> {
+    (0..matched.len())
+        .into_par_iter()
+        .map(|p| crowd_collide::patch_key(seen, p, &matched[p], s))
+        .collect()
 }
 
 /// Stage 5's files from every patch's motion and report, with the keys of each patch.
