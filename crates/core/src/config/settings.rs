@@ -135,11 +135,12 @@ impl OptimizeSettings {
             "from 1 to 10000 steps to wait for E to gain `tolerance`",
         )?;
         match self.region_patches {
-            Some(side) => count_up_to(
+            // A region of one patch has every border held: nothing left to optimise.
+            Some(side) => require(
+                (2..=Self::MOST_REGION_PATCHES).contains(&side),
                 "optimize.region_patches",
                 side,
-                Self::MOST_REGION_PATCHES,
-                "a region side from 1 to 4096 patches, or None for one region",
+                "a region side from 2 to 4096 patches (one patch would hold all its borders),                  or None for one region",
             ),
             None => Ok(()),
         }
