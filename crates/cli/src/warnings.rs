@@ -125,6 +125,11 @@ fn open_components(graph: &PatchGraph) -> Vec<bool> {
     open
 }
 
+/// The settings that ask for walkers and standers: the build folder does not say which of the
+/// two ways `people` was given, so a warning read from it names both.
+const WALKERS: &str = "`walkers`, or `people.walkers` per m2";
+const STANDERS: &str = "`standers`, or `people.standers` per m2";
+
 /// A build placing fewer walkers or standers than asked, or more walkers, by more than rounding
 /// (a tenth, and at least one character): what was asked, what was placed, and the likely
 /// cause.
@@ -137,11 +142,11 @@ fn shortfall(graph: &PatchGraph, summary: &MotionSummary) -> Vec<Warning> {
         out.push(Warning {
             patches: Vec::new(),
             text: format!(
-                "{:.0} walkers placed of {asked:.0} asked (`walkers`): the paint is so sparse \
+                "{:.0} walkers placed of {asked:.0} asked ({WALKERS}): the paint is so sparse \
                  ({}) that stage 3's whole walkers, each crossing a patch in seconds, and those \
-                 it sends to walk the painted directions, come out more than asked; raise \
-                 `walkers`, paint them into a smaller area, or weaken the direction layers \
-                 where little is painted",
+                 it sends to walk the painted directions, come out more than asked; raise it, \
+                 paint them into a smaller area, or weaken the direction layers where little \
+                 is painted",
                 summary.walkers_measured,
                 density_figures(graph)
             ),
@@ -156,15 +161,15 @@ fn shortfall(graph: &PatchGraph, summary: &MotionSummary) -> Vec<Warning> {
         } else {
             format!(
                 "the paint is so sparse ({}) that stage 3's whole walkers, each crossing a \
-                 patch in seconds, come out fewer than asked; raise `walkers`, paint them into \
-                 a smaller area or lower `scene.meters_per_pixel`",
+                 patch in seconds, come out fewer than asked; raise it, paint them \
+                 into a smaller area or lower `scene.meters_per_pixel`",
                 density_figures(graph)
             )
         };
         out.push(Warning {
             patches: Vec::new(),
             text: format!(
-                "{:.0} walkers placed of {asked:.0} asked (`walkers`): {why}",
+                "{:.0} walkers placed of {asked:.0} asked ({WALKERS}): {why}",
                 summary.walkers_measured
             ),
         });
@@ -174,7 +179,7 @@ fn shortfall(graph: &PatchGraph, summary: &MotionSummary) -> Vec<Warning> {
         out.push(Warning {
             patches: Vec::new(),
             text: format!(
-                "{} standers placed of {asked:.0} asked (`standers`): their patches have no \
+                "{} standers placed of {asked:.0} asked ({STANDERS}): their patches have no \
                  room for more with clearance (rho_max caps each patch), or the stander layer \
                  is painted where walls stand",
                 summary.standers
