@@ -221,7 +221,10 @@ fn a_sparse_painting_that_places_fewer_walkers_than_asked_is_a_warning() {
         .find(|l| l.contains("walkers placed of 60 asked"))
         .unwrap_or_else(|| panic!("a shortfall warning:\n{stderr}"));
     // The folder does not say how `people` was given: both settings are named.
-    assert!(warning.contains("`walkers`, or `people.walkers` per m2"), "{warning}");
+    assert!(
+        warning.contains("`walkers`, or `people.walkers` per m2"),
+        "{warning}"
+    );
     let md = std::fs::read_to_string(dir.path().join("out/report.md")).unwrap();
     assert!(md.contains("walkers placed of 60 asked"), "{md}");
     let stderr = crowd_broken(&["build", "-q", "--deny-warnings", "--pipeline", s(&pipeline)]);

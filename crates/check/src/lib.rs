@@ -14,12 +14,16 @@ pub mod glb;
 pub mod library;
 pub mod motion;
 pub mod products;
+mod strips;
 mod world;
 
 use crowd_core::PatchGraph;
+use crowd_core::patterns::Crossing;
 use crowd_core::trajectories::PatchMotion;
 use glam::DVec2;
 pub use products::{ProductFigures, Sampled};
+use rayon::prelude::*;
+use std::borrow::Cow;
 use world::{Ends, Repeat, Scene};
 
 /// What the check found.
@@ -59,23 +63,122 @@ pub const VERSION: u32 = 7;
 
 /// Checks the whole world of `motion` (per patch, in patch order) laid out by `graph`.
 pub fn check(graph: &PatchGraph, motion: &[PatchMotion], period_s: f64) -> CheckReport {
+    check_world(graph, &motion, period_s, None).expect("motion in memory is always at hand")
+}
+
+/// A world's motion, patch by patch, as the check asks for it: a strip at a time.
+pub trait Source: Sync {
+    /// Patch `p`'s motion (an error when it cannot be read: a damaged file).
+    fn patch(&self, p: usize) -> crowd_core::Result<Cow<'_, PatchMotion>>;
+}
+
+impl Source for &[PatchMotion] {
+    fn patch(&self, p: usize) -> crowd_core::Result<Cow<'_, PatchMotion>> {
+        Ok(Cow::Borrowed(&self[p]))
+    }
+}
+
+impl Source for crowd_core::trajectories::LazyMotion {
+    fn patch(&self, p: usize) -> crowd_core::Result<Cow<'_, PatchMotion>> {
+        crowd_core::trajectories::LazyMotion::patch(self, p).map(Cow::Owned)
+    }
+}
+
+/// Checks the world of `graph` whose motion `source` gives, one patch for each of the graph's,
+/// and with `crossings`, its motion figures as well. The world is taken a strip at a time
+/// (`strips.rs`): every patch is read once for where its characters go, then each strip's with
+/// the patches within reach of it; the figures are the same bytes as one scene of the whole
+/// world would give.
+pub fn check_world(
+    graph: &PatchGraph,
+    source: &dyn Source,
+    period_s: f64,
+    crossings: Option<&[Crossing]>,
+) -> crowd_core::Result<CheckReport> {
+    check_in_strips(graph, source, (period_s, crossings), strips::STRIP_PIECES)
+}
+
+/// [`check_world`] with strips of about `budget` pieces.
+fn check_in_strips(
+    graph: &PatchGraph,
+    source: &dyn Source,
+    (period_s, crossings): (f64, Option<&[Crossing]>),
+    budget: u64,
+) -> crowd_core::Result<CheckReport> {
+    let n = graph.patches.len();
+    let extents = in_order((0..n).into_par_iter().map(|p| {
+        let m = source.patch(p)?;
+        Ok(strips::Extent::of(graph, p, &m))
+    }))?;
+    let walls = walls(graph);
+    let reach = 2.0 * graph.radius_m + 1.0 + 1e-6;
+    let mut measure = crossings.map(|c| motion::Measure::new(graph, c, period_s));
+    let (mut pairs, mut walkers, mut segments) = (world::Pairs::default(), 0u64, 0u64);
+    for strip in strips::plan(&extents, budget) {
+        let held = strips::with_surroundings(&extents, &strip, reach);
+        let motion = in_order(held.par_iter().map(|&p| source.patch(p)))?;
+        let scene = strip_scene(graph, &held, &motion, &strip, (period_s, &walls));
+        let own_from = held.partition_point(|&p| p < strip.start);
+        let own = &motion[own_from..own_from + strip.len()];
+        let (found, ()) = rayon::join(
+            || scene.pairs(),
+            || {
+                if let Some(m) = measure.as_mut() {
+                    m.add(strip.start, own);
+                }
+            },
+        );
+        pairs = pairs.merge(found);
+        walkers += own.iter().map(|m| m.trajectories.len() as u64).sum::<u64>();
+        segments += extents[strip].iter().map(|e| e.pieces).sum::<u64>();
+    }
+    let c = pairs.clearance(graph.radius_m, period_s);
+    Ok(CheckReport {
+        collisions: c.collisions,
+        across_borders: c.across_borders,
+        min_clearance_m: c.min_clearance_m,
+        worst_at: c.worst_at,
+        walkers,
+        segments,
+        stage: String::new(),
+        motion: measure.map(motion::Measure::finish),
+        library: None,
+        gltf: None,
+        input_hash: None,
+    })
+}
+
+/// The results of a parallel iterator in its order, or the first error in that order.
+fn in_order<T: Send>(
+    results: impl IndexedParallelIterator<Item = crowd_core::Result<T>>,
+) -> crowd_core::Result<Vec<T>> {
+    let all: Vec<crowd_core::Result<T>> = results.collect();
+    all.into_iter().collect()
+}
+
+/// The scene of patches `held` (in order, their `motion`), counting the pairs of `strip`'s.
+fn strip_scene(
+    graph: &PatchGraph,
+    held: &[usize],
+    motion: &[Cow<'_, PatchMotion>],
+    strip: &std::ops::Range<usize>,
+    (period_s, walls): (f64, &[Wall]),
+) -> Scene {
+    let trajectories = || motion.iter().flat_map(|m| &m.trajectories);
+    let pieces = trajectories()
+        .map(|t| t.points.len().saturating_sub(1))
+        .sum();
     let mut scene = Scene {
         radius: graph.radius_m,
         repeat: Repeat::Periodic(period_s),
-        pieces: Vec::new(),
-        ends: Vec::new(),
+        pieces: Vec::with_capacity(pieces),
+        ends: Vec::with_capacity(trajectories().count()),
         standers: Vec::new(),
-        walls: walls(graph),
+        walls: walls.to_vec(),
+        owned: strip.start as u32..strip.end as u32,
     };
-    let trajectories = || motion.iter().flat_map(|m| &m.trajectories);
-    scene.pieces.reserve_exact(
-        trajectories()
-            .map(|t| t.points.len().saturating_sub(1))
-            .sum(),
-    );
-    scene.ends.reserve_exact(trajectories().count());
     let mut walker = 0u32;
-    for (p, m) in motion.iter().enumerate() {
+    for (&p, m) in held.iter().zip(motion) {
         let origin = graph.world_from_patch(graph.patches[p].cell);
         for tr in &m.trajectories {
             let (first, last) = (tr.points[0].t, tr.points[tr.points.len() - 1].t);
@@ -91,20 +194,7 @@ pub fn check(graph: &PatchGraph, motion: &[PatchMotion], period_s: f64) -> Check
             .standers
             .extend(m.standers.iter().map(|s| origin + *s));
     }
-    let c = scene.clearance();
-    CheckReport {
-        collisions: c.collisions,
-        across_borders: c.across_borders,
-        min_clearance_m: c.min_clearance_m,
-        worst_at: c.worst_at,
-        walkers: walker as u64,
-        segments: scene.pieces.len() as u64,
-        stage: String::new(),
-        motion: None,
-        library: None,
-        gltf: None,
-        input_hash: None,
-    }
+    scene
 }
 
 /// An obstacle box in world metres: its lowest and highest corners.
@@ -165,6 +255,87 @@ pub(crate) mod tests {
         PatchMotion {
             standers: vec![],
             trajectories: vec![tr],
+        }
+    }
+
+    /// `side` x `side` patches of 8 m.
+    fn square_of_patches(side: usize) -> PatchGraph {
+        let px = 8 * side as u32;
+        let mut maps = MergedMaps::empty(px, px, 1.0);
+        maps.walkers = Grid::filled(px, px, 1.0);
+        let inputs = crowd_graph::GraphInputs {
+            walkers: 10 * u64::from(px / 8).pow(2),
+            standers: 0,
+            people: crowd_core::config::People::Counted,
+            patch_side_m: 8.0,
+            radius_m: 0.3,
+            rho_max: 0.35,
+            settings: GraphSettings::default(),
+        };
+        crowd_graph::build_graph(&maps, &inputs, Hash::of(b"t"), &()).unwrap()
+    }
+
+    /// Random walkers and standers in every patch of `graph`, some straying a little past
+    /// their patch's sides (a damaged or edited file may hold anything).
+    fn random_motion(graph: &PatchGraph, seed: u64) -> Vec<PatchMotion> {
+        let mut state = seed | 1;
+        let mut next = move |lo: f64, hi: f64| {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            lo + (hi - lo) * (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        (0..graph.patches.len())
+            .map(|_| {
+                let trajectories = (0..next(0.0, 6.0) as usize)
+                    .map(|_| {
+                        let mut t = next(-20.0, 20.0);
+                        let points = (0..2 + next(0.0, 3.0) as usize)
+                            .map(|_| {
+                                t += next(0.5, 8.0);
+                                ControlPoint {
+                                    pos: DVec2::new(next(-1.5, 9.5), next(-1.5, 9.5)),
+                                    t,
+                                    kind: PointKind::Sample,
+                                }
+                            })
+                            .collect();
+                        let (entry, exit) = (next(0.0, 9.0) as u32, next(0.0, 9.0) as u32);
+                        Trajectory {
+                            entry,
+                            exit,
+                            points,
+                        }
+                    })
+                    .collect();
+                let standers = (0..next(0.0, 1.6) as usize)
+                    .map(|_| DVec2::new(next(0.0, 8.0), next(0.0, 8.0)))
+                    .collect();
+                PatchMotion {
+                    standers,
+                    trajectories,
+                }
+            })
+            .collect()
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(6))]
+
+        /// Cut into strips, each checked with the patches around it present but not counted,
+        /// the world gives the same figures, to the bit, as one scene of all of it.
+        #[test]
+        fn strips_give_the_figures_of_one_scene(seed in proptest::prelude::any::<u64>()) {
+            let graph = square_of_patches(12);
+            let motion = random_motion(&graph, seed);
+            let whole = check_in_strips(&graph, &motion.as_slice(), (20.0, Some(&[])), u64::MAX)
+                .unwrap();
+            proptest::prop_assert!(whole.collisions > 0 && whole.across_borders > 0, "{whole:?}");
+            for budget in [0, 40, 300] {
+                let cut = check_in_strips(&graph, &motion.as_slice(), (20.0, Some(&[])), budget)
+                    .unwrap();
+                proptest::prop_assert_eq!(&cut, &whole, "strips of {} pieces", budget);
+            }
         }
     }
 

@@ -69,6 +69,17 @@ impl Tally {
         }
     }
 
+    /// A stand-in while a tally is moved out (no histograms).
+    fn empty() -> Tally {
+        Tally {
+            walking: 0.0,
+            in_band: 0.0,
+            accel: Vec::new(),
+            turn: Vec::new(),
+            fastest: (0.0, None),
+        }
+    }
+
     fn add(mut self, o: Tally) -> Tally {
         self.walking += o.walking;
         self.in_band += o.in_band;
@@ -144,33 +155,73 @@ pub fn figures(
     motion: &[PatchMotion],
     period_s: f64,
 ) -> MotionFigures {
-    // Floating-point sums depend on their order: each run of CHUNK patches is tallied on one
-    // thread, and the tallies are added in patch order, so the figures are the same bytes
-    // whatever the thread count (a parallel `reduce` pairs them by how the work was split).
-    let tally = motion
-        .par_chunks(CHUNK)
-        .enumerate()
-        .map(|(c, chunk)| {
-            let mut t = Tally::new();
-            for (p, m) in chunk.iter().enumerate() {
-                let patch = (c * CHUNK + p) as u32;
-                for (i, tr) in m.trajectories.iter().enumerate() {
-                    t.trajectory(tr, (patch, i as u32));
-                }
-            }
-            t
-        })
-        .collect::<Vec<Tally>>()
-        .into_iter()
-        .fold(Tally::new(), Tally::add);
+    let mut m = Measure::new(graph, crossings, period_s);
+    m.add(0, motion);
+    m.finish()
+}
 
-    // Every crossing seen from both sides: where each end lies, and the velocity there.
-    let side = graph.world.patch_side_m;
-    // Per crossing: trajectories that enter (leave) by it, and the velocity there.
-    let mut entered = vec![(0u32, DVec2::ZERO); crossings.len()];
-    let mut left = vec![(0u32, DVec2::ZERO); crossings.len()];
-    let (mut pos_err, mut time_err) = (0.0f64, 0.0f64);
-    for (p, m) in motion.iter().enumerate() {
+/// The motion figures of a world taken a run of patches at a time ([`Measure::add`]), in patch
+/// order: what they hold is a tally and a slot per crossing, not the motion.
+pub struct Measure<'a> {
+    graph: &'a PatchGraph,
+    crossings: &'a [Crossing],
+    period_s: f64,
+    tally: Tally,
+    /// Per crossing: trajectories that enter (leave) by it, and the velocity there.
+    entered: Vec<(u32, DVec2)>,
+    left: Vec<(u32, DVec2)>,
+    pos_err: f64,
+    time_err: f64,
+}
+
+impl<'a> Measure<'a> {
+    pub fn new(graph: &'a PatchGraph, crossings: &'a [Crossing], period_s: f64) -> Measure<'a> {
+        Measure {
+            graph,
+            crossings,
+            period_s,
+            tally: Tally::new(),
+            entered: vec![(0u32, DVec2::ZERO); crossings.len()],
+            left: vec![(0u32, DVec2::ZERO); crossings.len()],
+            pos_err: 0.0,
+            time_err: 0.0,
+        }
+    }
+
+    /// Patches `first..first + motion.len()`, after every patch before `first` was added.
+    /// `first` is a multiple of [`STRIP_ALIGN`] (the figures are then the same bytes however
+    /// the world was cut).
+    pub fn add<M: std::borrow::Borrow<PatchMotion> + Sync>(&mut self, first: usize, motion: &[M]) {
+        assert_eq!(first % STRIP_ALIGN, 0, "runs start at whole chunks");
+        // Floating-point sums depend on their order: each run of CHUNK patches is tallied on
+        // one thread, and the tallies are added in patch order, so the figures are the same
+        // bytes whatever the thread count (a parallel `reduce` pairs them by how the work was
+        // split).
+        let tallies = motion
+            .par_chunks(CHUNK)
+            .enumerate()
+            .map(|(c, chunk)| {
+                let mut t = Tally::new();
+                for (p, m) in chunk.iter().enumerate() {
+                    let (patch, m) = ((first + c * CHUNK + p) as u32, m.borrow());
+                    for (i, tr) in m.trajectories.iter().enumerate() {
+                        t.trajectory(tr, (patch, i as u32));
+                    }
+                }
+                t
+            })
+            .collect::<Vec<Tally>>();
+        let tally = std::mem::replace(&mut self.tally, Tally::empty());
+        self.tally = tallies.into_iter().fold(tally, Tally::add);
+        for (p, m) in motion.iter().enumerate() {
+            self.ends(first + p, m.borrow());
+        }
+    }
+
+    /// Every crossing seen from both sides: where each end of patch `p`'s trajectories lies,
+    /// and the velocity there.
+    fn ends(&mut self, p: usize, m: &PatchMotion) {
+        let side = self.graph.world.patch_side_m;
         for tr in &m.trajectories {
             let pts = &tr.points;
             let ends = [
@@ -178,10 +229,10 @@ pub fn figures(
                 (tr.exit, pts[pts.len() - 1], pts[pts.len() - 2], false),
             ];
             for (c, end, next, entry) in ends {
-                let Some(crossing) = crossings.get(c as usize) else {
+                let Some(crossing) = self.crossings.get(c as usize) else {
                     continue;
                 };
-                let border = &graph.borders[crossing.border as usize];
+                let border = &self.graph.borders[crossing.border as usize];
                 let (a, b) = border_point(border, side, crossing.s);
                 // The crossing goes a -> b when its way is AToB.
                 let (from, to) = match crossing.way {
@@ -190,12 +241,12 @@ pub fn figures(
                 };
                 let here = if entry { to } else { from };
                 if here.patch.0 as usize != p {
-                    pos_err = f64::INFINITY;
+                    self.pos_err = f64::INFINITY;
                     continue;
                 }
-                pos_err = pos_err.max(end.pos.distance(here.pos));
-                let dt = (end.t - crossing.t).rem_euclid(period_s);
-                time_err = time_err.max(dt.min(period_s - dt));
+                self.pos_err = self.pos_err.max(end.pos.distance(here.pos));
+                let dt = (end.t - crossing.t).rem_euclid(self.period_s);
+                self.time_err = self.time_err.max(dt.min(self.period_s - dt));
                 let (a, b) = if entry { (end, next) } else { (next, end) };
                 let v = Segment {
                     p0: a.pos,
@@ -204,38 +255,49 @@ pub fn figures(
                     t1: b.t,
                 }
                 .velocity();
-                let slot = if entry { &mut entered } else { &mut left };
+                let slot = if entry {
+                    &mut self.entered
+                } else {
+                    &mut self.left
+                };
                 slot[c as usize].0 += 1;
                 slot[c as usize].1 = v;
             }
         }
     }
-    let mut unmatched = 0;
-    let mut jump = 0.0f64;
-    // A border is a vertex of the character's world path like any other: its turn and change
-    // of speed count in the percentiles too, as the frame that straddles it.
-    let mut tally = tally;
-    for (e, l) in entered.iter().zip(&left) {
-        if e.0 != 1 || l.0 != 1 {
-            unmatched += 1;
-            continue;
+
+    /// The figures, once every patch was added.
+    pub fn finish(self) -> MotionFigures {
+        let mut unmatched = 0;
+        let mut jump = 0.0f64;
+        // A border is a vertex of the character's world path like any other: its turn and
+        // change of speed count in the percentiles too, as the frame that straddles it.
+        let mut tally = self.tally;
+        for (e, l) in self.entered.iter().zip(&self.left) {
+            if e.0 != 1 || l.0 != 1 {
+                unmatched += 1;
+                continue;
+            }
+            jump = jump.max((e.1 - l.1).length());
+            tally.vertex(l.1, e.1, FRAME_S);
         }
-        jump = jump.max((e.1 - l.1).length());
-        tally.vertex(l.1, e.1, FRAME_S);
-    }
-    MotionFigures {
-        speed_in_band: if tally.walking > 0.0 {
-            tally.in_band / tally.walking
-        } else {
-            1.0
-        },
-        accel_p95: p95(&tally.accel),
-        turn_rate_p95: p95(&tally.turn),
-        max_border_velocity_jump: jump,
-        max_boundary_error_m: pos_err,
-        max_boundary_time_error_s: time_err,
-        unmatched_crossings: unmatched,
-        max_speed_m_s: tally.fastest.0,
-        max_speed_at: tally.fastest.1,
+        MotionFigures {
+            speed_in_band: if tally.walking > 0.0 {
+                tally.in_band / tally.walking
+            } else {
+                1.0
+            },
+            accel_p95: p95(&tally.accel),
+            turn_rate_p95: p95(&tally.turn),
+            max_border_velocity_jump: jump,
+            max_boundary_error_m: self.pos_err,
+            max_boundary_time_error_s: self.time_err,
+            unmatched_crossings: unmatched,
+            max_speed_m_s: tally.fastest.0,
+            max_speed_at: tally.fastest.1,
+        }
     }
 }
+
+/// What the start of a run given to [`Measure::add`] is a multiple of.
+pub const STRIP_ALIGN: usize = CHUNK;

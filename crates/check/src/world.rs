@@ -55,6 +55,56 @@ pub(crate) struct Scene {
     pub standers: Vec<DVec2>,
     /// Obstacle boxes, world metres (min, max).
     pub walls: Vec<crate::Wall>,
+    /// The patches whose pairs this scene counts ([`Scene::EVERY_PATCH`]: all). A pair of
+    /// walkers belongs to the lower of their two patches, a walker's pairs with what stands
+    /// still to its own: a strip of the world is checked with the patches around it present
+    /// but not counted, and every pair is counted in exactly one strip.
+    pub owned: std::ops::Range<u32>,
+}
+
+/// The pairs a scene (or a strip of one) counts: collisions, and the nearest approaches,
+/// kept apart so that strips add up to what the whole scene gives ([`Pairs::merge`]).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub(crate) struct Pairs {
+    collisions: u64,
+    across_borders: u64,
+    nearest_walkers: Option<Near>,
+    nearest_fixed: Option<Margin>,
+}
+
+impl Pairs {
+    /// Both parts' pairs (parts that count disjoint pairs, in any order).
+    pub fn merge(self, o: Pairs) -> Pairs {
+        Pairs {
+            collisions: self.collisions + o.collisions,
+            across_borders: self.across_borders + o.across_borders,
+            nearest_walkers: nearer(self.nearest_walkers, o.nearest_walkers),
+            nearest_fixed: nearer(self.nearest_fixed, o.nearest_fixed),
+        }
+    }
+
+    /// The figures of the pairs, for characters of `radius` repeating every `period`.
+    pub fn clearance(self, radius: f64, period: f64) -> Clearance {
+        let mut c = Clearance {
+            collisions: self.collisions,
+            across_borders: self.across_borders,
+            min_clearance_m: f64::INFINITY,
+            worst_at: None,
+        };
+        let mut note = |margin: f64, at: DVec2, t: f64| {
+            if margin < c.min_clearance_m {
+                c.min_clearance_m = margin;
+                c.worst_at = Some((at.x, at.y, t.rem_euclid(period)));
+            }
+        };
+        if let Some((d, t, at, _)) = self.nearest_walkers {
+            note(d - 2.0 * radius, at, t);
+        }
+        if let Some((margin, t, at)) = self.nearest_fixed {
+            note(margin, at, t);
+        }
+        c
+    }
 }
 
 /// How close the characters of a scene come.
@@ -107,6 +157,14 @@ type Margin = (f64, f64, DVec2);
 type Found<K, V> = (Vec<(K, V)>, Option<V>);
 
 impl Scene {
+    /// [`Scene::owned`] when the scene counts every pair.
+    pub const EVERY_PATCH: std::ops::Range<u32> = 0..u32::MAX;
+
+    /// Whether the pair of `a` and `b` is counted here (it belongs to the lower patch).
+    fn owns_pair(&self, a: &Piece, b: &Piece) -> bool {
+        self.owned.contains(&a.patch.min(b.patch))
+    }
+
     /// Files one walker's path (world metres and seconds, in time order) as pieces. Callers
     /// reserve the pieces first: grown by doubling, painting's 16 M pieces were copied and
     /// first-touched twice over (a tenth of the check's page faults).
@@ -237,6 +295,9 @@ impl Scene {
                         &self.pieces[i.min(j) as usize],
                         &self.pieces[i.max(j) as usize],
                     );
+                    if !self.owns_pair(a, b) {
+                        return;
+                    }
                     if let Some((d, t, at)) = self.pair(a, b)
                         && d < reach
                     {
@@ -264,6 +325,7 @@ impl Scene {
         let found = self
             .pieces
             .par_iter()
+            .filter(|piece| self.owned.contains(&piece.patch))
             .map(|piece| {
                 let s = &piece.seg;
                 let (lo, hi) = (s.p0.min(s.p1), s.p0.max(s.p1));
@@ -308,32 +370,21 @@ impl Scene {
         gathered(found)
     }
 
-    /// Collisions and the smallest clearance over every pair, added up in pair order.
-    pub fn clearance(&self) -> Clearance {
-        let period = self.repeat.period();
-        let mut c = Clearance {
-            collisions: 0,
-            across_borders: 0,
-            min_clearance_m: f64::INFINITY,
-            worst_at: None,
-        };
-        let mut note = |margin: f64, at: DVec2, t: f64| {
-            if margin < c.min_clearance_m {
-                c.min_clearance_m = margin;
-                c.worst_at = Some((at.x, at.y, t.rem_euclid(period)));
-            }
-        };
+    /// The pairs this scene counts ([`Scene::owned`]), added up in pair order.
+    pub fn pairs(&self) -> Pairs {
         let (walkers, nearest_walkers) = self.walker_pairs();
         let (fixed, nearest_fixed) = self.fixed_pairs();
-        c.collisions = (walkers.len() + fixed.len()) as u64;
-        c.across_borders = walkers.iter().filter(|(_, near)| near.3).count() as u64;
-        if let Some((d, t, at, _)) = nearest_walkers {
-            note(d - 2.0 * self.radius, at, t);
+        Pairs {
+            collisions: (walkers.len() + fixed.len()) as u64,
+            across_borders: walkers.iter().filter(|(_, near)| near.3).count() as u64,
+            nearest_walkers,
+            nearest_fixed,
         }
-        if let Some((margin, t, at)) = nearest_fixed {
-            note(margin, at, t);
-        }
-        c
+    }
+
+    /// Collisions and the smallest clearance over every pair the scene counts.
+    pub fn clearance(&self) -> Clearance {
+        self.pairs().clearance(self.radius, self.repeat.period())
     }
 }
 
@@ -436,6 +487,7 @@ mod tests {
             ends: vec![],
             standers: vec![],
             walls: vec![],
+            owned: Scene::EVERY_PATCH,
         }
     }
 

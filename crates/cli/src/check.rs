@@ -260,26 +260,15 @@ fn small_world(dir: &Path, chosen: &Stage) -> bool {
 /// See [`small_world`]: ring's and city's stage 6 side files are 22 MB, painting's 412.
 const SMALL_WORLD_BYTES: u64 = 64 << 20;
 
-/// The check of `chosen`'s trajectories, with their motion figures.
+/// The check of `chosen`'s trajectories, with their motion figures: decoded a strip of the
+/// world at a time (`crowd_check::check_world`).
 fn stage_figures(dir: &Path, graph: &PatchGraph, chosen: &Stage) -> Result<CheckReport> {
     let (kind, version) = (chosen.kind, chosen.version);
     let path = dir.join(chosen.output);
-    let (file, motion) = TrajectoriesFile::load_for(&path, kind, version, graph.patches.len())?;
-    // The world's pairs and the motion figures at once, as in the library's check.
-    let (mut report, motion_figures) = rayon::join(
-        || crowd_check::check(graph, &motion, file.period_s),
-        || -> Result<_> {
-            let (_, crossings) = Patterns::load_for(&dir.join(PATTERNS_FILE), graph)?;
-            Ok(crowd_check::motion::figures(
-                graph,
-                &crossings,
-                &motion,
-                file.period_s,
-            ))
-        },
-    );
+    let (file, motion) = TrajectoriesFile::open_for(&path, kind, version, graph.patches.len())?;
+    let (_, crossings) = Patterns::load_for(&dir.join(PATTERNS_FILE), graph)?;
+    let mut report = crowd_check::check_world(graph, &motion, file.period_s, Some(&crossings))?;
     report.stage = kind.to_string();
-    report.motion = Some(motion_figures?);
     Ok(report)
 }
 

@@ -327,6 +327,29 @@ impl MotionIndex {
     }
 }
 
+/// A trajectories file's motion still in its side file's bytes ([`TrajectoriesFile::open_for`]).
+pub struct LazyMotion {
+    /// The stage file, named when a patch does not fit the graph.
+    path: std::path::PathBuf,
+    /// The side file, named when its bytes are damaged.
+    side: std::path::PathBuf,
+    bytes: Vec<u8>,
+    index: MotionIndex,
+}
+
+impl LazyMotion {
+    pub fn patches(&self) -> usize {
+        self.index.patches()
+    }
+
+    /// Patch `p`'s motion, refused as [`check_motion`] refuses it.
+    pub fn patch(&self, p: usize) -> Result<PatchMotion> {
+        let m = self.index.decode(&self.side, &self.bytes, p)?;
+        check_patch_motion(&self.path, p, &m)?;
+        Ok(m)
+    }
+}
+
 /// The error of a side file whose bytes are not what [`encode_motion`] writes.
 fn damaged(path: &Path, at: usize) -> Error {
     Error::stage_file(
@@ -680,6 +703,28 @@ impl TrajectoriesFile {
         let motion = index.decode(&side, &bytes, p)?;
         check_patch_motion(path, p, &motion)?;
         Ok((file, Some((p, motion))))
+    }
+
+    /// A file written by `stage` at `version` for a graph of `patches` patches, its motion
+    /// left in its side file's bytes, to be decoded a patch at a time ([`LazyMotion`]): a
+    /// million walkers' motion is a gigabyte of bytes and many more decoded.
+    pub fn open_for(
+        path: &Path,
+        stage: &str,
+        version: u32,
+        patches: usize,
+    ) -> Result<(TrajectoriesFile, LazyMotion)> {
+        let (file, bytes) = Self::read_stage(path, stage, version)?;
+        let side = path.with_file_name(&file.motion.file);
+        let index = MotionIndex::of(&side, &bytes)?;
+        check_patch_count(path, index.patches(), patches)?;
+        let lazy = LazyMotion {
+            path: path.to_path_buf(),
+            side,
+            bytes,
+            index,
+        };
+        Ok((file, lazy))
     }
 
     /// [`Self::load_stage`], refused unless the motion fits a graph of `patches` patches

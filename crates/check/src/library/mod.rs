@@ -7,9 +7,11 @@
 //! `Sampler` played frame after frame.
 
 use crate::products::{OPEN_GAP_M, ProductFigures, Sampled, Seams, Tally, end_velocities};
-use crate::world::{Clearance, Ends, Repeat, Scene};
+use crate::strips::{self, Extent};
+use crate::world::{Clearance, Ends, Pairs, Repeat, Scene};
 use crowd_runtime::{Library, Sample, Sampler, TICK_S};
 use glam::DVec2;
+use rayon::prelude::*;
 
 /// What the library check needs besides the library.
 #[derive(Debug, Clone)]
@@ -22,21 +24,18 @@ pub struct Inputs<'a> {
     pub sample_step_s: Option<f64>,
 }
 
-/// Each trajectory's points as the engine plays them: world metres, seconds from the
-/// period's start (the trajectory's `start` plus the point's ticks).
-pub fn paths(lib: &Library) -> Vec<Vec<(DVec2, f64)>> {
-    lib.trajectories
+/// Trajectory `i`'s points as the engine plays them: world metres, seconds from the period's
+/// start (the trajectory's `start` plus the point's ticks). Made when asked, never all at
+/// once (a million walkers' were 2.3 GB).
+pub fn path(lib: &Library, i: usize) -> Vec<(DVec2, f64)> {
+    let t = &lib.trajectories[i];
+    let patch = &lib.patches[t.patch as usize];
+    lib.points_of(t)
         .iter()
-        .map(|t| {
-            let patch = &lib.patches[t.patch as usize];
-            lib.points_of(t)
-                .iter()
-                .map(|p| {
-                    let [x, y] = lib.world_position(patch, *p);
-                    let ticks = u64::from(t.start) + u64::from(p.t);
-                    (DVec2::new(x, y), ticks as f64 * TICK_S)
-                })
-                .collect()
+        .map(|p| {
+            let [x, y] = lib.world_position(patch, *p);
+            let ticks = u64::from(t.start) + u64::from(p.t);
+            (DVec2::new(x, y), ticks as f64 * TICK_S)
         })
         .collect()
 }
@@ -44,23 +43,26 @@ pub fn paths(lib: &Library) -> Vec<Vec<(DVec2, f64)>> {
 /// The figures of `lib`.
 pub fn figures(lib: &Library, inputs: &Inputs) -> ProductFigures {
     let period = lib.period_s();
-    let paths = paths(lib);
-    let tally = Tally::of(&paths, inputs.speed_limit_m_s, TICK_S, period);
+    let path = |i| std::borrow::Cow::Owned(path(lib, i));
+    let n = lib.trajectories.len();
+    let tally = Tally::of_made(n, path, inputs.speed_limit_m_s, TICK_S, period);
     // The world's pairs and the played frames at once: the pairs' serial parts (the pieces,
     // the grid) left a core idle, and the sampler holds little (painting's check -1 s).
     let (clearance, ((borders, seams), sampled)) = rayon::join(
-        || clearance(lib, &paths, inputs.walls),
+        || clearance(lib, inputs.walls),
         || {
             let sampled = inputs
                 .sample_step_s
                 .map(|step| sample(lib, step, tally.max_speed));
-            (handovers(lib, &paths), sampled)
+            (handovers(lib), sampled)
         },
     );
     let counts = (
         lib.walkers(),
         lib.standers.len() as u64,
-        paths.iter().map(|p| p.len() as u64 - 1).sum(),
+        (lib.trajectories.iter())
+            .map(|t| lib.points_of(t).len() as u64 - 1)
+            .sum(),
         lib.characters.len() as u64,
     );
     ProductFigures {
@@ -80,40 +82,74 @@ pub fn figures(lib: &Library, inputs: &Inputs) -> ProductFigures {
 }
 
 /// Collisions over the whole tiled world: each trajectory a walker with its copies a period
-/// apart, continued through its exit crossing by its `next` (the same character).
-fn clearance(lib: &Library, paths: &[Vec<(DVec2, f64)>], walls: &[crate::Wall]) -> Clearance {
-    let mut scene = Scene {
-        radius: f64::from(lib.world.radius_m),
-        repeat: Repeat::Periodic(lib.period_s()),
-        pieces: Vec::new(),
-        ends: Vec::new(),
-        standers: Vec::new(),
-        walls: walls.to_vec(),
-    };
-    let pieces = paths.iter().map(|p| p.len().saturating_sub(1)).sum();
-    scene.pieces.reserve_exact(pieces);
-    scene.ends.reserve_exact(paths.len());
-    for (i, (t, path)) in lib.trajectories.iter().zip(paths).enumerate() {
-        let (first, last) = (path[0].1, path[path.len() - 1].1);
-        scene.push_path(i as u32, t.patch, path.iter().copied());
-        scene.ends.push(Ends {
-            entry: (t.entry, first),
-            exit: (t.exit, last),
-        });
+/// apart, continued through its exit crossing by its `next` (the same character). Counted a
+/// strip of the library's patches at a time, as the stage files' check is (`strips.rs`).
+fn clearance(lib: &Library, walls: &[crate::Wall]) -> Clearance {
+    let radius = f64::from(lib.world.radius_m);
+    let mut extents = vec![Extent::EMPTY; lib.patches.len()];
+    for (i, t) in lib.trajectories.iter().enumerate() {
+        let e = &mut extents[t.patch as usize];
+        let path = path(lib, i);
+        path.iter().for_each(|q| e.grow(q.0));
+        e.pieces += path.len().saturating_sub(1) as u64;
     }
-    for patch in &lib.patches {
-        let first = patch.first_stander as usize;
-        for s in &lib.standers[first..first + patch.standers as usize] {
-            let [x, y] = lib.world_position(patch, *s);
-            scene.standers.push(DVec2::new(x, y));
+    for (p, e) in extents.iter_mut().enumerate() {
+        standers(lib, p).for_each(|q| e.grow(q));
+    }
+    let reach = 2.0 * radius + 1.0 + 1e-6;
+    let mut pairs = Pairs::default();
+    for strip in strips::plan(&extents, strips::STRIP_PIECES) {
+        let held = strips::with_surroundings(&extents, &strip, reach);
+        let mut is_held = vec![false; lib.patches.len()];
+        held.iter().for_each(|&p| is_held[p] = true);
+        let mut scene = Scene {
+            radius,
+            repeat: Repeat::Periodic(lib.period_s()),
+            pieces: Vec::new(),
+            ends: Vec::new(),
+            standers: held.iter().flat_map(|&p| standers(lib, p)).collect(),
+            walls: walls.to_vec(),
+            owned: strip.start as u32..strip.end as u32,
+        };
+        // In the library's order of trajectories, as one scene of the world would hold them
+        // (a pair's closest place is its lower piece's).
+        let held: Vec<(usize, Vec<(DVec2, f64)>)> = (0..lib.trajectories.len())
+            .into_par_iter()
+            .filter(|&i| is_held[lib.trajectories[i].patch as usize])
+            .map(|i| (i, path(lib, i)))
+            .collect();
+        let pieces = held.iter().map(|(_, p)| p.len().saturating_sub(1)).sum();
+        scene.pieces.reserve_exact(pieces);
+        for (walker, (i, path)) in held.iter().enumerate() {
+            let t = &lib.trajectories[*i];
+            let (first, last) = (path[0].1, path[path.len() - 1].1);
+            scene.push_path(walker as u32, t.patch, path.iter().copied());
+            scene.ends.push(Ends {
+                entry: (t.entry, first),
+                exit: (t.exit, last),
+            });
         }
+        drop(held);
+        pairs = pairs.merge(scene.pairs());
     }
-    scene.clearance()
+    pairs.clearance(radius, lib.period_s())
+}
+
+/// Library patch `p`'s standers, world metres.
+fn standers(lib: &Library, p: usize) -> impl Iterator<Item = DVec2> + '_ {
+    let patch = &lib.patches[p];
+    let first = patch.first_stander as usize;
+    lib.standers[first..first + patch.standers as usize]
+        .iter()
+        .map(move |s| {
+            let [x, y] = lib.world_position(patch, *s);
+            DVec2::new(x, y)
+        })
 }
 
 /// Every trajectory's handover to its `next`: at a border, or at its loop's seam (the last
 /// trajectory of a loop, walked from its `first_trajectory`, to the first).
-fn handovers(lib: &Library, paths: &[Vec<(DVec2, f64)>]) -> (Seams, Seams) {
+fn handovers(lib: &Library) -> (Seams, Seams) {
     let mut last_of_loop = vec![false; lib.trajectories.len()];
     for c in &lib.characters {
         let mut at = c.first_trajectory as usize;
@@ -122,11 +158,18 @@ fn handovers(lib: &Library, paths: &[Vec<(DVec2, f64)>]) -> (Seams, Seams) {
         }
         last_of_loop[at] = true;
     }
+    // Each trajectory's first and last place and velocity (its path made and dropped).
+    let ends: Vec<[(DVec2, DVec2); 2]> = (0..lib.trajectories.len())
+        .into_par_iter()
+        .map(|i| {
+            let p = path(lib, i);
+            let (first, last) = end_velocities(&p, TICK_S);
+            [(p[0].0, first), (p[p.len() - 1].0, last)]
+        })
+        .collect();
     let (mut borders, mut seams) = (Seams::default(), Seams::default());
     for (i, t) in lib.trajectories.iter().enumerate() {
-        let (a, b) = (&paths[i], &paths[t.next as usize]);
-        let end = (a[a.len() - 1].0, end_velocities(a, TICK_S).1);
-        let start = (b[0].0, end_velocities(b, TICK_S).0);
+        let (end, start) = (ends[i][1], ends[t.next as usize][0]);
         if last_of_loop[i] {
             seams.note(end, start);
             seams.open += u64::from(end.0.distance(start.0) > OPEN_GAP_M);
@@ -150,7 +193,6 @@ const FRAMES_PER_RUN: u64 = 125;
 /// are played in runs of [`FRAMES_PER_RUN`], each by its own sampler, in parallel (the same
 /// figures for any thread count: a maximum and a count).
 pub fn sample(lib: &Library, step: f64, fastest: f64) -> Sampled {
-    use rayon::prelude::*;
     let frames = (lib.period_s() / step).round().max(1.0) as u64;
     let runs: Vec<(u64, u64)> = (0..frames.div_ceil(FRAMES_PER_RUN))
         .map(|r| (r * FRAMES_PER_RUN, ((r + 1) * FRAMES_PER_RUN).min(frames)))

@@ -1,0 +1,139 @@
+//! The world cut into strips for the check: runs of patches of about [`STRIP_PIECES`] pieces,
+//! each checked with the patches within reach of it present but not counted
+//! (`world::Scene::owned`). What the check holds then grows with a strip, not with the world:
+//! a million walkers' 165 million pieces held 20 GB at once.
+
+use crate::motion::STRIP_ALIGN;
+use crowd_core::PatchGraph;
+use crowd_core::trajectories::PatchMotion;
+use glam::DVec2;
+use std::ops::Range;
+
+/// Pieces a strip holds at most, give or take a chunk of patches (56 bytes each, with the
+/// spatial grid's entries about 400 MB).
+pub(crate) const STRIP_PIECES: u64 = 4_000_000;
+
+/// Where a patch's characters go: the box of every point of its trajectories and of its
+/// standers, world metres, and how many pieces its trajectories have.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Extent {
+    pub lo: DVec2,
+    pub hi: DVec2,
+    pub pieces: u64,
+}
+
+impl Extent {
+    /// A patch with no one in it.
+    pub const EMPTY: Extent = Extent {
+        lo: DVec2::INFINITY,
+        hi: DVec2::NEG_INFINITY,
+        pieces: 0,
+    };
+
+    /// Patch `p`'s extent in `graph`'s world.
+    pub fn of(graph: &PatchGraph, p: usize, m: &PatchMotion) -> Extent {
+        let origin = graph.world_from_patch(graph.patches[p].cell);
+        let points = (m.trajectories.iter())
+            .flat_map(|t| t.points.iter().map(|c| c.pos))
+            .chain(m.standers.iter().copied());
+        let mut e = Extent::EMPTY;
+        for q in points {
+            e.grow(origin + q);
+        }
+        e.pieces = (m.trajectories.iter())
+            .map(|t| t.points.len().saturating_sub(1) as u64)
+            .sum();
+        e
+    }
+
+    /// Takes in point `q` (world metres).
+    pub fn grow(&mut self, q: DVec2) {
+        self.lo = self.lo.min(q);
+        self.hi = self.hi.max(q);
+    }
+
+    fn is_empty(&self) -> bool {
+        self.lo.x > self.hi.x
+    }
+}
+
+/// The strips: runs of patches in order, each starting at a multiple of [`STRIP_ALIGN`], of
+/// about `budget` pieces (a run of one chunk however many it holds).
+pub(crate) fn plan(extents: &[Extent], budget: u64) -> Vec<Range<usize>> {
+    let mut strips = Vec::new();
+    let (mut start, mut pieces) = (0, 0u64);
+    for (c, chunk) in extents.chunks(STRIP_ALIGN).enumerate() {
+        let here: u64 = chunk.iter().map(|e| e.pieces).sum();
+        let at = c * STRIP_ALIGN;
+        if at > start && pieces + here > budget {
+            strips.push(start..at);
+            (start, pieces) = (at, 0);
+        }
+        pieces += here;
+    }
+    if start < extents.len() || strips.is_empty() {
+        strips.push(start..extents.len());
+    }
+    strips
+}
+
+/// The patches a strip's scene holds, in order: the strip's own, and every other whose
+/// characters come within `reach` of the strip's box (they may meet one of its characters).
+pub(crate) fn with_surroundings(
+    extents: &[Extent],
+    strip: &Range<usize>,
+    reach: f64,
+) -> Vec<usize> {
+    let own = &extents[strip.clone()];
+    let (lo, hi) = own
+        .iter()
+        .filter(|e| !e.is_empty())
+        .fold((DVec2::INFINITY, DVec2::NEG_INFINITY), |(lo, hi), e| {
+            (lo.min(e.lo), hi.max(e.hi))
+        });
+    let (lo, hi) = (lo - DVec2::splat(reach), hi + DVec2::splat(reach));
+    let near = |e: &Extent| !e.is_empty() && e.lo.cmple(hi).all() && e.hi.cmpge(lo).all();
+    (0..extents.len())
+        .filter(|p| strip.contains(p) || near(&extents[*p]))
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn at(x: f64, y: f64, pieces: u64) -> Extent {
+        Extent {
+            lo: DVec2::new(x, y),
+            hi: DVec2::new(x + 8.0, y + 8.0),
+            pieces,
+        }
+    }
+
+    #[test]
+    fn strips_cover_every_patch_once_at_whole_chunks() {
+        let extents: Vec<Extent> = (0..1000).map(|i| at(0.0, 0.0, i % 7)).collect();
+        for budget in [0, 1, 100, 500, 2_000, u64::MAX] {
+            let strips = plan(&extents, budget);
+            assert_eq!(strips[0].start, 0);
+            assert_eq!(strips.last().unwrap().end, 1000);
+            for w in strips.windows(2) {
+                assert_eq!(w[0].end, w[1].start);
+                assert_eq!(w[1].start % STRIP_ALIGN, 0);
+            }
+        }
+        assert_eq!(plan(&extents, u64::MAX), vec![0..1000]);
+        assert_eq!(plan(&[], 10), vec![0..0]);
+    }
+
+    #[test]
+    fn a_strip_holds_the_patches_within_reach_and_no_farther_ones() {
+        // A row of 8 m patches along x; the strip is patch 2.
+        let mut extents: Vec<Extent> = (0..6).map(|i| at(8.0 * i as f64, 0.0, 1)).collect();
+        extents[4] = Extent::EMPTY;
+        assert_eq!(with_surroundings(&extents, &(2..3), 1.6), vec![1, 2, 3]);
+        // A walker of patch 5 that strays to x = 25 comes within reach of patch 2's box.
+        extents[5].lo.x = 25.0;
+        assert_eq!(with_surroundings(&extents, &(2..3), 1.6), vec![1, 2, 3, 5]);
+    }
+}
