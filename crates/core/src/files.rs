@@ -77,21 +77,36 @@ impl SideFile {
     pub fn read(&self, owner: &Path) -> Result<Vec<u8>> {
         let path = owner.with_file_name(&self.file);
         let bytes = read_bytes(&path)?;
-        if bytes.len() as u64 != self.bytes || Hash::of(&bytes) != self.hash {
-            return Err(Error::stage_file(
-                &path,
-                format!(
-                    "is {} bytes with hash {}, but {} expects {} bytes with hash {}; \
-                     the build was interrupted or the file was changed: build again",
-                    bytes.len(),
-                    Hash::of(&bytes).short(),
-                    owner.display(),
-                    self.bytes,
-                    self.hash.short()
-                ),
-            ));
-        }
+        self.expect(owner, &path, (bytes.len() as u64, Hash::of(&bytes)))?;
         Ok(bytes)
+    }
+
+    /// Checks the size and hash of the side file next to `owner` as [`SideFile::read`] does,
+    /// reading it through without keeping its bytes; its path.
+    pub fn check(&self, owner: &Path) -> Result<std::path::PathBuf> {
+        let path = owner.with_file_name(&self.file);
+        let found = Hash::of_file(&path).map_err(|e| Error::io(&path, "read", e))?;
+        self.expect(owner, &path, found)?;
+        Ok(path)
+    }
+
+    /// Refuses a side file at `path` of `found` size and hash other than this record's.
+    fn expect(&self, owner: &Path, path: &Path, found: (u64, Hash)) -> Result<()> {
+        if found == (self.bytes, self.hash) {
+            return Ok(());
+        }
+        Err(Error::stage_file(
+            path,
+            format!(
+                "is {} bytes with hash {}, but {} expects {} bytes with hash {}; \
+                 the build was interrupted or the file was changed: build again",
+                found.0,
+                found.1.short(),
+                owner.display(),
+                self.bytes,
+                self.hash.short()
+            ),
+        ))
     }
 }
 

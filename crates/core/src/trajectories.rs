@@ -243,10 +243,6 @@ impl Reader<'_> {
         Some(s)
     }
 
-    fn skip(&mut self, items: usize, item_bytes: usize) -> Option<()> {
-        self.take(items.checked_mul(item_bytes)?).map(|_| ())
-    }
-
     fn u32(&mut self) -> Option<u32> {
         self.take(4)
             .map(|b| u32::from_le_bytes(b.try_into().unwrap()))
@@ -261,6 +257,72 @@ impl Reader<'_> {
     fn count(&mut self, min_item_bytes: usize) -> Option<usize> {
         let n = self.u32()? as usize;
         (n.saturating_mul(min_item_bytes) <= self.bytes.len() - self.at).then_some(n)
+    }
+}
+
+/// What [`patch_extent`] reads: counts, and bytes it steps over ([`Reader`] over bytes in
+/// memory, [`FileCounts`] over a file).
+trait Counts {
+    fn u32(&mut self) -> Option<u32>;
+    /// Steps over `n` bytes, if there are that many left.
+    fn skip_bytes(&mut self, n: usize) -> Option<()>;
+    /// Bytes left.
+    fn left(&self) -> usize;
+    /// Bytes read or stepped over.
+    fn position(&self) -> usize;
+
+    /// A count of items of at least `min_item_bytes` each, refused if they cannot fit.
+    fn count(&mut self, min_item_bytes: usize) -> Option<usize> {
+        let n = self.u32()? as usize;
+        (n.saturating_mul(min_item_bytes) <= self.left()).then_some(n)
+    }
+
+    fn skip(&mut self, items: usize, item_bytes: usize) -> Option<()> {
+        self.skip_bytes(items.checked_mul(item_bytes)?)
+    }
+}
+
+impl Counts for Reader<'_> {
+    fn u32(&mut self) -> Option<u32> {
+        Reader::u32(self)
+    }
+    fn skip_bytes(&mut self, n: usize) -> Option<()> {
+        self.take(n).map(|_| ())
+    }
+    fn left(&self) -> usize {
+        self.bytes.len() - self.at
+    }
+    fn position(&self) -> usize {
+        self.at
+    }
+}
+
+/// [`Counts`] over a file of `len` bytes, read through a buffer.
+struct FileCounts {
+    file: std::io::BufReader<std::fs::File>,
+    at: usize,
+    len: usize,
+}
+
+impl Counts for FileCounts {
+    fn u32(&mut self) -> Option<u32> {
+        let mut b = [0u8; 4];
+        (self.left() >= 4).then_some(())?;
+        std::io::Read::read_exact(&mut self.file, &mut b).ok()?;
+        self.at += 4;
+        Some(u32::from_le_bytes(b))
+    }
+    fn skip_bytes(&mut self, n: usize) -> Option<()> {
+        (n <= self.left()).then_some(())?;
+        self.file.seek_relative(i64::try_from(n).ok()?).ok()?;
+        self.at += n;
+        Some(())
+    }
+    fn left(&self) -> usize {
+        self.len - self.at
+    }
+    fn position(&self) -> usize {
+        self.at
     }
 }
 
@@ -306,6 +368,38 @@ impl MotionIndex {
         Ok(MotionIndex { spans })
     }
 
+    /// [`MotionIndex::of`] the side file at `path`, read through without keeping its bytes.
+    fn of_file(path: &Path) -> Result<MotionIndex> {
+        let file = std::fs::File::open(path).map_err(|e| Error::io(path, "read", e))?;
+        let len = file
+            .metadata()
+            .map_err(|e| Error::io(path, "read", e))?
+            .len();
+        let len = usize::try_from(len).map_err(|_| damaged(path, 0))?;
+        let mut magic = [0u8; 8];
+        let mut r = FileCounts {
+            file: std::io::BufReader::with_capacity(1 << 20, file),
+            at: 0,
+            len,
+        };
+        let read_magic = std::io::Read::read_exact(&mut r.file, &mut magic);
+        if len < 8 || read_magic.is_err() || &magic != MAGIC {
+            return Err(damaged(path, 0));
+        }
+        r.at = 8;
+        let n = r.count(8).ok_or_else(|| damaged(path, r.position()))?;
+        let mut spans = Vec::with_capacity(n);
+        for _ in 0..n {
+            let start = r.position();
+            let trajectories = patch_extent(&mut r).ok_or_else(|| damaged(path, r.position()))?;
+            spans.push((start..r.position(), trajectories));
+        }
+        if r.position() != len {
+            return Err(damaged(path, r.position()));
+        }
+        Ok(MotionIndex { spans })
+    }
+
     /// How many patches the file holds.
     pub fn patches(&self) -> usize {
         self.spans.len()
@@ -327,13 +421,14 @@ impl MotionIndex {
     }
 }
 
-/// A trajectories file's motion still in its side file's bytes ([`TrajectoriesFile::open_for`]).
+/// A trajectories file's motion left in its side file ([`TrajectoriesFile::open_for`]), each
+/// patch read from the file when asked for.
 pub struct LazyMotion {
     /// The stage file, named when a patch does not fit the graph.
     path: std::path::PathBuf,
     /// The side file, named when its bytes are damaged.
     side: std::path::PathBuf,
-    bytes: Vec<u8>,
+    file: std::fs::File,
     index: MotionIndex,
 }
 
@@ -344,10 +439,38 @@ impl LazyMotion {
 
     /// Patch `p`'s motion, refused as [`check_motion`] refuses it.
     pub fn patch(&self, p: usize) -> Result<PatchMotion> {
-        let m = self.index.decode(&self.side, &self.bytes, p)?;
+        let span = self.index.spans[p].0.clone();
+        let mut bytes = vec![0u8; span.len()];
+        read_at(&self.file, &mut bytes, span.start as u64)
+            .map_err(|e| Error::io(&self.side, "read", e))?;
+        let mut r = Reader {
+            bytes: &bytes,
+            at: 0,
+        };
+        let m = decode_patch(&mut r).ok_or_else(|| damaged(&self.side, span.start + r.at))?;
         check_patch_motion(&self.path, p, &m)?;
         Ok(m)
     }
+}
+
+/// Fills `buf` from `file` at `offset`, from any thread (no shared cursor).
+#[cfg(unix)]
+fn read_at(file: &std::fs::File, buf: &mut [u8], offset: u64) -> std::io::Result<()> {
+    std::os::unix::fs::FileExt::read_exact_at(file, buf, offset)
+}
+
+#[cfg(windows)]
+fn read_at(file: &std::fs::File, mut buf: &mut [u8], mut offset: u64) -> std::io::Result<()> {
+    while !buf.is_empty() {
+        match std::os::windows::fs::FileExt::seek_read(file, buf, offset)? {
+            0 => return Err(std::io::ErrorKind::UnexpectedEof.into()),
+            n => {
+                buf = &mut buf[n..];
+                offset += n as u64;
+            }
+        }
+    }
+    Ok(())
 }
 
 /// The error of a side file whose bytes are not what [`encode_motion`] writes.
@@ -359,7 +482,7 @@ fn damaged(path: &Path, at: usize) -> Error {
 }
 
 /// Moves `r` over one patch's bytes, reading only its counts; its trajectory count.
-fn patch_extent(r: &mut Reader) -> Option<u32> {
+fn patch_extent(r: &mut impl Counts) -> Option<u32> {
     let ns = r.count(STANDER_BYTES)?;
     r.skip(ns, STANDER_BYTES)?;
     let nt = r.count(TRAJECTORY_BYTES)?;
@@ -684,8 +807,8 @@ impl TrajectoriesFile {
 
     /// One patch of a trajectories file written by `stage` at `version` for a graph of
     /// `patches` patches, chosen by `choose` from the index (None: the file holds none to
-    /// choose), without decoding the others: a picture of the busiest patch of painting's
-    /// 412 MB decoded all of it.
+    /// choose), without decoding the others or keeping the side file's bytes: a picture of the
+    /// busiest patch of painting's 412 MB decoded all of it, and of the million's held 4.2 GB.
     pub fn load_patch(
         path: &Path,
         stage: &str,
@@ -693,35 +816,33 @@ impl TrajectoriesFile {
         patches: usize,
         choose: impl FnOnce(&MotionIndex) -> Option<usize>,
     ) -> Result<(TrajectoriesFile, Option<(usize, PatchMotion)>)> {
-        let (file, bytes) = Self::read_stage(path, stage, version)?;
-        let side = path.with_file_name(&file.motion.file);
-        let index = MotionIndex::of(&side, &bytes)?;
-        check_patch_count(path, index.patches(), patches)?;
-        let Some(p) = choose(&index) else {
+        let (file, lazy) = Self::open_for(path, stage, version, patches)?;
+        let Some(p) = choose(&lazy.index) else {
             return Ok((file, None));
         };
-        let motion = index.decode(&side, &bytes, p)?;
-        check_patch_motion(path, p, &motion)?;
+        let motion = lazy.patch(p)?;
         Ok((file, Some((p, motion))))
     }
 
     /// A file written by `stage` at `version` for a graph of `patches` patches, its motion
-    /// left in its side file's bytes, to be decoded a patch at a time ([`LazyMotion`]): a
-    /// million walkers' motion is a gigabyte of bytes and many more decoded.
+    /// left in its side file (size and hash checked), to be read a patch at a time
+    /// ([`LazyMotion`]): a million walkers' side file is 4.2 GB, and more decoded.
     pub fn open_for(
         path: &Path,
         stage: &str,
         version: u32,
         patches: usize,
     ) -> Result<(TrajectoriesFile, LazyMotion)> {
-        let (file, bytes) = Self::read_stage(path, stage, version)?;
-        let side = path.with_file_name(&file.motion.file);
-        let index = MotionIndex::of(&side, &bytes)?;
+        let file: TrajectoriesFile = crate::files::read_ron(path)?;
+        crate::files::expect_stage(path, &file.header, stage, version)?;
+        let side = file.motion.check(path)?;
+        let index = MotionIndex::of_file(&side)?;
         check_patch_count(path, index.patches(), patches)?;
+        let opened = std::fs::File::open(&side).map_err(|e| Error::io(&side, "read", e))?;
         let lazy = LazyMotion {
             path: path.to_path_buf(),
             side,
-            bytes,
+            file: opened,
             index,
         };
         Ok((file, lazy))
@@ -810,5 +931,51 @@ mod tests {
         let index = MotionIndex::of(Path::new("m.bin"), &bad).unwrap();
         assert!(index.decode(Path::new("m.bin"), &bad, 3).is_err());
         assert!(decode_motion(Path::new("m.bin"), &bad).is_err());
+    }
+
+    /// The index read through a file finds what the index of the bytes in memory finds, and
+    /// refuses what it refuses: every cut, and a count made too large at every place.
+    #[test]
+    fn a_side_file_read_through_is_indexed_as_its_bytes_are() {
+        let motion: Vec<PatchMotion> = (0..4)
+            .map(|p| PatchMotion {
+                standers: vec![DVec2::splat(p as f64); p % 2],
+                trajectories: (0..p)
+                    .map(|k| Trajectory {
+                        entry: k as u32,
+                        exit: k as u32 + 1,
+                        points: (0..k + 2)
+                            .map(|i| ControlPoint {
+                                pos: DVec2::new(p as f64, i as f64),
+                                t: i as f64,
+                                kind: PointKind::Sample,
+                            })
+                            .collect(),
+                    })
+                    .collect(),
+            })
+            .collect();
+        let bytes = encode_motion(&motion);
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("m.bin");
+        let spans = |i: &MotionIndex| i.spans.clone();
+        let same = |b: &[u8]| {
+            std::fs::write(&path, b).unwrap();
+            let (mem, file) = (MotionIndex::of(&path, b), MotionIndex::of_file(&path));
+            match (mem, file) {
+                (Ok(a), Ok(b)) => assert_eq!(spans(&a), spans(&b)),
+                (Err(a), Err(b)) => assert_eq!(a.to_string(), b.to_string()),
+                (a, b) => panic!("in memory {:?}, read through {:?}", a.is_ok(), b.is_ok()),
+            }
+        };
+        same(&bytes);
+        for cut in 0..bytes.len() {
+            same(&bytes[..cut]);
+        }
+        for at in 0..bytes.len() {
+            let mut b = bytes.clone();
+            b[at] = 0xff;
+            same(&b);
+        }
     }
 }
