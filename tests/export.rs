@@ -70,7 +70,7 @@ fn sampling_at_the_keyframes_gives_stage_6_positions_within_the_stated_error() {
     assert!(checked > 1000, "{checked}");
     eprintln!("{checked} keyframes, worst {worst:.2e} m (stated {stated:.2e} m)");
 
-    let kept = crowd_export::simplify::motion(&motion, 0.75e-3);
+    let kept = crowd_export::simplify::motion(motion.clone(), 0.75e-3);
     let quantisation = graph.world.patch_side_m * crowd_export::library::POSITION_ERROR_SHARE;
     // A kept keyframe is off by quantisation, and by a tick's walk where export eased its time.
     let eased = stated - 0.75e-3 - quantisation;

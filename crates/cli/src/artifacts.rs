@@ -21,6 +21,7 @@ use std::rc::Rc;
 pub type PatternsOf = (Patterns, Vec<Crossing>);
 /// A trajectories file (stages 4, 5, 6) and its motion.
 pub type MotionOf = (TrajectoriesFile, Vec<PatchMotion>);
+use crowd_core::trajectories::LazyMotion;
 
 /// The inputs and results of the stages of one command.
 pub struct Artifacts<'p> {
@@ -43,6 +44,9 @@ pub struct Artifacts<'p> {
     graph: Option<Rc<PatchGraph>>,
     patterns: Option<Rc<PatternsOf>>,
     motion: BTreeMap<&'static str, Rc<MotionOf>>,
+    /// Motion this build made but left in files not yet in place (a gathering's stage 6, in
+    /// the shards' parts), read a patch at a time when asked for.
+    lazy: BTreeMap<&'static str, Rc<(TrajectoriesFile, LazyMotion)>>,
 }
 
 impl<'p> Artifacts<'p> {
@@ -62,6 +66,7 @@ impl<'p> Artifacts<'p> {
             graph: None,
             patterns: None,
             motion: BTreeMap::new(),
+            lazy: BTreeMap::new(),
         }
     }
 
@@ -197,7 +202,30 @@ impl<'p> Artifacts<'p> {
         Ok(costs)
     }
 
+    /// Whether this build holds `stage`'s motion in memory (made by it, or read already).
+    pub fn holds_motion(&self, stage: &'static Stage) -> bool {
+        self.motion.contains_key(stage.output)
+    }
+
+    /// Keeps the motion `stage` made as left in files, for the stages after it.
+    pub fn made_lazy_motion(
+        &mut self,
+        stage: &'static Stage,
+        made: (TrajectoriesFile, LazyMotion),
+    ) {
+        self.lazy.insert(stage.output, Rc::new(made));
+    }
+
+    /// The motion `stage` made and left in files, if it did.
+    pub fn lazy_motion(&self, stage: &'static Stage) -> Option<Rc<(TrajectoriesFile, LazyMotion)>> {
+        self.lazy.get(stage.output).cloned()
+    }
+
     pub fn take_motion(&mut self, stage: &'static Stage) -> Result<Rc<MotionOf>> {
+        if let Some(lazy) = self.lazy.remove(stage.output) {
+            let motion = lazy.1.all()?;
+            self.made_motion(stage, (lazy.0.clone(), motion));
+        }
         if !self.motion.contains_key(stage.output) {
             let path = self.path(stage.output);
             let loaded = TrajectoriesFile::load_stage(&path, stage.kind, stage.version)?;

@@ -547,7 +547,7 @@ fn smooth(a: &mut Artifacts, out: &Path, hash: Hash, ui: &Ui) -> Result<Ran> {
     let (graph, patterns) = (a.graph()?, a.patterns()?);
     let inputs = crowd_smooth::inputs(a.pipeline);
     let dir = out.parent().unwrap_or(Path::new("."));
-    let gathered = match a.split {
+    match a.split {
         Split::Shard(shard) => {
             let collided = a.shard_collided.take().expect("stage 5 ran in this shard");
             let own: Vec<usize> = shard.run(&a.shard_costs()?).collect();
@@ -562,39 +562,20 @@ fn smooth(a: &mut Artifacts, out: &Path, hash: Hash, ui: &Ui) -> Result<Ran> {
                 crowd_smooth::shard::encode_shard(dir, shard, hash, part)
             })?));
         }
-        Split::Gather => {
-            // What each part says it is made from: stage 5's inputs, the patterns, the settings.
-            let collide_hash = a.hashes[COLLIDE.name];
-            let made_from =
-                crowd_smooth::shard::part_hash(collide_hash, &a.bytes(&OPTIMIZE)?, &inputs);
-            Some(crowd_smooth::shard::gather(
-                dir,
-                made_from,
-                &a.shard_costs()?,
-            )?)
-        }
-        Split::Whole => None,
-    };
+        Split::Gather => return smooth_gathered(a, out, hash, &inputs),
+        Split::Whole => {}
+    }
     let collided = a.take_motion(&COLLIDE)?;
     let seen = Seen::new(&graph, &patterns.1);
     let keys = crowd_smooth::patch_keys(&seen, &collided.1, &inputs);
     let counted = |counts: [u64; 3]| counts.iter().flat_map(|c| c.to_le_bytes()).collect();
-    let (mut done, todo) = match gathered {
-        Some(parts) => {
-            let done = parts
-                .into_iter()
-                .map(|(m, c)| Some((m, counted(c))))
-                .collect();
-            (done, Vec::new())
-        }
-        None => {
-            let previous = reuse::Previous::load(out);
-            let done = reuse::reusable(previous.as_ref(), &keys, &seen.tables);
-            let todo: Vec<usize> = (0..done.len()).filter(|&p| done[p].is_none()).collect();
-            (done, todo)
-        }
-    };
+    let previous = reuse::Previous::load(out);
+    let mut done = reuse::reusable(previous.as_ref(), &keys, &seen.tables);
+    let todo: Vec<usize> = (0..done.len()).filter(|&p| done[p].is_none()).collect();
     let made = crowd_smooth::smooth_patches(&graph, &patterns.1, &collided.1, &inputs, &bar, &todo);
+    // Stage 5's motion is read no more: let it go before the encoding.
+    let collided_file = collided.0.clone();
+    drop(collided);
     for (&p, (m, counts)) in todo.iter().zip(made) {
         done[p] = Some((m, counted(counts)));
     }
@@ -614,13 +595,54 @@ fn smooth(a: &mut Artifacts, out: &Path, hash: Hash, ui: &Ui) -> Result<Ran> {
         extra.push(bytes);
     }
     let summary = crowd_smooth::summary_of(counts.into_iter());
-    let (file, writes) = crowd_smooth::encode(out, &motion, summary, &collided.0, &inputs, hash);
-    drop(collided);
+    let (file, writes) = crowd_smooth::encode(out, &motion, summary, &collided_file, &inputs, hash);
     let writes = with_keys(out, writes, file.motion.hash, keys, &seen.tables, extra);
     let note = reuse::note(motion.len() - todo.len(), motion.len());
     a.made_motion(&SMOOTH, (file, motion));
     Ok(Ran {
         note: Some(note),
+        ..Ran::files(writes)
+    })
+}
+
+/// Stage 6 put together from the shards' parts: their patch bytes one after another make the
+/// side file one process would write, read part by part and never decoded into one world (the
+/// million's gather held its motion decoded and encoded at once: 11 GB). Export then reads
+/// the patches from the file ([`thinned`]).
+fn smooth_gathered(
+    a: &mut Artifacts,
+    out: &Path,
+    hash: Hash,
+    inputs: &crowd_smooth::Inputs,
+) -> Result<Ran> {
+    let dir = out.parent().unwrap_or(Path::new("."));
+    // What each part says it is made from: stage 5's inputs, the patterns, the settings.
+    let made_from =
+        crowd_smooth::shard::part_hash(a.hashes[COLLIDE.name], &a.bytes(&OPTIMIZE)?, inputs);
+    let mut summing = crowd_core::trajectories::Summing::new(inputs.period_s);
+    let gathered =
+        crowd_smooth::shard::gather_bytes(dir, made_from, &a.shard_costs()?, |m| summing.add(m))?;
+    let (bytes, counts) = (gathered.bytes, gathered.reports);
+    let (graph, patterns) = (a.graph()?, a.patterns()?);
+    let collided = a.take_motion(&COLLIDE)?;
+    let seen = Seen::new(&graph, &patterns.1);
+    let keys = crowd_smooth::patch_keys(&seen, &collided.1, inputs);
+    let collided_file = collided.0.clone();
+    drop(collided);
+    let extra = (counts.iter())
+        .map(|c| c.iter().flat_map(|c| c.to_le_bytes()).collect())
+        .collect();
+    let encoded = crowd_core::trajectories::Encoded {
+        bytes,
+        summary: summing.finish(),
+    };
+    let summary = crowd_smooth::summary_of(counts.iter().copied());
+    let (file, writes) =
+        crowd_smooth::encode_gathered(out, encoded, summary, &collided_file, inputs, hash);
+    let writes = with_keys(out, writes, file.motion.hash, keys, &seen.tables, extra);
+    a.made_lazy_motion(&SMOOTH, (file, gathered.motion));
+    Ok(Ran {
+        note: Some(reuse::note(counts.len(), counts.len())),
         ..Ran::files(writes)
     })
 }
@@ -678,11 +700,42 @@ fn export(a: &mut Artifacts, out: &Path, hash: Hash, _: &Ui) -> Result<Ran> {
     let (graph, patterns) = (a.graph()?, a.patterns()?);
     a.pipeline
         .check_region((graph.world.size_m.x, graph.world.size_m.y))?;
-    let smoothed = a.take_motion(final_motion(a.pipeline))?;
     let inputs = crowd_export::inputs(a.pipeline);
-    let export = crowd_export::export(&graph, &patterns.1, &smoothed.1, &inputs, hash)
+    let kept = thinned(
+        a,
+        final_motion(a.pipeline),
+        crowd_export::tolerance_m(&inputs),
+    )?;
+    let export = crowd_export::export(&graph, &patterns.1, kept, &inputs, hash)
         .map_err(|e| anyhow!("{}: cannot export: {e}", out.display()))?;
     Ok(Ran::files(crowd_export::writes(out, export)))
+}
+
+/// `stage`'s motion thinned out for export (`crowd_export::simplify`): from the motion this
+/// build holds, taken (each patch's dense keyframes freed as it is done), or else read from
+/// the stage's file a patch at a time, so that the dense motion of the world is never held
+/// (the million's gather: 4.2 GB of side file, more decoded).
+fn thinned(a: &mut Artifacts, stage: &'static Stage, tolerance_m: f64) -> Result<Vec<PatchMotion>> {
+    if a.holds_motion(stage) {
+        let held = a.take_motion(stage)?;
+        let motion = std::rc::Rc::try_unwrap(held).map_or_else(|shared| shared.1.clone(), |m| m.1);
+        return Ok(crowd_export::simplify::motion(motion, tolerance_m));
+    }
+    let lazy = match a.lazy_motion(stage) {
+        Some(made) => made,
+        None => {
+            let path = a.path(stage.output);
+            let patches = a.graph()?.patches.len();
+            let opened = TrajectoriesFile::open_for(&path, stage.kind, stage.version, patches)?;
+            std::rc::Rc::new(opened)
+        }
+    };
+    let motion = &lazy.1;
+    let kept: Vec<crowd_core::Result<PatchMotion>> = (0..motion.patches())
+        .into_par_iter()
+        .map(|p| Ok(crowd_export::simplify::patch(motion.patch(p)?, tolerance_m)))
+        .collect();
+    Ok(kept.into_iter().collect::<crowd_core::Result<_>>()?)
 }
 
 /// Refuses a folder that holds no stage file, for the commands that read a build folder

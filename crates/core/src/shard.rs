@@ -156,70 +156,152 @@ pub fn gather_parts<R: DeserializeOwned + Clone>(
     header: &Header,
     costs: &[u64],
 ) -> Result<Vec<(PatchMotion, R)>> {
+    let mut all = Vec::with_capacity(costs.len());
+    for_each_part(dir, header, costs, |part: Part<R>, path, bytes| {
+        let motion = decode_motion(path, bytes)?;
+        all.extend(motion.into_iter().zip(part.reports));
+        Ok(())
+    })?;
+    Ok(all)
+}
+
+/// [`gather_parts`] left encoded: the side file's bytes one process would have written
+/// ([`encode_motion`] of every patch: the parts' patch bytes one after another), and every
+/// patch's report. `each` sees every patch's motion in patch order, decoded one part at a
+/// time: the world's motion is never held decoded (the million's was 11 GB with its bytes).
+pub fn gather_encoded<R: DeserializeOwned + Clone>(
+    dir: &Path,
+    header: &Header,
+    costs: &[u64],
+    mut each: impl FnMut(&PatchMotion),
+) -> Result<Gathered<R>> {
+    let mut bytes = Vec::new();
+    bytes.extend_from_slice(&encode_motion::<PatchMotion>(&[])[..HEAD_BYTES - 4]);
+    bytes.extend_from_slice(&(costs.len() as u32).to_le_bytes());
+    let mut reports = Vec::with_capacity(costs.len());
+    let mut parts = Vec::new();
+    for_each_part(dir, header, costs, |part: Part<R>, path, part_bytes| {
+        decode_motion(path, part_bytes)?.iter().for_each(&mut each);
+        bytes.extend_from_slice(&part_bytes[HEAD_BYTES..]);
+        reports.extend(part.reports);
+        let index = crate::trajectories::MotionIndex::of(path, part_bytes)?;
+        parts.push((
+            path.to_path_buf(),
+            path.with_file_name(&part.motion.file),
+            index,
+        ));
+        Ok(())
+    })?;
+    let motion = crate::trajectories::LazyMotion::of_parts(parts)?;
+    Ok(Gathered {
+        bytes,
+        reports,
+        motion,
+    })
+}
+
+/// What [`gather_encoded`] puts together.
+pub struct Gathered<R> {
+    /// The side file one process would have written.
+    pub bytes: Vec<u8>,
+    /// Every patch's report, in patch order.
+    pub reports: Vec<R>,
+    /// Every patch's motion, left in the parts' side files.
+    pub motion: crate::trajectories::LazyMotion,
+}
+
+/// The magic and patch count that open a motion side file ([`encode_motion`]).
+const HEAD_BYTES: usize = 12;
+
+/// Calls `take` with every part of the stage `header` names, in shard order (so in patch
+/// order), with its path and its side file's bytes, once each is checked as
+/// [`gather_parts`] says.
+fn for_each_part<R: DeserializeOwned + Clone>(
+    dir: &Path,
+    header: &Header,
+    costs: &[u64],
+    mut take: impl FnMut(Part<R>, &Path, &[u8]) -> Result<()>,
+) -> Result<()> {
     let count = part_count(dir, &header.stage)?;
-    let mut all: Vec<Option<(PatchMotion, R)>> = vec![None; costs.len()];
+    let mut next = 0usize;
     for index in 0..count {
         let shard = Shard::new(index, count).expect("index < count");
         let path = part_path(dir, &header.stage, shard);
-        if !path.exists() {
+        let (file, bytes) = read_part::<R>(&path, header, shard, costs)?;
+        let run = shard.run(costs);
+        if run.start != next {
             return Err(Error::stage_file(
-                &path,
-                format!(
-                    "is missing: gathering {count} shards needs every one of them \
-                     (run `crowd build --shard {shard}` and copy its {SHARDS_DIR}/ here)"
-                ),
+                &dir.join(SHARDS_DIR),
+                format!("has no shard holding patch {next}"),
             ));
         }
-        let file: Part<R> = crate::files::read_ron(&path)?;
-        if file.header != *header || file.shard != shard {
-            return Err(Error::stage_file(
-                &path,
-                format!(
-                    "was made for other inputs (stage {} version {}, inputs {}, shard {}) than \
-                     this build's (version {}, inputs {}, shard {shard}): run that shard again \
-                     on this painting and settings",
-                    file.header.stage,
-                    file.header.version,
-                    file.header.input_hash.short(),
-                    file.shard,
-                    header.version,
-                    header.input_hash.short()
-                ),
-            ));
-        }
-        let mine: Vec<u32> = shard.run(costs).map(|p| p as u32).collect();
-        if file.patches != mine || file.reports.len() != mine.len() {
-            return Err(Error::stage_file(
-                &path,
-                format!("holds patches other than the {} its shard does", mine.len()),
-            ));
-        }
-        let motion = decode_motion(&path, &file.motion.read(&path)?)?;
-        if motion.len() != mine.len() {
-            return Err(Error::stage_file(
-                &path,
-                format!(
-                    "has motion for {} patches, not its {}",
-                    motion.len(),
-                    mine.len()
-                ),
-            ));
-        }
-        for ((m, r), p) in motion.into_iter().zip(file.reports).zip(mine) {
-            all[p as usize] = Some((m, r));
-        }
+        next = run.end;
+        take(file, &path, &bytes)?;
     }
-    all.into_iter()
-        .enumerate()
-        .map(|(p, part)| {
-            part.ok_or_else(|| {
-                Error::stage_file(
-                    &dir.join(SHARDS_DIR),
-                    format!("has no shard holding patch {p}"),
-                )
-            })
-        })
-        .collect()
+    if next != costs.len() {
+        return Err(Error::stage_file(
+            &dir.join(SHARDS_DIR),
+            format!("has no shard holding patch {next}"),
+        ));
+    }
+    Ok(())
+}
+
+/// `shard`'s part at `path` and its side file's bytes, refused unless it is there, made for
+/// `header`, and holds exactly the patches its run of `costs` gives it, with motion for each.
+fn read_part<R: DeserializeOwned + Clone>(
+    path: &Path,
+    header: &Header,
+    shard: Shard,
+    costs: &[u64],
+) -> Result<(Part<R>, Vec<u8>)> {
+    let count = shard.count();
+    if !path.exists() {
+        return Err(Error::stage_file(
+            path,
+            format!(
+                "is missing: gathering {count} shards needs every one of them \
+                 (run `crowd build --shard {shard}` and copy its {SHARDS_DIR}/ here)"
+            ),
+        ));
+    }
+    let file: Part<R> = crate::files::read_ron(path)?;
+    if file.header != *header || file.shard != shard {
+        return Err(Error::stage_file(
+            path,
+            format!(
+                "was made for other inputs (stage {} version {}, inputs {}, shard {}) than \
+                 this build's (version {}, inputs {}, shard {shard}): run that shard again \
+                 on this painting and settings",
+                file.header.stage,
+                file.header.version,
+                file.header.input_hash.short(),
+                file.shard,
+                header.version,
+                header.input_hash.short()
+            ),
+        ));
+    }
+    let mine: Vec<u32> = shard.run(costs).map(|p| p as u32).collect();
+    if file.patches != mine || file.reports.len() != mine.len() {
+        return Err(Error::stage_file(
+            path,
+            format!("holds patches other than the {} its shard does", mine.len()),
+        ));
+    }
+    let bytes = file.motion.read(path)?;
+    let index = crate::trajectories::MotionIndex::of(path, &bytes)?;
+    if index.patches() != mine.len() {
+        return Err(Error::stage_file(
+            path,
+            format!(
+                "has motion for {} patches, not its {}",
+                index.patches(),
+                mine.len()
+            ),
+        ));
+    }
+    Ok((file, bytes))
 }
 
 /// How many shards the parts of `stage` in `dir/shards` are of: one count for all of them.

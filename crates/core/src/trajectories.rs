@@ -421,35 +421,78 @@ impl MotionIndex {
     }
 }
 
-/// A trajectories file's motion left in its side file ([`TrajectoriesFile::open_for`]), each
-/// patch read from the file when asked for.
+/// A trajectories file's motion left in its side file ([`TrajectoriesFile::open_for`]), or in
+/// the side files of a stage's shard parts one after another ([`LazyMotion::of_parts`]), each
+/// patch read from its file when asked for.
 pub struct LazyMotion {
-    /// The stage file, named when a patch does not fit the graph.
+    /// The files, each holding the patches from its `first` on.
+    files: Vec<LazyFile>,
+    patches: usize,
+}
+
+struct LazyFile {
+    /// The stage file (or part), named when a patch does not fit the graph.
     path: std::path::PathBuf,
     /// The side file, named when its bytes are damaged.
     side: std::path::PathBuf,
     file: std::fs::File,
     index: MotionIndex,
+    first: usize,
 }
 
 impl LazyMotion {
+    /// The motion of side files `(stage file, side file, index)` holding runs of patches one
+    /// after another, in patch order.
+    pub fn of_parts(
+        parts: Vec<(std::path::PathBuf, std::path::PathBuf, MotionIndex)>,
+    ) -> Result<LazyMotion> {
+        let mut files = Vec::with_capacity(parts.len());
+        let mut first = 0;
+        for (path, side, index) in parts {
+            let file = std::fs::File::open(&side).map_err(|e| Error::io(&side, "read", e))?;
+            let n = index.patches();
+            files.push(LazyFile {
+                path,
+                side,
+                file,
+                index,
+                first,
+            });
+            first += n;
+        }
+        Ok(LazyMotion {
+            files,
+            patches: first,
+        })
+    }
+
     pub fn patches(&self) -> usize {
-        self.index.patches()
+        self.patches
     }
 
     /// Patch `p`'s motion, refused as [`check_motion`] refuses it.
     pub fn patch(&self, p: usize) -> Result<PatchMotion> {
-        let span = self.index.spans[p].0.clone();
+        let f = &self.files[self.files.partition_point(|f| f.first <= p) - 1];
+        let span = f.index.spans[p - f.first].0.clone();
         let mut bytes = vec![0u8; span.len()];
-        read_at(&self.file, &mut bytes, span.start as u64)
-            .map_err(|e| Error::io(&self.side, "read", e))?;
+        read_at(&f.file, &mut bytes, span.start as u64)
+            .map_err(|e| Error::io(&f.side, "read", e))?;
         let mut r = Reader {
             bytes: &bytes,
             at: 0,
         };
-        let m = decode_patch(&mut r).ok_or_else(|| damaged(&self.side, span.start + r.at))?;
-        check_patch_motion(&self.path, p, &m)?;
+        let m = decode_patch(&mut r).ok_or_else(|| damaged(&f.side, span.start + r.at))?;
+        check_patch_motion(&f.path, p, &m)?;
         Ok(m)
+    }
+
+    /// Every patch's motion, decoded in parallel.
+    pub fn all(&self) -> Result<Vec<PatchMotion>> {
+        let all: Vec<Result<PatchMotion>> = (0..self.patches)
+            .into_par_iter()
+            .map(|p| self.patch(p))
+            .collect();
+        all.into_iter().collect()
     }
 }
 
@@ -534,7 +577,7 @@ fn decode_patch(r: &mut Reader) -> Option<PatchMotion> {
 }
 
 /// Figures of a trajectories file.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct MotionSummary {
     pub walkers_trajectories: u64,
     pub standers: u64,
@@ -593,15 +636,47 @@ pub fn check_patch_motion(path: &Path, p: usize, m: &PatchMotion) -> Result<()> 
 
 /// Figures of per-patch motion.
 pub fn summarize(motion: &[PatchMotion], period_s: f64) -> MotionSummary {
-    let all = || motion.iter().flat_map(|m| &m.trajectories);
-    let count = |f: &dyn Fn(&Trajectory) -> bool| all().filter(|t| f(t)).count() as u64;
-    MotionSummary {
-        walkers_trajectories: all().count() as u64,
-        standers: motion.iter().map(|m| m.standers.len() as u64).sum(),
-        pausing: count(&|t| t.points.iter().any(|p| p.kind == PointKind::Pause)),
-        multi_period: count(&|t| t.duration() > period_s + 1e-9),
-        same_border: count(&|t| t.points.iter().any(|p| p.kind == PointKind::Turn)),
-        walkers_measured: all().map(|t| t.duration()).sum::<f64>() / period_s,
+    let mut s = Summing::new(period_s);
+    motion.iter().for_each(|m| s.add(m));
+    s.finish()
+}
+
+/// [`summarize`] a patch at a time, in patch order (the same sums, to the bit), for motion
+/// that is never held whole.
+pub struct Summing {
+    period_s: f64,
+    summary: MotionSummary,
+    walked_s: f64,
+}
+
+impl Summing {
+    pub fn new(period_s: f64) -> Summing {
+        Summing {
+            period_s,
+            summary: MotionSummary::default(),
+            // Where `Iterator::sum` of floats starts.
+            walked_s: std::iter::empty::<f64>().sum(),
+        }
+    }
+
+    /// The next patch's motion.
+    pub fn add(&mut self, m: &PatchMotion) {
+        let s = &mut self.summary;
+        s.standers += m.standers.len() as u64;
+        for t in &m.trajectories {
+            s.walkers_trajectories += 1;
+            s.pausing += u64::from(t.points.iter().any(|p| p.kind == PointKind::Pause));
+            s.multi_period += u64::from(t.duration() > self.period_s + 1e-9);
+            s.same_border += u64::from(t.points.iter().any(|p| p.kind == PointKind::Turn));
+            self.walked_s += t.duration();
+        }
+    }
+
+    pub fn finish(self) -> MotionSummary {
+        MotionSummary {
+            walkers_measured: self.walked_s / self.period_s,
+            ..self.summary
+        }
     }
 }
 
@@ -616,20 +691,48 @@ pub fn encode_file(
     collisions: Option<CollisionSummary>,
     smoothing: Option<SmoothingSummary>,
 ) -> (TrajectoriesFile, crate::files::Writes) {
-    let bytes = encode_motion(motion);
-    let (side, record) = SideFile::beside(out, &bytes);
+    let encoded = Encoded {
+        bytes: encode_motion(motion),
+        summary: summarize(motion, period_s),
+    };
+    encode_file_of(
+        out,
+        header,
+        (period_s, radius_m),
+        encoded,
+        collisions,
+        smoothing,
+    )
+}
+
+/// A motion side file's bytes, as [`encode_motion`] writes them, and their [`summarize`].
+pub struct Encoded {
+    pub bytes: Vec<u8>,
+    pub summary: MotionSummary,
+}
+
+/// [`encode_file`] of motion already encoded.
+pub fn encode_file_of(
+    out: &Path,
+    header: Header,
+    (period_s, radius_m): (f64, f64),
+    encoded: Encoded,
+    collisions: Option<CollisionSummary>,
+    smoothing: Option<SmoothingSummary>,
+) -> (TrajectoriesFile, crate::files::Writes) {
+    let (side, record) = SideFile::beside(out, &encoded.bytes);
     let file = TrajectoriesFile {
         header,
         period_s,
         radius_m,
-        summary: summarize(motion, period_s),
+        summary: encoded.summary,
         collisions,
         smoothing,
         edits: None,
         motion: record,
     };
     let ron = crate::files::to_stage_ron(&file).into_bytes();
-    (file, vec![(side, bytes), (out.to_path_buf(), ron)])
+    (file, vec![(side, encoded.bytes), (out.to_path_buf(), ron)])
 }
 
 /// `trajectories.ron` (stage 4's file, and the shape of stages 5 and 6's).
@@ -817,7 +920,7 @@ impl TrajectoriesFile {
         choose: impl FnOnce(&MotionIndex) -> Option<usize>,
     ) -> Result<(TrajectoriesFile, Option<(usize, PatchMotion)>)> {
         let (file, lazy) = Self::open_for(path, stage, version, patches)?;
-        let Some(p) = choose(&lazy.index) else {
+        let Some(p) = choose(&lazy.files[0].index) else {
             return Ok((file, None));
         };
         let motion = lazy.patch(p)?;
@@ -838,13 +941,7 @@ impl TrajectoriesFile {
         let side = file.motion.check(path)?;
         let index = MotionIndex::of_file(&side)?;
         check_patch_count(path, index.patches(), patches)?;
-        let opened = std::fs::File::open(&side).map_err(|e| Error::io(&side, "read", e))?;
-        let lazy = LazyMotion {
-            path: path.to_path_buf(),
-            side,
-            file: opened,
-            index,
-        };
+        let lazy = LazyMotion::of_parts(vec![(path.to_path_buf(), side, index)])?;
         Ok((file, lazy))
     }
 

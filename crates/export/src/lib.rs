@@ -118,16 +118,22 @@ pub struct Export {
 /// Why stage 8 cannot export a build.
 pub type ExportError = library::LibraryError;
 
-/// Stage 8's pure core: the library of the final trajectories, and its manifest.
+/// How far [`simplify::motion`] may move a keyframe for `inputs`, metres.
+pub fn tolerance_m(inputs: &Inputs) -> f64 {
+    inputs.settings.simplify_mm * 1e-3
+}
+
+/// Stage 8's pure core: the library of the final trajectories, and its manifest. `kept` is the
+/// final motion thinned out by [`simplify::motion`] (or [`simplify::patch`] patch by patch)
+/// with [`tolerance_m`].
 pub fn export(
     graph: &crowd_core::PatchGraph,
     crossings: &[crowd_core::patterns::Crossing],
-    motion: &[crowd_core::trajectories::PatchMotion],
+    kept: Vec<crowd_core::trajectories::PatchMotion>,
     inputs: &Inputs,
     hash: Hash,
 ) -> Result<Export, ExportError> {
-    let tolerance_m = inputs.settings.simplify_mm * 1e-3;
-    let kept = simplify::motion(motion, tolerance_m);
+    let tolerance_m = tolerance_m(inputs);
     let motion = &kept[..];
     let links = characters::link(motion, crossings.len()).map_err(library::LibraryError::Links)?;
     let mut short = [0u8; 8];

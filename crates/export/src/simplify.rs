@@ -17,23 +17,29 @@ const MAX_RUN: usize = 256;
 /// Every trajectory of `motion` with the keyframes that the walk between its neighbours passes
 /// within `tolerance_m` of dropped. Entry, exit and period-split keyframes are always kept.
 /// Patch by patch in parallel: each is its own, so the result is the same for any number of
-/// threads.
-pub fn motion(motion: &[PatchMotion], tolerance_m: f64) -> Vec<PatchMotion> {
+/// threads. Takes the motion: each patch's dense keyframes are freed as it is done (held with
+/// the kept ones, the million's were 6 GB of the export's peak).
+pub fn motion(motion: Vec<PatchMotion>, tolerance_m: f64) -> Vec<PatchMotion> {
     motion
-        .par_iter()
-        .map(|m| PatchMotion {
-            standers: m.standers.clone(),
-            trajectories: m
-                .trajectories
-                .iter()
-                .map(|tr| Trajectory {
-                    entry: tr.entry,
-                    exit: tr.exit,
-                    points: keyframes(&tr.points, tolerance_m),
-                })
-                .collect(),
-        })
+        .into_par_iter()
+        .map(|m| patch(m, tolerance_m))
         .collect()
+}
+
+/// One patch of [`motion`].
+pub fn patch(m: PatchMotion, tolerance_m: f64) -> PatchMotion {
+    PatchMotion {
+        standers: m.standers,
+        trajectories: m
+            .trajectories
+            .into_iter()
+            .map(|tr| Trajectory {
+                entry: tr.entry,
+                exit: tr.exit,
+                points: keyframes(&tr.points, tolerance_m),
+            })
+            .collect(),
+    }
 }
 
 /// The keyframes of `points` to keep: greedily, each piece runs from the last kept keyframe as

@@ -383,3 +383,26 @@ pub fn encode(
         Some(summary),
     )
 }
+
+/// [`encode`] of motion already encoded (gathered from shards).
+pub fn encode_gathered(
+    out: &std::path::Path,
+    encoded: crowd_core::trajectories::Encoded,
+    summary: SmoothingSummary,
+    collided: &crowd_core::trajectories::TrajectoriesFile,
+    inputs: &Inputs,
+    hash: Hash,
+) -> (
+    crowd_core::trajectories::TrajectoriesFile,
+    crowd_core::files::Writes,
+) {
+    let header = crowd_core::files::Header::new(STAGE, VERSION, hash);
+    crowd_core::trajectories::encode_file_of(
+        out,
+        header,
+        (inputs.period_s, collided.radius_m),
+        encoded,
+        collided.collisions.clone(),
+        Some(summary),
+    )
+}

@@ -6,7 +6,7 @@
 
 use crate::Inputs;
 use crowd_core::files::{Header, Writes};
-use crowd_core::shard::{encode_part, gather_parts};
+use crowd_core::shard::{encode_part, gather_encoded, gather_parts};
 use crowd_core::trajectories::PatchMotion;
 use crowd_core::{Hash, Hasher, Result, Shard};
 use std::path::Path;
@@ -43,4 +43,16 @@ pub fn encode_shard(
 pub fn gather(dir: &Path, hash: Hash, costs: &[u64]) -> Result<Vec<(PatchMotion, [u64; 3])>> {
     let header = Header::new(crate::STAGE, crate::VERSION, hash);
     gather_parts(dir, &header, costs)
+}
+
+/// [`gather`] left encoded (`crowd_core::shard::gather_encoded`): the side file's bytes and
+/// each patch's counts; `each` sees every patch's motion in patch order.
+pub fn gather_bytes(
+    dir: &Path,
+    hash: Hash,
+    costs: &[u64],
+    each: impl FnMut(&PatchMotion),
+) -> Result<crowd_core::shard::Gathered<[u64; 3]>> {
+    let header = Header::new(crate::STAGE, crate::VERSION, hash);
+    gather_encoded(dir, &header, costs, each)
 }
