@@ -148,6 +148,26 @@ pub(crate) fn velocity(a: (DVec2, f64), b: (DVec2, f64), min_dt: f64) -> DVec2 {
 
 /// The pieces of a path an engine shows: consecutive points but those repeated at the same
 /// time and place (a split point on an entry, say), which last no time and go nowhere.
+/// The slowest speed from `a` to `b` that their float32 positions and times allow: each
+/// coordinate and time may be half a float32 step off. Keys 2 us apart (a float32 step of time
+/// near 20 s) whose positions 1.6 km from the origin round to one float32 step (0.12 mm) apart
+/// read 61 m/s, though the walk between them is 0.004 mm: a player never shows it, and the
+/// glTF cannot say it better.
+pub(crate) fn float32_speed(a: (DVec2, f64), b: (DVec2, f64), min_dt: f64) -> f64 {
+    let step = |x: f64| {
+        let f = x.abs() as f32;
+        f64::from(f32::from_bits(f.to_bits() + 1) - f)
+    };
+    let far = a.0.abs().max(b.0.abs()).max_element();
+    let moved = ((b.0 - a.0).length() - std::f64::consts::SQRT_2 * step(far)).max(0.0);
+    let time = b.1 - a.1 + step(a.1.abs().max(b.1.abs()));
+    if moved == 0.0 {
+        0.0
+    } else {
+        moved / time.max(min_dt)
+    }
+}
+
 /// Paths [`Tally::of_made`] makes at once.
 const PATHS_AT_ONCE: usize = 1 << 16;
 
@@ -170,14 +190,17 @@ pub(crate) fn end_velocities(pts: &[(DVec2, f64)], min_dt: f64) -> (DVec2, DVec2
 
 impl Tally {
     /// Tallies `paths` (world points and seconds each), in parallel and added in order.
+    #[cfg(test)]
     pub fn of(paths: &[Vec<(DVec2, f64)>], limit: f64, min_dt: f64, period: f64) -> Tally {
-        Tally::of_made(
-            paths.len(),
-            |i| Cow::Borrowed(&paths[i]),
-            limit,
-            min_dt,
-            period,
-        )
+        let path = |i: usize| Cow::Borrowed(&paths[i][..]);
+        Tally::of_made(paths.len(), path, limit, (min_dt, false), period)
+    }
+
+    /// [`Tally::of`] of paths read from float32 positions and times (`world.glb`): a piece
+    /// is judged at the slowest speed its float32 ends allow ([`float32_speed`]).
+    pub fn of_float32(paths: &[Vec<(DVec2, f64)>], limit: f64, min_dt: f64, period: f64) -> Tally {
+        let path = |i: usize| Cow::Borrowed(&paths[i][..]);
+        Tally::of_made(paths.len(), path, limit, (min_dt, true), period)
     }
 
     /// [`Tally::of`] of `n` paths that `path` makes when asked (path `i`), a run of
@@ -186,7 +209,7 @@ impl Tally {
         n: usize,
         path: impl Fn(usize) -> Cow<'p, [(DVec2, f64)]> + Sync,
         limit: f64,
-        min_dt: f64,
+        (min_dt, float32): (f64, bool),
         period: f64,
     ) -> Tally {
         let mut total = Tally::default();
@@ -196,7 +219,7 @@ impl Tally {
                 .into_par_iter()
                 .map(|i| {
                     let mut t = Tally::default();
-                    t.path(&path(i), limit, min_dt, period);
+                    t.path(&path(i), limit, (min_dt, float32), period);
                     t
                 })
                 .collect();
@@ -206,18 +229,30 @@ impl Tally {
         total
     }
 
-    fn path(&mut self, pts: &[(DVec2, f64)], limit: f64, min_dt: f64, period: f64) {
+    fn path(
+        &mut self,
+        pts: &[(DVec2, f64)],
+        limit: f64,
+        (min_dt, float32): (f64, bool),
+        period: f64,
+    ) {
         let mut before: Option<DVec2> = None;
         for w in pieces(pts) {
             let w = [w.0, w.1];
             let v = velocity(w[0], w[1], min_dt);
             let (speed, dt) = (v.length(), w[1].1 - w[0].1);
+            let judged = if float32 {
+                float32_speed(w[0], w[1], min_dt)
+            } else {
+                speed
+            };
             if speed > STANDING {
                 self.walking += dt;
-                if speed > limit {
+                if judged > limit {
                     self.above += dt;
                 }
             }
+            let speed = judged;
             if speed > self.max_speed {
                 self.max_speed = speed;
                 let (p, t) = w[0];
@@ -281,6 +316,22 @@ impl Seams {
 
 #[cfg(test)]
 mod tests {
+    /// Two float32 keys one float32 step apart in place and time, 1.58 km from the origin,
+    /// are no walk at all; a real metre in a tenth of a second is 10 m/s however far out.
+    #[test]
+    fn float32_rounding_is_not_speed_but_a_fast_walk_is() {
+        let f = |x: f64| f64::from(x as f32);
+        let x = f(1581.0);
+        let x1 = f64::from(f32::from_bits((x as f32).to_bits() + 1));
+        let t = f(19.999);
+        let t1 = f64::from(f32::from_bits((t as f32).to_bits() + 1));
+        let (a, b) = ((DVec2::new(x, f(300.0)), t), (DVec2::new(x1, f(300.0)), t1));
+        assert!(velocity(a, b, 2e-6).length() > 50.0);
+        assert_eq!(float32_speed(a, b, 2e-6), 0.0);
+        let c = (DVec2::new(f(x + 1.0), f(300.0)), f(t + 0.1));
+        assert!((float32_speed(a, c, 2e-6) - 10.0).abs() < 0.01);
+    }
+
     use super::*;
 
     fn path(pts: &[(f64, f64, f64)]) -> Vec<(DVec2, f64)> {

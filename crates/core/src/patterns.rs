@@ -193,7 +193,7 @@ pub struct Patterns {
 
 impl Patterns {
     pub const STAGE: &'static str = "optimize";
-    pub const VERSION: u32 = 8;
+    pub const VERSION: u32 = 10;
 
     /// Reads `patterns.ron` and its crossings.
     pub fn load(path: &std::path::Path) -> Result<(Patterns, Vec<Crossing>)> {

@@ -272,7 +272,7 @@ pub fn figures(bytes: &[u8], inputs: &Inputs) -> Result<ProductFigures, GlbError
     in_world(&nodes, inputs.world_m)?;
     let clip = nodes.clip_s;
     let paths: Vec<Vec<(DVec2, f64)>> = nodes.tracks.iter().map(|t| t.path.clone()).collect();
-    let tally = Tally::of(&paths, inputs.speed_limit_m_s, MIN_DT, clip);
+    let tally = Tally::of_float32(&paths, inputs.speed_limit_m_s, MIN_DT, clip);
     let mut scene = Scene {
         radius: inputs.radius_m,
         repeat: Repeat::Clip(clip),

@@ -45,7 +45,7 @@ pub fn figures(lib: &Library, inputs: &Inputs) -> ProductFigures {
     let period = lib.period_s();
     let path = |i| std::borrow::Cow::Owned(path(lib, i));
     let n = lib.trajectories.len();
-    let tally = Tally::of_made(n, path, inputs.speed_limit_m_s, TICK_S, period);
+    let tally = Tally::of_made(n, path, inputs.speed_limit_m_s, (TICK_S, false), period);
     // The world's pairs and the played frames at once: the pairs' serial parts (the pieces,
     // the grid) left a core idle, and the sampler holds little (painting's check -1 s).
     let (clearance, ((borders, seams), sampled)) = rayon::join(
