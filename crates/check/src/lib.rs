@@ -217,24 +217,20 @@ pub fn walls(graph: &PatchGraph) -> Vec<Wall> {
 #[cfg(test)]
 pub(crate) mod tests {
     use super::*;
-    use crowd_core::config::GraphSettings;
     use crowd_core::trajectories::{ControlPoint, PointKind, Trajectory};
     use crowd_core::{Grid, Hash, MergedMaps};
 
+    /// `cols` x `rows` 8 m patches painted full, asking for `walkers`.
+    fn painted_full(cols: u32, rows: u32, walkers: u64) -> PatchGraph {
+        let mut maps = MergedMaps::empty(8 * cols, 8 * rows, 1.0);
+        maps.walkers = Grid::filled(8 * cols, 8 * rows, 1.0);
+        let inputs = crowd_graph::GraphInputs::counted(walkers, 8.0);
+        crowd_graph::build_graph(&maps, &inputs, Hash::of(b"t"), &()).unwrap()
+    }
+
     /// Two 8 m patches side by side.
     pub(crate) fn two_patches() -> PatchGraph {
-        let mut maps = MergedMaps::empty(16, 8, 1.0);
-        maps.walkers = Grid::filled(16, 8, 1.0);
-        let inputs = crowd_graph::GraphInputs {
-            walkers: 10,
-            standers: 0,
-            people: crowd_core::config::People::Counted,
-            patch_side_m: 8.0,
-            radius_m: 0.3,
-            rho_max: 0.35,
-            settings: GraphSettings::default(),
-        };
-        crowd_graph::build_graph(&maps, &inputs, Hash::of(b"t"), &()).unwrap()
+        painted_full(2, 1, 10)
     }
 
     fn walk(entry: u32, exit: u32, from: (f64, f64, f64), to: (f64, f64, f64)) -> Trajectory {
@@ -256,23 +252,6 @@ pub(crate) mod tests {
             standers: vec![],
             trajectories: vec![tr],
         }
-    }
-
-    /// `side` x `side` patches of 8 m.
-    fn square_of_patches(side: usize) -> PatchGraph {
-        let px = 8 * side as u32;
-        let mut maps = MergedMaps::empty(px, px, 1.0);
-        maps.walkers = Grid::filled(px, px, 1.0);
-        let inputs = crowd_graph::GraphInputs {
-            walkers: 10 * u64::from(px / 8).pow(2),
-            standers: 0,
-            people: crowd_core::config::People::Counted,
-            patch_side_m: 8.0,
-            radius_m: 0.3,
-            rho_max: 0.35,
-            settings: GraphSettings::default(),
-        };
-        crowd_graph::build_graph(&maps, &inputs, Hash::of(b"t"), &()).unwrap()
     }
 
     /// Random walkers and standers in every patch of `graph`, some straying a little past
@@ -326,7 +305,7 @@ pub(crate) mod tests {
         /// the world gives the same figures, to the bit, as one scene of all of it.
         #[test]
         fn strips_give_the_figures_of_one_scene(seed in proptest::prelude::any::<u64>()) {
-            let graph = square_of_patches(12);
+            let graph = painted_full(12, 12, 1440);
             let motion = random_motion(&graph, seed);
             let whole = check_in_strips(&graph, &motion.as_slice(), (20.0, Some(&[])), u64::MAX)
                 .unwrap();

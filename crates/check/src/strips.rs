@@ -52,6 +52,13 @@ impl Extent {
         self.hi = self.hi.max(q);
     }
 
+    /// Takes in `o`: its box and its pieces.
+    pub fn take_in(&mut self, o: &Extent) {
+        self.lo = self.lo.min(o.lo);
+        self.hi = self.hi.max(o.hi);
+        self.pieces += o.pieces;
+    }
+
     fn is_empty(&self) -> bool {
         self.lo.x > self.hi.x
     }

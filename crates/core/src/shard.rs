@@ -4,7 +4,7 @@
 
 use crate::error::{Error, Result};
 use crate::files::{Header, SideFile, Writes};
-use crate::trajectories::{PatchMotion, decode_motion, encode_motion};
+use crate::trajectories::{MotionIndex, PatchMotion, encode_motion, encoded_head, encoded_patches};
 use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
 use std::fmt;
@@ -157,8 +157,8 @@ pub fn gather_parts<R: DeserializeOwned + Clone>(
     costs: &[u64],
 ) -> Result<Vec<(PatchMotion, R)>> {
     let mut all = Vec::with_capacity(costs.len());
-    for_each_part(dir, header, costs, |part: Part<R>, path, bytes| {
-        let motion = decode_motion(path, bytes)?;
+    for_each_part(dir, header, costs, |part: Part<R>, read| {
+        let motion = read.index.decode_all(&read.path, &read.bytes)?;
         all.extend(motion.into_iter().zip(part.reports));
         Ok(())
     })?;
@@ -175,21 +175,17 @@ pub fn gather_encoded<R: DeserializeOwned + Clone>(
     costs: &[u64],
     mut each: impl FnMut(&PatchMotion),
 ) -> Result<Gathered<R>> {
-    let mut bytes = Vec::new();
-    bytes.extend_from_slice(&encode_motion::<PatchMotion>(&[])[..HEAD_BYTES - 4]);
-    bytes.extend_from_slice(&(costs.len() as u32).to_le_bytes());
+    let mut bytes = encoded_head(costs.len()).to_vec();
     let mut reports = Vec::with_capacity(costs.len());
     let mut parts = Vec::new();
-    for_each_part(dir, header, costs, |part: Part<R>, path, part_bytes| {
-        decode_motion(path, part_bytes)?.iter().for_each(&mut each);
-        bytes.extend_from_slice(&part_bytes[HEAD_BYTES..]);
+    for_each_part(dir, header, costs, |part: Part<R>, read| {
+        (read.index.decode_all(&read.path, &read.bytes)?)
+            .iter()
+            .for_each(&mut each);
+        bytes.extend_from_slice(encoded_patches(&read.bytes));
         reports.extend(part.reports);
-        let index = crate::trajectories::MotionIndex::of(path, part_bytes)?;
-        parts.push((
-            path.to_path_buf(),
-            path.with_file_name(&part.motion.file),
-            index,
-        ));
+        let side = read.path.with_file_name(&part.motion.file);
+        parts.push((read.path, side, read.index));
         Ok(())
     })?;
     let motion = crate::trajectories::LazyMotion::of_parts(parts)?;
@@ -210,24 +206,27 @@ pub struct Gathered<R> {
     pub motion: crate::trajectories::LazyMotion,
 }
 
-/// The magic and patch count that open a motion side file ([`encode_motion`]).
-const HEAD_BYTES: usize = 12;
+/// A part's file as [`read_part`] read it: its path, its side file's bytes and their index.
+struct ReadPart {
+    path: PathBuf,
+    bytes: Vec<u8>,
+    index: MotionIndex,
+}
 
 /// Calls `take` with every part of the stage `header` names, in shard order (so in patch
-/// order), with its path and its side file's bytes, once each is checked as
-/// [`gather_parts`] says.
+/// order), as [`read_part`] reads and checks it.
 fn for_each_part<R: DeserializeOwned + Clone>(
     dir: &Path,
     header: &Header,
     costs: &[u64],
-    mut take: impl FnMut(Part<R>, &Path, &[u8]) -> Result<()>,
+    mut take: impl FnMut(Part<R>, ReadPart) -> Result<()>,
 ) -> Result<()> {
     let count = part_count(dir, &header.stage)?;
     let mut next = 0usize;
     for index in 0..count {
         let shard = Shard::new(index, count).expect("index < count");
         let path = part_path(dir, &header.stage, shard);
-        let (file, bytes) = read_part::<R>(&path, header, shard, costs)?;
+        let (file, read) = read_part::<R>(&path, header, shard, costs)?;
         let run = shard.run(costs);
         if run.start != next {
             return Err(Error::stage_file(
@@ -236,7 +235,7 @@ fn for_each_part<R: DeserializeOwned + Clone>(
             ));
         }
         next = run.end;
-        take(file, &path, &bytes)?;
+        take(file, read)?;
     }
     if next != costs.len() {
         return Err(Error::stage_file(
@@ -247,14 +246,14 @@ fn for_each_part<R: DeserializeOwned + Clone>(
     Ok(())
 }
 
-/// `shard`'s part at `path` and its side file's bytes, refused unless it is there, made for
-/// `header`, and holds exactly the patches its run of `costs` gives it, with motion for each.
+/// `shard`'s part at `path` and its side file, refused unless it is there, made for `header`,
+/// and holds exactly the patches its run of `costs` gives it, with motion for each.
 fn read_part<R: DeserializeOwned + Clone>(
     path: &Path,
     header: &Header,
     shard: Shard,
     costs: &[u64],
-) -> Result<(Part<R>, Vec<u8>)> {
+) -> Result<(Part<R>, ReadPart)> {
     let count = shard.count();
     if !path.exists() {
         return Err(Error::stage_file(
@@ -290,7 +289,7 @@ fn read_part<R: DeserializeOwned + Clone>(
         ));
     }
     let bytes = file.motion.read(path)?;
-    let index = crate::trajectories::MotionIndex::of(path, &bytes)?;
+    let index = MotionIndex::of(path, &bytes)?;
     if index.patches() != mine.len() {
         return Err(Error::stage_file(
             path,
@@ -301,7 +300,12 @@ fn read_part<R: DeserializeOwned + Clone>(
             ),
         ));
     }
-    Ok((file, bytes))
+    let read = ReadPart {
+        path: path.to_path_buf(),
+        bytes,
+        index,
+    };
+    Ok((file, read))
 }
 
 /// How many shards the parts of `stage` in `dir/shards` are of: one count for all of them.

@@ -171,8 +171,7 @@ pub fn encode_motion<P: std::borrow::Borrow<PatchMotion> + Sync>(patches: &[P]) 
     let sizes: Vec<usize> = patches.iter().map(|p| encoded_size(p.borrow())).collect();
     let mut out = vec![0u8; HEAD_BYTES + sizes.iter().sum::<usize>()];
     let (head, mut rest) = out.split_at_mut(HEAD_BYTES);
-    head[..8].copy_from_slice(MAGIC);
-    head[8..].copy_from_slice(&(patches.len() as u32).to_le_bytes());
+    head.copy_from_slice(&encoded_head(patches.len()));
     let mut parts = Vec::with_capacity(patches.len());
     for &size in &sizes {
         let (part, tail) = std::mem::take(&mut rest).split_at_mut(size);
@@ -188,6 +187,21 @@ pub fn encode_motion<P: std::borrow::Borrow<PatchMotion> + Sync>(patches: &[P]) 
 
 /// The magic and the patch count.
 const HEAD_BYTES: usize = 12;
+
+/// What [`encode_motion`]'s bytes of `patches` patches start with: the magic, the count.
+/// Followed by the patches' bytes one after another, so that the side file of runs of patches
+/// encoded apart (a stage's shard parts) is this head and each run's [`encoded_patches`].
+pub fn encoded_head(patches: usize) -> [u8; HEAD_BYTES] {
+    let mut head = [0u8; HEAD_BYTES];
+    head[..8].copy_from_slice(MAGIC);
+    head[8..].copy_from_slice(&(patches as u32).to_le_bytes());
+    head
+}
+
+/// The patches' bytes of [`encode_motion`]'s `bytes`: all but the head.
+pub fn encoded_patches(bytes: &[u8]) -> &[u8] {
+    &bytes[HEAD_BYTES.min(bytes.len())..]
+}
 /// A stander: x and y.
 const STANDER_BYTES: usize = 16;
 /// A trajectory without its points: entry, exit, point count.
@@ -252,17 +266,13 @@ impl Reader<'_> {
         self.take(8)
             .map(|b| f64::from_le_bytes(b.try_into().unwrap()))
     }
-
-    /// A count of items of at least `min_item_bytes` each, refused if they cannot fit.
-    fn count(&mut self, min_item_bytes: usize) -> Option<usize> {
-        let n = self.u32()? as usize;
-        (n.saturating_mul(min_item_bytes) <= self.bytes.len() - self.at).then_some(n)
-    }
 }
 
 /// What [`patch_extent`] reads: counts, and bytes it steps over ([`Reader`] over bytes in
 /// memory, [`FileCounts`] over a file).
 trait Counts {
+    /// The first 8 bytes, at the start.
+    fn magic(&mut self) -> Option<[u8; 8]>;
     fn u32(&mut self) -> Option<u32>;
     /// Steps over `n` bytes, if there are that many left.
     fn skip_bytes(&mut self, n: usize) -> Option<()>;
@@ -283,6 +293,9 @@ trait Counts {
 }
 
 impl Counts for Reader<'_> {
+    fn magic(&mut self) -> Option<[u8; 8]> {
+        self.take(8)?.try_into().ok()
+    }
     fn u32(&mut self) -> Option<u32> {
         Reader::u32(self)
     }
@@ -304,13 +317,23 @@ struct FileCounts {
     len: usize,
 }
 
-impl Counts for FileCounts {
-    fn u32(&mut self) -> Option<u32> {
-        let mut b = [0u8; 4];
-        (self.left() >= 4).then_some(())?;
+impl FileCounts {
+    /// The next `N` bytes, if there are that many left.
+    fn read<const N: usize>(&mut self) -> Option<[u8; N]> {
+        let mut b = [0u8; N];
+        (self.left() >= N).then_some(())?;
         std::io::Read::read_exact(&mut self.file, &mut b).ok()?;
-        self.at += 4;
-        Some(u32::from_le_bytes(b))
+        self.at += N;
+        Some(b)
+    }
+}
+
+impl Counts for FileCounts {
+    fn magic(&mut self) -> Option<[u8; 8]> {
+        self.read()
+    }
+    fn u32(&mut self) -> Option<u32> {
+        self.read().map(u32::from_le_bytes)
     }
     fn skip_bytes(&mut self, n: usize) -> Option<()> {
         (n <= self.left()).then_some(())?;
@@ -333,12 +356,7 @@ impl Counts for FileCounts {
 /// patches are then decoded in parallel (painting's 412 MB took a second on one core, once in
 /// each of export, check and report).
 pub fn decode_motion(path: &Path, bytes: &[u8]) -> Result<Vec<PatchMotion>> {
-    let index = MotionIndex::of(path, bytes)?;
-    let decoded: Vec<Result<PatchMotion>> = (0..index.spans.len())
-        .into_par_iter()
-        .map(|p| index.decode(path, bytes, p))
-        .collect();
-    decoded.into_iter().collect()
+    MotionIndex::of(path, bytes)?.decode_all(path, bytes)
 }
 
 /// Where each patch's motion lies in a side file's bytes, and how many trajectories it holds,
@@ -351,21 +369,7 @@ impl MotionIndex {
     /// The index of [`encode_motion`]'s `bytes`, refused (naming `path`) unless every count
     /// fits the bytes that are there and they end where the last patch does.
     pub fn of(path: &Path, bytes: &[u8]) -> Result<MotionIndex> {
-        let mut r = Reader { bytes, at: 0 };
-        if r.take(8) != Some(MAGIC.as_slice()) {
-            return Err(damaged(path, 0));
-        }
-        let n = r.count(8).ok_or_else(|| damaged(path, r.at))?;
-        let mut spans = Vec::with_capacity(n);
-        for _ in 0..n {
-            let start = r.at;
-            let trajectories = patch_extent(&mut r).ok_or_else(|| damaged(path, r.at))?;
-            spans.push((start..r.at, trajectories));
-        }
-        if r.at != bytes.len() {
-            return Err(damaged(path, r.at));
-        }
-        Ok(MotionIndex { spans })
+        MotionIndex::read(path, &mut Reader { bytes, at: 0 })
     }
 
     /// [`MotionIndex::of`] the side file at `path`, read through without keeping its bytes.
@@ -376,25 +380,27 @@ impl MotionIndex {
             .map_err(|e| Error::io(path, "read", e))?
             .len();
         let len = usize::try_from(len).map_err(|_| damaged(path, 0))?;
-        let mut magic = [0u8; 8];
         let mut r = FileCounts {
             file: std::io::BufReader::with_capacity(1 << 20, file),
             at: 0,
             len,
         };
-        let read_magic = std::io::Read::read_exact(&mut r.file, &mut magic);
-        if len < 8 || read_magic.is_err() || &magic != MAGIC {
+        MotionIndex::read(path, &mut r)
+    }
+
+    /// The index of the side file `r` reads from its start ([`MotionIndex::of`]).
+    fn read(path: &Path, r: &mut impl Counts) -> Result<MotionIndex> {
+        if r.magic().as_ref() != Some(MAGIC) {
             return Err(damaged(path, 0));
         }
-        r.at = 8;
         let n = r.count(8).ok_or_else(|| damaged(path, r.position()))?;
         let mut spans = Vec::with_capacity(n);
         for _ in 0..n {
             let start = r.position();
-            let trajectories = patch_extent(&mut r).ok_or_else(|| damaged(path, r.position()))?;
+            let trajectories = patch_extent(r).ok_or_else(|| damaged(path, r.position()))?;
             spans.push((start..r.position(), trajectories));
         }
-        if r.position() != len {
+        if r.left() != 0 {
             return Err(damaged(path, r.position()));
         }
         Ok(MotionIndex { spans })
@@ -408,6 +414,15 @@ impl MotionIndex {
     /// How many trajectories patch `p` holds.
     pub fn trajectories(&self, p: usize) -> u32 {
         self.spans[p].1
+    }
+
+    /// Every patch's motion, decoded in parallel from the `bytes` this index was made of.
+    pub fn decode_all(&self, path: &Path, bytes: &[u8]) -> Result<Vec<PatchMotion>> {
+        let decoded: Vec<Result<PatchMotion>> = (0..self.spans.len())
+            .into_par_iter()
+            .map(|p| self.decode(path, bytes, p))
+            .collect();
+        decoded.into_iter().collect()
     }
 
     /// Patch `p`'s motion, from the `bytes` this index was made of.

@@ -35,6 +35,22 @@ pub struct GraphInputs {
     pub settings: GraphSettings,
 }
 
+impl GraphInputs {
+    /// `walkers` counted (no standers) over patches of `patch_side_m`, walkers of 0.3 m and
+    /// the default `optimize.rho_max` and graph settings: the graph of a hand-made scene.
+    pub fn counted(walkers: u64, patch_side_m: f64) -> GraphInputs {
+        GraphInputs {
+            walkers,
+            standers: 0,
+            people: People::Counted,
+            patch_side_m,
+            radius_m: 0.3,
+            rho_max: crowd_core::config::OptimizeSettings::default().rho_max,
+            settings: GraphSettings::default(),
+        }
+    }
+}
+
 /// Why painted maps and settings cannot make a patch graph.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum GraphProblem {

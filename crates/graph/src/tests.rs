@@ -23,15 +23,7 @@ fn maps(w: u32, h: u32, blocked: impl Fn(u32, u32) -> bool) -> MergedMaps {
 }
 
 fn inputs(walkers: u64) -> GraphInputs {
-    GraphInputs {
-        walkers,
-        standers: 0,
-        people: crowd_core::config::People::Counted,
-        patch_side_m: 4.0,
-        radius_m: 0.3,
-        rho_max: 0.35,
-        settings: GraphSettings::default(),
-    }
+    GraphInputs::counted(walkers, 4.0)
 }
 
 fn build(m: &MergedMaps, walkers: u64) -> PatchGraph {

@@ -1,7 +1,6 @@
 //! Properties of the optimiser on small synthetic scenes, for any seed.
 
 use super::*;
-use crowd_core::config::GraphSettings;
 use crowd_core::patterns::parity;
 use crowd_core::{Grid, Hash, MergedMaps};
 use glam::Vec2;
@@ -29,15 +28,7 @@ fn scene(walkers: u64) -> PatchGraph {
             }
         }
     }
-    let inputs = crowd_graph::GraphInputs {
-        walkers,
-        standers: 0,
-        people: crowd_core::config::People::Counted,
-        patch_side_m: 8.0,
-        radius_m: 0.3,
-        rho_max: 0.35,
-        settings: GraphSettings::default(),
-    };
+    let inputs = crowd_graph::GraphInputs::counted(walkers, 8.0);
     crowd_graph::build_graph(&maps, &inputs, Hash::of(b"t"), &()).unwrap()
 }
 

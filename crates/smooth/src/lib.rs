@@ -372,16 +372,11 @@ pub fn encode(
     crowd_core::trajectories::TrajectoriesFile,
     crowd_core::files::Writes,
 ) {
-    let header = crowd_core::files::Header::new(STAGE, VERSION, hash);
-    crowd_core::trajectories::encode_file(
-        out,
-        header,
-        inputs.period_s,
-        collided.radius_m,
-        motion,
-        collided.collisions.clone(),
-        Some(summary),
-    )
+    let encoded = crowd_core::trajectories::Encoded {
+        bytes: crowd_core::trajectories::encode_motion(motion),
+        summary: crowd_core::trajectories::summarize(motion, inputs.period_s),
+    };
+    encode_gathered(out, encoded, summary, collided, inputs, hash)
 }
 
 /// [`encode`] of motion already encoded (gathered from shards).

@@ -46,23 +46,22 @@ pub fn figures(lib: &Library, inputs: &Inputs) -> ProductFigures {
     let path = |i| std::borrow::Cow::Owned(path(lib, i));
     let n = lib.trajectories.len();
     let tally = Tally::of_made(n, path, inputs.speed_limit_m_s, (TICK_S, false), period);
+    let walked = walked(lib);
     // The world's pairs and the played frames at once: the pairs' serial parts (the pieces,
     // the grid) left a core idle, and the sampler holds little (painting's check -1 s).
     let (clearance, ((borders, seams), sampled)) = rayon::join(
-        || clearance(lib, inputs.walls),
+        || clearance(lib, &walked, inputs.walls),
         || {
             let sampled = inputs
                 .sample_step_s
                 .map(|step| sample(lib, step, tally.max_speed));
-            (handovers(lib), sampled)
+            (handovers(lib, &walked), sampled)
         },
     );
     let counts = (
         lib.walkers(),
         lib.standers.len() as u64,
-        (lib.trajectories.iter())
-            .map(|t| lib.points_of(t).len() as u64 - 1)
-            .sum(),
+        walked.iter().map(|w| w.extent.pieces).sum(),
         lib.characters.len() as u64,
     );
     ProductFigures {
@@ -81,17 +80,40 @@ pub fn figures(lib: &Library, inputs: &Inputs) -> ProductFigures {
     }
 }
 
+/// What the figures need of each trajectory's path, made once for all of them in parallel:
+/// where it goes and its pieces, and its first and last place and velocity.
+struct Walked {
+    extent: Extent,
+    first: (DVec2, DVec2),
+    last: (DVec2, DVec2),
+}
+
+fn walked(lib: &Library) -> Vec<Walked> {
+    (0..lib.trajectories.len())
+        .into_par_iter()
+        .map(|i| {
+            let p = path(lib, i);
+            let mut extent = Extent::EMPTY;
+            p.iter().for_each(|q| extent.grow(q.0));
+            extent.pieces = p.len().saturating_sub(1) as u64;
+            let (first, last) = end_velocities(&p, TICK_S);
+            Walked {
+                extent,
+                first: (p[0].0, first),
+                last: (p[p.len() - 1].0, last),
+            }
+        })
+        .collect()
+}
+
 /// Collisions over the whole tiled world: each trajectory a walker with its copies a period
 /// apart, continued through its exit crossing by its `next` (the same character). Counted a
 /// strip of the library's patches at a time, as the stage files' check is (`strips.rs`).
-fn clearance(lib: &Library, walls: &[crate::Wall]) -> Clearance {
+fn clearance(lib: &Library, walked: &[Walked], walls: &[crate::Wall]) -> Clearance {
     let radius = f64::from(lib.world.radius_m);
     let mut extents = vec![Extent::EMPTY; lib.patches.len()];
-    for (i, t) in lib.trajectories.iter().enumerate() {
-        let e = &mut extents[t.patch as usize];
-        let path = path(lib, i);
-        path.iter().for_each(|q| e.grow(q.0));
-        e.pieces += path.len().saturating_sub(1) as u64;
+    for (t, w) in lib.trajectories.iter().zip(walked) {
+        extents[t.patch as usize].take_in(&w.extent);
     }
     for (p, e) in extents.iter_mut().enumerate() {
         standers(lib, p).for_each(|q| e.grow(q));
@@ -149,7 +171,7 @@ fn standers(lib: &Library, p: usize) -> impl Iterator<Item = DVec2> + '_ {
 
 /// Every trajectory's handover to its `next`: at a border, or at its loop's seam (the last
 /// trajectory of a loop, walked from its `first_trajectory`, to the first).
-fn handovers(lib: &Library) -> (Seams, Seams) {
+fn handovers(lib: &Library, walked: &[Walked]) -> (Seams, Seams) {
     let mut last_of_loop = vec![false; lib.trajectories.len()];
     for c in &lib.characters {
         let mut at = c.first_trajectory as usize;
@@ -158,18 +180,9 @@ fn handovers(lib: &Library) -> (Seams, Seams) {
         }
         last_of_loop[at] = true;
     }
-    // Each trajectory's first and last place and velocity (its path made and dropped).
-    let ends: Vec<[(DVec2, DVec2); 2]> = (0..lib.trajectories.len())
-        .into_par_iter()
-        .map(|i| {
-            let p = path(lib, i);
-            let (first, last) = end_velocities(&p, TICK_S);
-            [(p[0].0, first), (p[p.len() - 1].0, last)]
-        })
-        .collect();
     let (mut borders, mut seams) = (Seams::default(), Seams::default());
     for (i, t) in lib.trajectories.iter().enumerate() {
-        let (end, start) = (ends[i][1], ends[t.next as usize][0]);
+        let (end, start) = (walked[i].last, walked[t.next as usize].first);
         if last_of_loop[i] {
             seams.note(end, start);
             seams.open += u64::from(end.0.distance(start.0) > OPEN_GAP_M);
