@@ -200,6 +200,9 @@ fn input_hash(dir: &Path, stage: &Stage, options: &CheckOptions) -> Result<Hash>
 fn measure(dir: &Path, options: &CheckOptions) -> Result<CheckReport> {
     let graph = PatchGraph::load(&dir.join(GRAPH_FILE))?;
     let chosen = chosen(dir, options.stage)?;
+    // The stage's files are read (versions, sizes, hashes) before anything is judged: a
+    // stale folder is refused in a second, not after the products' minute on the million.
+    let stage = StageFiles::open(dir, &graph, chosen)?;
     let walls = crowd_check::walls(&graph);
     let limit = options.max_speed * crowd_check::products::SPEED_MARGIN;
     // The stage file and the products read different files and share nothing. On a small
@@ -216,9 +219,9 @@ fn measure(dir: &Path, options: &CheckOptions) -> Result<CheckReport> {
         )
     };
     let (stage, (library, gltf)) = if small_world(dir, chosen) {
-        rayon::join(|| stage_figures(dir, &graph, chosen), products)
+        rayon::join(|| stage_figures(&graph, stage), products)
     } else {
-        (stage_figures(dir, &graph, chosen), products())
+        (stage_figures(&graph, stage), products())
     };
     let mut report = stage?;
     report.library = library?;
@@ -264,15 +267,36 @@ fn small_world(dir: &Path, chosen: &Stage) -> bool {
 /// million's 4,200 (whose check holds 5.8 GB one part after the other).
 const SMALL_WORLD_BYTES: u64 = 1 << 30;
 
-/// The check of `chosen`'s trajectories, with their motion figures: decoded a strip of the
+/// What the check of a stage's trajectories reads: its file, its motion left in its side file,
+/// and the crossings of the patterns beside it.
+struct StageFiles {
+    stage: &'static Stage,
+    file: TrajectoriesFile,
+    motion: crowd_core::trajectories::LazyMotion,
+    crossings: Vec<crowd_core::patterns::Crossing>,
+}
+
+impl StageFiles {
+    fn open(dir: &Path, graph: &PatchGraph, stage: &'static Stage) -> Result<StageFiles> {
+        let (_, crossings) = Patterns::load_for(&dir.join(PATTERNS_FILE), graph)?;
+        let path = dir.join(stage.output);
+        let patches = graph.patches.len();
+        let (file, motion) = TrajectoriesFile::open_for(&path, stage.kind, stage.version, patches)?;
+        Ok(StageFiles {
+            stage,
+            file,
+            motion,
+            crossings,
+        })
+    }
+}
+
+/// The check of a stage's trajectories, with their motion figures: decoded a strip of the
 /// world at a time (`crowd_check::check_world`).
-fn stage_figures(dir: &Path, graph: &PatchGraph, chosen: &Stage) -> Result<CheckReport> {
-    let (kind, version) = (chosen.kind, chosen.version);
-    let path = dir.join(chosen.output);
-    let (file, motion) = TrajectoriesFile::open_for(&path, kind, version, graph.patches.len())?;
-    let (_, crossings) = Patterns::load_for(&dir.join(PATTERNS_FILE), graph)?;
-    let mut report = crowd_check::check_world(graph, &motion, file.period_s, Some(&crossings))?;
-    report.stage = kind.to_string();
+fn stage_figures(graph: &PatchGraph, s: StageFiles) -> Result<CheckReport> {
+    let period = s.file.period_s;
+    let mut report = crowd_check::check_world(graph, &s.motion, period, Some(&s.crossings))?;
+    report.stage = s.stage.kind.to_string();
     Ok(report)
 }
 
