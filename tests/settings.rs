@@ -176,7 +176,12 @@ fn optimize_settings_refuse_what_the_optimiser_cannot_use() {
             "from 1 to 10000 optimisation",
         ),
         (BANDS, "optimize.region_patches", "Some(0)", "a region side"),
-        (BANDS, "optimize.region_patches", "Some(1)", "a region side"),
+        (
+            BANDS,
+            "optimize.region_patches",
+            "Some(1)",
+            "all its borders), or None",
+        ),
         (
             BANDS,
             "optimize.region_patches",

@@ -140,7 +140,8 @@ impl OptimizeSettings {
                 (2..=Self::MOST_REGION_PATCHES).contains(&side),
                 "optimize.region_patches",
                 side,
-                "a region side from 2 to 4096 patches (one patch would hold all its borders),                  or None for one region",
+                "a region side from 2 to 4096 patches (one patch would hold all its borders), \
+                 or None for one region",
             ),
             None => Ok(()),
         }
