@@ -139,6 +139,22 @@ fn a_stroke_reuses_nine_patches_in_ten_and_rebuilds_the_bytes_of_a_fresh_build()
         reused.push((stage, kept, total));
     }
     eprintln!("reused after the stroke: {reused:?}");
+    // The check judges again only what the stroke reached, the rest from its memo (and writes
+    // the bytes of a check from nothing, below).
+    let judged = stdout
+        .lines()
+        .find(|l| l.trim_start().starts_with("check:"))
+        .and_then(|l| l.split("judged again: ").nth(1))
+        .unwrap_or_else(|| panic!("the check says what it judged again:\n{stdout}"));
+    for part in judged.trim_end_matches(')').split(", ") {
+        let words: Vec<&str> = part.split_whitespace().collect();
+        let at = words.iter().position(|w| *w == "of").unwrap();
+        let (done, of): (u32, u32) = (
+            words[at - 1].parse().unwrap(),
+            words[at + 1].parse().unwrap(),
+        );
+        assert!(10 * done <= of, "the check judged again {part}:\n{stdout}");
+    }
     let changed = PatchGraph::load(&out.join("graph.ron")).unwrap();
     let moved: Vec<Cell> = graph
         .patches
@@ -185,7 +201,7 @@ fn a_stroke_reuses_nine_patches_in_ten_and_rebuilds_the_bytes_of_a_fresh_build()
 }
 
 /// The caches are only caches: cut, emptied or swapped between stages, a rebuild computes
-/// everything again and writes the same bytes.
+/// everything again and writes the same bytes (the check's memo too).
 #[test]
 fn damaged_caches_are_missed_reuse_never_an_error() {
     let dir = tempfile::tempdir().unwrap();
@@ -200,6 +216,7 @@ fn damaged_caches_are_missed_reuse_never_an_error() {
     };
     cut("regions.bin");
     cut("trajectories.keys");
+    cut("check.memo");
     std::fs::write(out.join("collided.keys"), b"").unwrap();
     std::fs::copy(out.join("trajectories.keys"), out.join("smoothed.keys")).unwrap();
     let again = said(&crowd_ok(&["build", "--pipeline", s(&pipeline), "--force"]));

@@ -12,15 +12,18 @@
 
 pub mod glb;
 pub mod library;
+pub mod memo;
 pub mod motion;
 pub mod products;
 mod strips;
 mod world;
 
-use crowd_core::PatchGraph;
 use crowd_core::patterns::Crossing;
 use crowd_core::trajectories::PatchMotion;
+use crowd_core::{Hash, PatchGraph};
+use crowd_geometry::BoxGrid;
 use glam::DVec2;
+use memo::{Own, Recalled};
 pub use products::{ProductFigures, Sampled};
 use rayon::prelude::*;
 use std::borrow::Cow;
@@ -59,7 +62,7 @@ pub struct CheckReport {
 }
 
 /// The check's version: part of its input hash, bumped when what `check.ron` holds changes.
-pub const VERSION: u32 = 8;
+pub const VERSION: u32 = 9;
 
 /// Checks the whole world of `motion` (per patch, in patch order) laid out by `graph`.
 pub fn check(graph: &PatchGraph, motion: &[PatchMotion], period_s: f64) -> CheckReport {
@@ -95,57 +98,179 @@ pub fn check_world(
     period_s: f64,
     crossings: Option<&[Crossing]>,
 ) -> crowd_core::Result<CheckReport> {
-    check_in_strips(graph, source, (period_s, crossings), strips::STRIP_PIECES)
+    let world = World {
+        graph,
+        source,
+        period_s,
+        crossings,
+    };
+    let judged = judge(&world, None, &Recalled::default(), strips::STRIP_PIECES)?;
+    Ok(judged.report)
 }
 
-/// [`check_world`] with strips of about `budget` pieces.
-fn check_in_strips(
-    graph: &PatchGraph,
-    source: &dyn Source,
-    (period_s, crossings): (f64, Option<&[Crossing]>),
+/// What a check of a stage file is given.
+pub struct World<'a> {
+    pub graph: &'a PatchGraph,
+    pub source: &'a dyn Source,
+    pub period_s: f64,
+    /// The patterns' crossings: with them, the motion figures as well.
+    pub crossings: Option<&'a [Crossing]>,
+}
+
+/// A stage file's check, and what of it a later check may take.
+pub struct Judged {
+    pub report: CheckReport,
+    pub memo: memo::StagePart,
+    /// Patches whose own share, and whose pairs, were judged again (not taken from the memo).
+    pub redone: (usize, usize),
+}
+
+/// [`check_world`], taking from `memo` every patch whose share is unchanged: with `keys` (the
+/// stage's patch keys, which pin each patch's motion and crossings), a patch's own share is
+/// found by its key and its pairs by its key and those within reach. The report is the same
+/// bytes as a check of the whole world.
+pub fn check_world_memo(
+    world: &World,
+    keys: Option<&[Hash]>,
+    memo: &Recalled,
+) -> crowd_core::Result<Judged> {
+    judge(world, keys, memo, strips::STRIP_PIECES)
+}
+
+/// [`check_world_memo`] with strips of about `budget` pieces.
+fn judge(
+    w: &World,
+    keys: Option<&[Hash]>,
+    memo: &Recalled,
     budget: u64,
-) -> crowd_core::Result<CheckReport> {
+) -> crowd_core::Result<Judged> {
+    let graph = w.graph;
     let n = graph.patches.len();
-    let extents = in_order((0..n).into_par_iter().map(|p| {
-        let m = source.patch(p)?;
-        Ok(strips::Extent::of(graph, p, &m))
+    let tables = w
+        .crossings
+        .map(|c| crowd_core::patch_keys::Seen::new(graph, c).tables);
+    let own_keys = keys.map(|k| own_keys(w, k));
+    let own = in_order((0..n).into_par_iter().map(|p| {
+        let known = own_keys.as_ref().and_then(|k| memo.own(&k[p]));
+        if let Some(o) = known {
+            return Ok((o.clone(), false));
+        }
+        let m = w.source.patch(p)?;
+        let tally = (w.crossings.zip(tables.as_ref()))
+            .map(|(c, t)| motion::patch_tally((graph, c, w.period_s), p, &m, &t[p]));
+        let own = Own {
+            extent: strips::Extent::of(graph, p, &m),
+            walkers: m.trajectories.len() as u64,
+            tally,
+        };
+        Ok((own, true))
     }))?;
+    let extents: Vec<strips::Extent> = own.iter().map(|o| o.0.extent).collect();
     let walls = walls(graph);
     let reach = 2.0 * graph.radius_m + 1.0 + 1e-6;
-    let mut measure = crossings.map(|c| motion::Measure::new(graph, c, period_s));
-    let (mut pairs, mut walkers, mut segments) = (world::Pairs::default(), 0u64, 0u64);
-    for strip in strips::plan(&extents, budget) {
+    let pair_keys = own_keys.as_ref().map(|k| {
+        let near = memo::within_reach(&extents, reach, graph.world.patch_side_m);
+        let grid = BoxGrid::new(walls.iter().copied(), 4.0, reach);
+        (0..n)
+            .into_par_iter()
+            .map(|p| {
+                memo::pairs_key(
+                    "check pairs",
+                    (k, p),
+                    &near[p],
+                    &extents[p],
+                    (&walls, &grid, reach),
+                )
+            })
+            .collect::<Vec<Hash>>()
+    });
+    let mut pairs: Vec<Option<world::Pairs>> = match &pair_keys {
+        Some(k) => k.iter().map(|k| memo.pairs(k)).collect(),
+        None => vec![None; n],
+    };
+    let todo: Vec<usize> = (0..n).filter(|&p| pairs[p].is_none()).collect();
+    for strip in strips::runs(&todo, &extents, budget) {
         let held = strips::with_surroundings(&extents, &strip, reach);
-        let motion = in_order(held.par_iter().map(|&p| source.patch(p)))?;
-        let scene = strip_scene(graph, &held, &motion, &strip, (period_s, &walls));
-        let own_from = held.partition_point(|&p| p < strip.start);
-        let own = &motion[own_from..own_from + strip.len()];
-        let (found, ()) = rayon::join(
-            || scene.pairs(),
-            || {
-                if let Some(m) = measure.as_mut() {
-                    m.add(strip.start, own);
-                }
-            },
-        );
-        pairs = pairs.merge(found);
-        walkers += own.iter().map(|m| m.trajectories.len() as u64).sum::<u64>();
-        segments += extents[strip].iter().map(|e| e.pieces).sum::<u64>();
+        let motion = in_order(held.par_iter().map(|&p| w.source.patch(p)))?;
+        let scene = strip_scene(graph, &held, &motion, &strip, (w.period_s, &walls));
+        drop(motion);
+        strip
+            .clone()
+            .for_each(|p| pairs[p] = Some(world::Pairs::default()));
+        for (p, found) in scene.pairs_by_patch() {
+            pairs[p as usize] = Some(found);
+        }
     }
-    let c = pairs.clearance(graph.radius_m, period_s);
-    Ok(CheckReport {
+    let pairs: Vec<world::Pairs> = pairs.into_iter().map(Option::unwrap_or_default).collect();
+    let total = pairs
+        .iter()
+        .fold(world::Pairs::default(), |a, b| a.merge(*b));
+    let measure = (w.crossings.zip(tables.as_ref())).map(|(c, t)| {
+        let mut m = motion::Measure::new(c.len());
+        for (p, (o, _)) in own.iter().enumerate() {
+            if let Some(tally) = &o.tally {
+                m.add(p, tally, &t[p]);
+            }
+        }
+        m.finish()
+    });
+    let c = total.clearance(graph.radius_m, w.period_s);
+    let report = CheckReport {
         collisions: c.collisions,
         across_borders: c.across_borders,
         min_clearance_m: c.min_clearance_m,
         worst_at: c.worst_at,
-        walkers,
-        segments,
+        walkers: own.iter().map(|o| o.0.walkers).sum(),
+        segments: extents.iter().map(|e| e.pieces).sum(),
         stage: String::new(),
-        motion: measure.map(motion::Measure::finish),
+        motion: measure,
         library: None,
         gltf: None,
         input_hash: None,
+    };
+    let redone = (own.iter().filter(|o| o.1).count(), todo.len());
+    let memo = match (own_keys, pair_keys) {
+        (Some(ok), Some(pk)) => memo::StagePart {
+            own: ok
+                .iter()
+                .zip(own)
+                .map(|(k, o)| (*k.as_bytes(), o.0))
+                .collect(),
+            pairs: pk
+                .iter()
+                .zip(pairs)
+                .map(|(k, p)| (*k.as_bytes(), p))
+                .collect(),
+        },
+        _ => memo::StagePart::default(),
+    };
+    Ok(Judged {
+        report,
+        memo,
+        redone,
     })
+}
+
+/// Each patch's own key: its stage key, where it lies, and what the check measures it with.
+fn own_keys(w: &World, keys: &[Hash]) -> Vec<Hash> {
+    let graph = w.graph;
+    let setting = memo::bytes_of(&[
+        w.period_s.to_bits(),
+        graph.radius_m.to_bits(),
+        graph.world.patch_side_m.to_bits(),
+        u64::from(w.crossings.is_some()),
+    ]);
+    (0..graph.patches.len())
+        .into_par_iter()
+        .map(|p| {
+            let cell = graph.patches[p].cell;
+            let mut h = crowd_core::Hasher::new("check own", VERSION);
+            h.part("stage key", keys[p].as_bytes())
+                .part("cell", &memo::bytes_of(&[cell.col.into(), cell.row.into()]))
+                .part("settings", &setting);
+            h.finish()
+        })
+        .collect()
 }
 
 /// The results of a parallel iterator in its order, or the first error in that order.
@@ -298,6 +423,35 @@ pub(crate) mod tests {
             .collect()
     }
 
+    /// `motion` checked by strips of `budget` pieces, with `keys` and `memo`.
+    fn judged(
+        graph: &PatchGraph,
+        motion: &[PatchMotion],
+        keys: Option<&[Hash]>,
+        memo: &Recalled,
+        budget: u64,
+    ) -> Judged {
+        let world = World {
+            graph,
+            source: &motion,
+            period_s: 20.0,
+            crossings: Some(&[]),
+        };
+        judge(&world, keys, memo, budget).unwrap()
+    }
+
+    /// Each patch's key: the hash of its motion's bytes.
+    fn content_keys(motion: &[PatchMotion]) -> Vec<Hash> {
+        motion
+            .iter()
+            .map(|m| {
+                Hash::of(&crowd_core::trajectories::encode_motion(
+                    std::slice::from_ref(m),
+                ))
+            })
+            .collect()
+    }
+
     proptest::proptest! {
         #![proptest_config(proptest::prelude::ProptestConfig::with_cases(6))]
 
@@ -307,14 +461,43 @@ pub(crate) mod tests {
         fn strips_give_the_figures_of_one_scene(seed in proptest::prelude::any::<u64>()) {
             let graph = painted_full(12, 12, 1440);
             let motion = random_motion(&graph, seed);
-            let whole = check_in_strips(&graph, &motion.as_slice(), (20.0, Some(&[])), u64::MAX)
-                .unwrap();
+            let none = Recalled::default();
+            let whole = judged(&graph, &motion, None, &none, u64::MAX).report;
             proptest::prop_assert!(whole.collisions > 0 && whole.across_borders > 0, "{whole:?}");
             for budget in [0, 40, 300] {
-                let cut = check_in_strips(&graph, &motion.as_slice(), (20.0, Some(&[])), budget)
-                    .unwrap();
+                let cut = judged(&graph, &motion, None, &none, budget).report;
                 proptest::prop_assert_eq!(&cut, &whole, "strips of {} pieces", budget);
             }
+        }
+
+        /// A check that takes every unchanged patch from the memo of the last one (through its
+        /// file's bytes) and judges only the rest gives the figures of a whole check, to the
+        /// bit, and judges again only what a change reached.
+        #[test]
+        fn a_memo_gives_the_figures_of_a_whole_check(seed in proptest::prelude::any::<u64>()) {
+            let graph = painted_full(12, 12, 1440);
+            let before = random_motion(&graph, seed);
+            let other = random_motion(&graph, seed ^ 0x9e37_79b9);
+            // A stroke: patches 50, 51 and 63 are walked otherwise.
+            let mut after = before.clone();
+            for p in [50, 51, 63] {
+                after[p] = other[p].clone();
+            }
+            let none = Recalled::default();
+            let first = judged(&graph, &before, Some(&content_keys(&before)), &none, 300);
+            let bytes = memo::Memo::of(Some(first.memo), None).to_bytes();
+            let memo = memo::Memo::from_bytes(&bytes).unwrap().recall();
+            let again = judged(&graph, &after, Some(&content_keys(&after)), &memo, 300);
+            let whole = judged(&graph, &after, None, &none, u64::MAX);
+            proptest::prop_assert_eq!(&again.report, &whole.report);
+            proptest::prop_assert_eq!(again.redone.0, 3);
+            proptest::prop_assert!(again.redone.1 >= 3 && again.redone.1 < 40, "{:?}", again.redone);
+            // Nothing changed: nothing judged again.
+            let bytes = memo::Memo::of(Some(again.memo), None).to_bytes();
+            let memo = memo::Memo::from_bytes(&bytes).unwrap().recall();
+            let same = judged(&graph, &after, Some(&content_keys(&after)), &memo, 0);
+            proptest::prop_assert_eq!(&same.report, &whole.report);
+            proptest::prop_assert_eq!(same.redone, (0, 0));
         }
     }
 

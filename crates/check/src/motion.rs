@@ -7,11 +7,11 @@
 //! over seconds and reward coarse paths. Percentiles are over frames, so by time.
 
 use crowd_core::PatchGraph;
+use crowd_core::patch_keys::Table;
 use crowd_core::patterns::{Crossing, Way, border_point};
-use crowd_core::trajectories::{PatchMotion, Trajectory, position_at};
+use crowd_core::trajectories::{PatchMotion, position_at};
 use crowd_geometry::Segment;
 use glam::DVec2;
-use rayon::prelude::*;
 
 /// DESIGN.md's band of walking speeds, m/s.
 pub const SPEED_BAND: (f64, f64) = (0.5, 1.8);
@@ -23,8 +23,6 @@ const FRAME_S: f64 = 0.1;
 /// Histogram resolution of accelerations (m/s2) and turning rates (rad/s), and their range.
 const BIN: f64 = 0.005;
 const BINS: usize = 20_000;
-/// Patches tallied together on one thread (a tally holds two histograms of `BINS` bins).
-const CHUNK: usize = 64;
 
 /// Motion figures of a set of trajectories.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -49,66 +47,159 @@ pub struct MotionFigures {
     pub max_speed_at: Option<(u32, u32, f64)>,
 }
 
-#[derive(Clone)]
+/// Walking time is summed in whole [`TIME_UNIT`]s (2^-24 s, 60 ns): integers add up to the same
+/// figure in any order, so a patch's tally can be kept between builds and added to the others
+/// in whatever order the work was cut (floating-point sums depend on their order).
+const TIME_UNITS_PER_S: f64 = (1u64 << 24) as f64;
+
+/// `dt` seconds in whole time units.
+fn units(dt: f64) -> u64 {
+    (dt * TIME_UNITS_PER_S).round() as u64
+}
+
+/// The world's tally: walking time, and frames per bin of acceleration and turning rate (each
+/// frame weighs [`FRAME_S`], so counting them is exact).
 struct Tally {
-    walking: f64,
-    in_band: f64,
-    accel: Vec<f64>,
-    turn: Vec<f64>,
-    fastest: (f64, Option<(u32, u32, f64)>),
+    walking: u64,
+    in_band: u64,
+    accel: Vec<u64>,
+    turn: Vec<u64>,
+    fastest: Fastest,
+}
+
+/// The fastest piece, m/s, and where: (patch, trajectory, time). Of equals, the first in
+/// (patch, trajectory, time) order, whatever order they were met in.
+type Fastest = (f64, Option<(u32, u32, f64)>);
+
+fn faster(a: Fastest, b: Fastest) -> Fastest {
+    let first = |x: &Fastest, y: &Fastest| match (x.1, y.1) {
+        (Some(p), Some(q)) => (p.0, p.1, p.2)
+            .partial_cmp(&(q.0, q.1, q.2))
+            .is_some_and(|o| o.is_lt()),
+        (Some(_), None) => true,
+        _ => false,
+    };
+    if b.0 > a.0 || (b.0 == a.0 && first(&b, &a)) {
+        b
+    } else {
+        a
+    }
 }
 
 impl Tally {
     fn new() -> Tally {
         Tally {
-            walking: 0.0,
-            in_band: 0.0,
-            accel: vec![0.0; BINS],
-            turn: vec![0.0; BINS],
+            walking: 0,
+            in_band: 0,
+            accel: vec![0; BINS],
+            turn: vec![0; BINS],
             fastest: (0.0, None),
         }
     }
 
-    /// A stand-in while a tally is moved out (no histograms).
-    fn empty() -> Tally {
-        Tally {
-            walking: 0.0,
-            in_band: 0.0,
-            accel: Vec::new(),
-            turn: Vec::new(),
-            fastest: (0.0, None),
-        }
-    }
-
-    fn add(mut self, o: Tally) -> Tally {
+    /// Adds patch `p`'s tally.
+    fn add(&mut self, p: u32, o: &PatchTally) {
         self.walking += o.walking;
         self.in_band += o.in_band;
-        for (a, b) in self.accel.iter_mut().zip(&o.accel) {
-            *a += b;
+        for &(bin, n) in &o.accel {
+            self.accel[bin as usize] += u64::from(n);
         }
-        for (a, b) in self.turn.iter_mut().zip(&o.turn) {
-            *a += b;
+        for &(bin, n) in &o.turn {
+            self.turn[bin as usize] += u64::from(n);
         }
-        // The first of equals, in patch order.
-        if o.fastest.0 > self.fastest.0 {
-            self.fastest = o.fastest;
-        }
-        self
+        let here = (o.fastest.0, o.fastest.1.map(|(i, t)| (p, i, t)));
+        self.fastest = faster(self.fastest, here);
     }
 
-    /// Tallies trajectory `at.1` of patch `at.0`.
-    fn trajectory(&mut self, tr: &Trajectory, at: (u32, u32)) {
+    /// A frame's change of velocity from `v1` to `v2` (the frame that straddles a border).
+    fn vertex(&mut self, v1: DVec2, v2: DVec2) {
+        let (accel, turn) = vertex_bins(v1, v2);
+        self.accel[accel as usize] += 1;
+        if let Some(turn) = turn {
+            self.turn[turn as usize] += 1;
+        }
+    }
+}
+
+/// The bins of a change of velocity from `v1` to `v2` over a frame: acceleration, and turning
+/// rate (none when either is standing).
+fn vertex_bins(v1: DVec2, v2: DVec2) -> (u32, Option<u32>) {
+    let bin = |x: f64| ((x / BIN) as usize).min(BINS - 1) as u32;
+    let accel = bin((v2 - v1).length() / FRAME_S);
+    let turn = (v1.length() > STANDING && v2.length() > STANDING).then(|| {
+        let angle = v1.perp_dot(v2).atan2(v1.dot(v2)).abs();
+        bin(angle / FRAME_S)
+    });
+    (accel, turn)
+}
+
+/// One patch's share of the motion figures: its walking time, its frames' bins (sparse:
+/// (bin, frames)), its fastest piece (trajectory, time), and its trajectories' ends.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub(crate) struct PatchTally {
+    walking: u64,
+    in_band: u64,
+    accel: Vec<(u32, u32)>,
+    turn: Vec<(u32, u32)>,
+    fastest: (f64, Option<(u32, f64)>),
+    ends: Vec<End>,
+    /// The largest distance (m) and time difference (s) of an end from its crossing.
+    pos_err: f64,
+    time_err: f64,
+}
+
+/// A trajectory's end at a crossing: the crossing as the patch numbers it
+/// (`patch_keys::Table`), whether it enters there, and the velocity there.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub(crate) struct End {
+    local: u32,
+    entry: bool,
+    v: DVec2,
+}
+
+/// Counts of each bin in `bins`, by bin.
+fn sparse(mut bins: Vec<u32>) -> Vec<(u32, u32)> {
+    bins.sort_unstable();
+    let mut out: Vec<(u32, u32)> = Vec::new();
+    for b in bins {
+        match out.last_mut() {
+            Some(last) if last.0 == b => last.1 += 1,
+            _ => out.push((b, 1)),
+        }
+    }
+    out
+}
+
+/// What the motion figures take of patch `p` (motion `m`, its crossings numbered by `table`).
+pub(crate) fn patch_tally(
+    world: (&PatchGraph, &[Crossing], f64),
+    p: usize,
+    m: &PatchMotion,
+    table: &Table,
+) -> PatchTally {
+    let (mut accel, mut turn) = (Vec::new(), Vec::new());
+    let mut t = PatchTally {
+        walking: 0,
+        in_band: 0,
+        accel: Vec::new(),
+        turn: Vec::new(),
+        fastest: (0.0, None),
+        ends: Vec::new(),
+        pos_err: 0.0,
+        time_err: 0.0,
+    };
+    for (i, tr) in m.trajectories.iter().enumerate() {
         let pts = &tr.points;
         for w in pts.windows(2).filter(|w| w[1].t > w[0].t) {
             let dt = w[1].t - w[0].t;
             let speed = w[1].pos.distance(w[0].pos) / dt;
-            if speed > self.fastest.0 {
-                self.fastest = (speed, Some((at.0, at.1, w[0].t)));
+            if speed > t.fastest.0 {
+                t.fastest = (speed, Some((i as u32, w[0].t)));
             }
             if speed > STANDING {
-                self.walking += dt;
+                t.walking += units(dt);
                 if (SPEED_BAND.0..=SPEED_BAND.1).contains(&speed) {
-                    self.in_band += dt;
+                    t.in_band += units(dt);
                 }
             }
         }
@@ -120,28 +211,76 @@ impl Tally {
             .collect();
         for w in samples.windows(3) {
             let (v1, v2) = ((w[1] - w[0]) / FRAME_S, (w[2] - w[1]) / FRAME_S);
-            self.vertex(v1, v2, FRAME_S);
+            let (a, r) = vertex_bins(v1, v2);
+            accel.push(a);
+            turn.extend(r);
         }
     }
+    t.accel = sparse(accel);
+    t.turn = sparse(turn);
+    ends(world, p, m, table, &mut t);
+    t
+}
 
-    /// A change of velocity from `v1` to `v2` over `window` seconds.
-    fn vertex(&mut self, v1: DVec2, v2: DVec2, window: f64) {
-        let bin = |x: f64| ((x / BIN) as usize).min(BINS - 1);
-        self.accel[bin((v2 - v1).length() / window)] += window;
-        if v1.length() > STANDING && v2.length() > STANDING {
-            let angle = v1.perp_dot(v2).atan2(v1.dot(v2)).abs();
-            self.turn[bin(angle / window)] += window;
+/// Where each end of patch `p`'s trajectories lies against its crossing, and the velocity
+/// there (every crossing is then seen from both sides, [`Measure::finish`]).
+fn ends(
+    (graph, crossings, period_s): (&PatchGraph, &[Crossing], f64),
+    p: usize,
+    m: &PatchMotion,
+    table: &Table,
+    t: &mut PatchTally,
+) {
+    let side = graph.world.patch_side_m;
+    for tr in &m.trajectories {
+        let pts = &tr.points;
+        let ends = [
+            (tr.entry, pts[0], pts[1], true),
+            (tr.exit, pts[pts.len() - 1], pts[pts.len() - 2], false),
+        ];
+        for (c, end, next, entry) in ends {
+            let Some(crossing) = crossings.get(c as usize) else {
+                continue;
+            };
+            let border = &graph.borders[crossing.border as usize];
+            let (a, b) = border_point(border, side, crossing.s);
+            // The crossing goes a -> b when its way is AToB.
+            let (from, to) = match crossing.way {
+                Way::AToB => (a, b),
+                Way::BToA => (b, a),
+            };
+            let here = if entry { to } else { from };
+            if here.patch.0 as usize != p {
+                t.pos_err = f64::INFINITY;
+                continue;
+            }
+            t.pos_err = t.pos_err.max(end.pos.distance(here.pos));
+            let dt = (end.t - crossing.t).rem_euclid(period_s);
+            t.time_err = t.time_err.max(dt.min(period_s - dt));
+            let (a, b) = if entry { (end, next) } else { (next, end) };
+            let v = Segment {
+                p0: a.pos,
+                t0: a.t,
+                p1: b.pos,
+                t1: b.t,
+            }
+            .velocity();
+            t.ends.push(End {
+                local: table.local(c),
+                entry,
+                v,
+            });
         }
     }
 }
 
-/// The value below which 95 % of the weight lies.
-fn p95(hist: &[f64]) -> f64 {
-    let total: f64 = hist.iter().sum();
-    let mut seen = 0.0;
+/// The value below which 95 % of the frames lie.
+fn p95(hist: &[u64]) -> f64 {
+    let total: u64 = hist.iter().sum();
+    let mut seen = 0u64;
     for (i, w) in hist.iter().enumerate() {
         seen += w;
-        if seen >= 0.95 * total {
+        if seen as f64 >= 0.95 * total as f64 {
             return (i as f64 + 1.0) * BIN;
         }
     }
@@ -155,17 +294,18 @@ pub fn figures(
     motion: &[PatchMotion],
     period_s: f64,
 ) -> MotionFigures {
-    let mut m = Measure::new(graph, crossings, period_s);
-    m.add(0, motion);
+    let tables = crowd_core::patch_keys::Seen::new(graph, crossings).tables;
+    let mut m = Measure::new(crossings.len());
+    for (p, pm) in motion.iter().enumerate() {
+        let t = patch_tally((graph, crossings, period_s), p, pm, &tables[p]);
+        m.add(p, &t, &tables[p]);
+    }
     m.finish()
 }
 
-/// The motion figures of a world taken a run of patches at a time ([`Measure::add`]), in patch
-/// order: what they hold is a tally and a slot per crossing, not the motion.
-pub struct Measure<'a> {
-    graph: &'a PatchGraph,
-    crossings: &'a [Crossing],
-    period_s: f64,
+/// The motion figures of a world taken a patch at a time ([`Measure::add`], in any order):
+/// what they hold is a tally and a slot per crossing, not the motion.
+pub struct Measure {
     tally: Tally,
     /// Per crossing: trajectories that enter (leave) by it, and the velocity there.
     entered: Vec<(u32, DVec2)>,
@@ -174,94 +314,34 @@ pub struct Measure<'a> {
     time_err: f64,
 }
 
-impl<'a> Measure<'a> {
-    pub fn new(graph: &'a PatchGraph, crossings: &'a [Crossing], period_s: f64) -> Measure<'a> {
+impl Measure {
+    /// A measure of a world with `crossings` crossings.
+    pub fn new(crossings: usize) -> Measure {
         Measure {
-            graph,
-            crossings,
-            period_s,
             tally: Tally::new(),
-            entered: vec![(0u32, DVec2::ZERO); crossings.len()],
-            left: vec![(0u32, DVec2::ZERO); crossings.len()],
+            entered: vec![(0u32, DVec2::ZERO); crossings],
+            left: vec![(0u32, DVec2::ZERO); crossings],
             pos_err: 0.0,
             time_err: 0.0,
         }
     }
 
-    /// Patches `first..first + motion.len()`, after every patch before `first` was added.
-    /// `first` is a multiple of [`STRIP_ALIGN`] (the figures are then the same bytes however
-    /// the world was cut).
-    pub fn add<M: std::borrow::Borrow<PatchMotion> + Sync>(&mut self, first: usize, motion: &[M]) {
-        assert_eq!(first % STRIP_ALIGN, 0, "runs start at whole chunks");
-        // Floating-point sums depend on their order: each run of CHUNK patches is tallied on
-        // one thread, and the tallies are added in patch order, so the figures are the same
-        // bytes whatever the thread count (a parallel `reduce` pairs them by how the work was
-        // split).
-        let tallies = motion
-            .par_chunks(CHUNK)
-            .enumerate()
-            .map(|(c, chunk)| {
-                let mut t = Tally::new();
-                for (p, m) in chunk.iter().enumerate() {
-                    let (patch, m) = ((first + c * CHUNK + p) as u32, m.borrow());
-                    for (i, tr) in m.trajectories.iter().enumerate() {
-                        t.trajectory(tr, (patch, i as u32));
-                    }
-                }
-                t
-            })
-            .collect::<Vec<Tally>>();
-        let tally = std::mem::replace(&mut self.tally, Tally::empty());
-        self.tally = tallies.into_iter().fold(tally, Tally::add);
-        for (p, m) in motion.iter().enumerate() {
-            self.ends(first + p, m.borrow());
-        }
-    }
-
-    /// Every crossing seen from both sides: where each end of patch `p`'s trajectories lies,
-    /// and the velocity there.
-    fn ends(&mut self, p: usize, m: &PatchMotion) {
-        let side = self.graph.world.patch_side_m;
-        for tr in &m.trajectories {
-            let pts = &tr.points;
-            let ends = [
-                (tr.entry, pts[0], pts[1], true),
-                (tr.exit, pts[pts.len() - 1], pts[pts.len() - 2], false),
-            ];
-            for (c, end, next, entry) in ends {
-                let Some(crossing) = self.crossings.get(c as usize) else {
-                    continue;
-                };
-                let border = &self.graph.borders[crossing.border as usize];
-                let (a, b) = border_point(border, side, crossing.s);
-                // The crossing goes a -> b when its way is AToB.
-                let (from, to) = match crossing.way {
-                    Way::AToB => (a, b),
-                    Way::BToA => (b, a),
-                };
-                let here = if entry { to } else { from };
-                if here.patch.0 as usize != p {
-                    self.pos_err = f64::INFINITY;
-                    continue;
-                }
-                self.pos_err = self.pos_err.max(end.pos.distance(here.pos));
-                let dt = (end.t - crossing.t).rem_euclid(self.period_s);
-                self.time_err = self.time_err.max(dt.min(self.period_s - dt));
-                let (a, b) = if entry { (end, next) } else { (next, end) };
-                let v = Segment {
-                    p0: a.pos,
-                    t0: a.t,
-                    p1: b.pos,
-                    t1: b.t,
-                }
-                .velocity();
-                let slot = if entry {
-                    &mut self.entered
-                } else {
-                    &mut self.left
-                };
-                slot[c as usize].0 += 1;
-                slot[c as usize].1 = v;
+    /// Adds patch `p`'s share (its crossings numbered by `table`).
+    pub(crate) fn add(&mut self, p: usize, t: &PatchTally, table: &Table) {
+        self.tally.add(p as u32, t);
+        self.pos_err = self.pos_err.max(t.pos_err);
+        self.time_err = self.time_err.max(t.time_err);
+        for e in &t.ends {
+            let c = table.global(e.local) as usize;
+            let slot = if e.entry {
+                &mut self.entered
+            } else {
+                &mut self.left
+            };
+            // A crossing entered (left) once has one velocity there, whatever the order.
+            if let Some(s) = slot.get_mut(c) {
+                s.0 += 1;
+                s.1 = e.v;
             }
         }
     }
@@ -279,11 +359,11 @@ impl<'a> Measure<'a> {
                 continue;
             }
             jump = jump.max((e.1 - l.1).length());
-            tally.vertex(l.1, e.1, FRAME_S);
+            tally.vertex(l.1, e.1);
         }
         MotionFigures {
-            speed_in_band: if tally.walking > 0.0 {
-                tally.in_band / tally.walking
+            speed_in_band: if tally.walking > 0 {
+                tally.in_band as f64 / tally.walking as f64
             } else {
                 1.0
             },
@@ -298,6 +378,3 @@ impl<'a> Measure<'a> {
         }
     }
 }
-
-/// What the start of a run given to [`Measure::add`] is a multiple of.
-pub const STRIP_ALIGN: usize = CHUNK;

@@ -1,9 +1,8 @@
-//! The world cut into strips for the check: runs of patches of about [`STRIP_PIECES`] pieces,
-//! each checked with the patches within reach of it present but not counted
-//! (`world::Scene::owned`). What the check holds then grows with a strip, not with the world:
+//! The world cut into strips for the check: runs of patches of about [`STRIP_PIECES`] pieces
+//! (of the patches to judge: all, or those a change reached), each checked with the patches
+//! within reach of it present but not counted (`world::Scene::owned`). What the check holds then grows with a strip, not with the world:
 //! a million walkers' 165 million pieces held 20 GB at once.
 
-use crate::motion::STRIP_ALIGN;
 use crowd_core::PatchGraph;
 use crowd_core::trajectories::PatchMotion;
 use glam::DVec2;
@@ -15,7 +14,7 @@ pub(crate) const STRIP_PIECES: u64 = 4_000_000;
 
 /// Where a patch's characters go: the box of every point of its trajectories and of its
 /// standers, world metres, and how many pieces its trajectories have.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub(crate) struct Extent {
     pub lo: DVec2,
     pub hi: DVec2,
@@ -59,30 +58,47 @@ impl Extent {
         self.pieces += o.pieces;
     }
 
-    fn is_empty(&self) -> bool {
+    pub fn is_empty(&self) -> bool {
         self.lo.x > self.hi.x
+    }
+
+    /// Whether `o`'s box comes within `reach` of this one's (neither empty).
+    pub fn near(&self, o: &Extent, reach: f64) -> bool {
+        !self.is_empty()
+            && !o.is_empty()
+            && (o.lo - self.hi).max(self.lo - o.hi).max_element() <= reach
     }
 }
 
-/// The strips: runs of patches in order, each starting at a multiple of [`STRIP_ALIGN`], of
-/// about `budget` pieces (a run of one chunk however many it holds).
-pub(crate) fn plan(extents: &[Extent], budget: u64) -> Vec<Range<usize>> {
-    let mut strips = Vec::new();
-    let (mut start, mut pieces) = (0, 0u64);
-    for (c, chunk) in extents.chunks(STRIP_ALIGN).enumerate() {
-        let here: u64 = chunk.iter().map(|e| e.pieces).sum();
-        let at = c * STRIP_ALIGN;
-        if at > start && pieces + here > budget {
-            strips.push(start..at);
-            (start, pieces) = (at, 0);
+/// The strips that judge patches `todo` (in order): runs of patches of about `budget` pieces
+/// (a run of one patch however many it holds), each from one patch of `todo` to another, with
+/// the patches between them when they are at most [`GAP`] apart (judging a few more is cheaper
+/// than another scene of the same surroundings).
+pub(crate) fn runs(todo: &[usize], extents: &[Extent], budget: u64) -> Vec<Range<usize>> {
+    let mut strips: Vec<Range<usize>> = Vec::new();
+    let mut pieces = 0u64;
+    for &p in todo {
+        let joined = |last: &Range<usize>| {
+            let more: u64 = extents[last.end..=p].iter().map(|e| e.pieces).sum();
+            (p <= last.end + GAP && pieces + more <= budget).then_some(more)
+        };
+        match strips.last_mut() {
+            Some(last) if p < last.end => {} // a repeat
+            Some(last) if let Some(more) = joined(last) => {
+                pieces += more;
+                last.end = p + 1;
+            }
+            _ => {
+                strips.push(p..p + 1);
+                pieces = extents[p].pieces;
+            }
         }
-        pieces += here;
-    }
-    if start < extents.len() || strips.is_empty() {
-        strips.push(start..extents.len());
     }
     strips
 }
+
+/// See [`runs`].
+const GAP: usize = 16;
 
 /// The patches a strip's scene holds, in order: the strip's own, and every other whose
 /// characters come within `reach` of the strip's box (they may meet one of its characters).
@@ -118,19 +134,31 @@ mod tests {
     }
 
     #[test]
-    fn strips_cover_every_patch_once_at_whole_chunks() {
+    fn runs_cover_every_patch_to_judge_once_in_order() {
         let extents: Vec<Extent> = (0..1000).map(|i| at(0.0, 0.0, i % 7)).collect();
-        for budget in [0, 1, 100, 500, 2_000, u64::MAX] {
-            let strips = plan(&extents, budget);
-            assert_eq!(strips[0].start, 0);
-            assert_eq!(strips.last().unwrap().end, 1000);
-            for w in strips.windows(2) {
-                assert_eq!(w[0].end, w[1].start);
-                assert_eq!(w[1].start % STRIP_ALIGN, 0);
+        let every: Vec<usize> = (0..1000).collect();
+        let some: Vec<usize> = (0..1000)
+            .filter(|i| i % 97 < 3 || (400..420).contains(i))
+            .collect();
+        for todo in [&every, &some] {
+            for budget in [0, 1, 100, 500, 2_000, u64::MAX] {
+                let strips = runs(todo, &extents, budget);
+                for w in strips.windows(2) {
+                    assert!(w[0].end <= w[1].start);
+                }
+                for p in todo.iter() {
+                    assert_eq!(strips.iter().filter(|s| s.contains(p)).count(), 1);
+                }
+                for s in &strips {
+                    assert!(todo.contains(&s.start) && todo.contains(&(s.end - 1)));
+                    let pieces: u64 = extents[s.clone()].iter().map(|e| e.pieces).sum();
+                    assert!(s.len() == 1 || pieces <= budget, "{s:?} {pieces} {budget}");
+                }
             }
         }
-        assert_eq!(plan(&extents, u64::MAX), vec![0..1000]);
-        assert_eq!(plan(&[], 10), vec![0..0]);
+        assert_eq!(runs(&every, &extents, u64::MAX), vec![0..1000]);
+        assert_eq!(runs(&some, &extents, u64::MAX).len(), 11);
+        assert!(runs(&[], &extents, 10).is_empty());
     }
 
     #[test]

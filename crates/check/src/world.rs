@@ -64,7 +64,7 @@ pub(crate) struct Scene {
 
 /// The pairs a scene (or a strip of one) counts: collisions, and the nearest approaches,
 /// kept apart so that strips add up to what the whole scene gives ([`Pairs::merge`]).
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize, serde::Deserialize)]
 pub(crate) struct Pairs {
     collisions: u64,
     across_borders: u64,
@@ -153,8 +153,23 @@ fn ordered_bits(x: f64) -> u64 {
 
 /// A walker's closest approach to something standing still: clearance margin, time, place.
 type Margin = (f64, f64, DVec2);
-/// Pairs that collide, each at its closest, and the nearest approach of any pair.
-type Found<K, V> = (Vec<(K, V)>, Option<V>);
+/// Pairs that collide, each at its closest, and the nearest approach of any pair per patch that
+/// owns it (a patch may come more than once; [`Nearest::of`] keeps its nearest).
+type Found<K, V> = (Vec<(K, V)>, Vec<(u32, V)>);
+
+/// Notes approach `v` of a pair owned by `owner` in `list`, which a cell or a piece fills in
+/// patch runs (only its last entry is looked at: a repeat further back is kept apart and
+/// folded later).
+fn note<V: Copy + Closer>(list: &mut Vec<(u32, V)>, owner: u32, v: V) {
+    match list.last_mut() {
+        Some(last) if last.0 == owner => {
+            if v.closer(&last.1) {
+                last.1 = v;
+            }
+        }
+        _ => list.push((owner, v)),
+    }
+}
 
 impl Scene {
     /// [`Scene::owned`] when the scene counts every pair.
@@ -285,7 +300,7 @@ impl Scene {
             .par_iter()
             .map(|(k, ids)| {
                 let mut out = Vec::new();
-                let mut nearest: Option<Near> = None;
+                let mut nearest: Vec<(u32, Near)> = Vec::new();
                 self.coexisting(ids, reach, |i, j| {
                     if !grid.owns(*k, i, j) {
                         return;
@@ -302,7 +317,7 @@ impl Scene {
                         && d < reach
                     {
                         let near = (d, t, at, a.patch != b.patch);
-                        nearest = nearer(nearest, Some(near));
+                        note(&mut nearest, a.patch.min(b.patch), near);
                         if d - 2.0 * r < -COLLISION_M {
                             let key = (a.walker.min(b.walker), a.walker.max(b.walker));
                             out.push((key, near));
@@ -311,7 +326,7 @@ impl Scene {
                 });
                 (out, nearest)
             })
-            .reduce(|| (Vec::new(), None), merge);
+            .reduce(|| (Vec::new(), Vec::new()), merge);
         gathered(found)
     }
 
@@ -364,22 +379,56 @@ impl Scene {
                 });
                 let nearest = out.iter().map(|e| Some(e.1)).fold(None, nearer);
                 out.retain(|e| e.1.0 < -COLLISION_M);
-                (out, nearest)
+                (out, nearest.map(|n| (piece.patch, n)).into_iter().collect())
             })
-            .reduce(|| (Vec::new(), None), merge);
+            .reduce(|| (Vec::new(), Vec::new()), merge);
         gathered(found)
     }
 
     /// The pairs this scene counts ([`Scene::owned`]), added up in pair order.
     pub fn pairs(&self) -> Pairs {
+        self.pairs_by_patch()
+            .into_iter()
+            .fold(Pairs::default(), |a, (_, b)| a.merge(b))
+    }
+
+    /// The pairs this scene counts, per patch that owns them (a pair of walkers belongs to the
+    /// lower of their patches, a walker's pairs with what stands still to its own), in patch
+    /// order: what a check keeps of a patch between builds.
+    pub fn pairs_by_patch(&self) -> Vec<(u32, Pairs)> {
+        let mut patch_of = vec![0u32; self.walker_count()];
+        self.pieces
+            .iter()
+            .for_each(|p| patch_of[p.walker as usize] = p.patch);
         let (walkers, nearest_walkers) = self.walker_pairs();
         let (fixed, nearest_fixed) = self.fixed_pairs();
-        Pairs {
-            collisions: (walkers.len() + fixed.len()) as u64,
-            across_borders: walkers.iter().filter(|(_, near)| near.3).count() as u64,
-            nearest_walkers,
-            nearest_fixed,
+        let mut by: std::collections::BTreeMap<u32, Pairs> = std::collections::BTreeMap::new();
+        for ((a, b), near) in walkers {
+            let e = by
+                .entry(patch_of[a as usize].min(patch_of[b as usize]))
+                .or_default();
+            e.collisions += 1;
+            e.across_borders += u64::from(near.3);
         }
+        for ((w, _), _) in fixed {
+            by.entry(patch_of[w as usize]).or_default().collisions += 1;
+        }
+        for (owner, near) in nearest_walkers {
+            by.entry(owner).or_default().nearest_walkers = Some(near);
+        }
+        for (owner, margin) in nearest_fixed {
+            by.entry(owner).or_default().nearest_fixed = Some(margin);
+        }
+        by.into_iter().collect()
+    }
+
+    /// One more than the highest walker index of a piece (0 with none).
+    fn walker_count(&self) -> usize {
+        self.pieces
+            .iter()
+            .map(|p| p.walker as usize + 1)
+            .max()
+            .unwrap_or(0)
     }
 
     /// Collisions and the smallest clearance over every pair the scene counts.
@@ -391,14 +440,23 @@ impl Scene {
 /// Two parts' colliding pairs and nearest approaches as one.
 fn merge<K, V: Copy + Closer>(mut a: Found<K, V>, b: Found<K, V>) -> Found<K, V> {
     a.0.extend(b.0);
-    (a.0, nearer(a.1, b.1))
+    a.1.extend(b.1);
+    a
 }
 
-/// The colliding pairs found, each once at its closest and in key order, and the nearest.
+/// The colliding pairs found, each once at its closest and in key order, and the nearest per
+/// owning patch, in patch order.
 fn gathered<K: Ord + std::hash::Hash + Copy, V: Copy + Closer>(
     (found, nearest): Found<K, V>,
 ) -> Found<K, V> {
-    (closest_per_key(found), nearest)
+    let mut per_patch: std::collections::BTreeMap<u32, V> = std::collections::BTreeMap::new();
+    for (owner, v) in nearest {
+        let e = per_patch.entry(owner).or_insert(v);
+        if v.closer(e) {
+            *e = v;
+        }
+    }
+    (closest_per_key(found), per_patch.into_iter().collect())
 }
 
 /// How far inside the clearance a pair must come to count as a collision, m (rounding).

@@ -9,7 +9,8 @@ use crate::stage::Stage;
 use crate::stages::{self, GRAPH_FILE, PATTERNS_FILE};
 use crate::ui::Ui;
 use anyhow::{Context, Result, bail};
-use crowd_check::{CheckReport, ProductFigures};
+use crowd_check::memo::{Memo, Recalled};
+use crowd_check::{CheckReport, Judged, ProductFigures};
 use crowd_core::config::PipelineFile;
 use crowd_core::files;
 use crowd_core::patterns::Patterns;
@@ -20,6 +21,9 @@ use std::path::Path;
 
 /// What `crowd check` writes.
 pub const CHECK_FILE: &str = "check.ron";
+/// What a check keeps of each patch for the next one (`crowd_check::memo`): a cache, rewritten
+/// by every check that runs.
+pub const MEMO_FILE: &str = "check.memo";
 /// The runtime's sampler plays the library every this many seconds over one period.
 pub const SAMPLE_STEP_S: f64 = 0.02;
 
@@ -51,14 +55,45 @@ impl Default for CheckOptions {
 
 /// Checks the build folder `dir`, writes `check.ron` and the check's time in `timings.ron`
 /// (returned too).
-pub fn check(dir: &Path, options: &CheckOptions) -> Result<(CheckReport, StageRun)> {
+pub fn check(dir: &Path, options: &CheckOptions) -> Result<(CheckReport, StageRun, Redone)> {
     stages::expect_build_folder(dir)?;
-    let (report, run) = timed(|| measure(dir, options))?;
+    let ((report, memo, redone), run) = timed(|| measure(dir, options))?;
     files::write_atomic(&dir.join(CHECK_FILE), files::to_ron(&report).as_bytes())?;
+    files::write_atomic(&dir.join(MEMO_FILE), &memo.to_bytes())?;
     let mut timings = read_timings(dir);
     timings.insert("check".to_string(), run);
     files::write_atomic(&dir.join(TIMINGS_FILE), files::to_ron(&timings).as_bytes())?;
-    Ok((report, run))
+    Ok((report, run, redone))
+}
+
+/// How much of the world a check judged again, the rest taken from the last check's memo:
+/// patches of the stage file (their own share, the pairs they own) and of the library (the
+/// pairs they own), each of how many.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Redone {
+    pub stage_own: (usize, usize),
+    pub stage_pairs: (usize, usize),
+    pub library_pairs: (usize, usize),
+}
+
+impl Redone {
+    /// "judged again: ..." for the build's line (empty when all was judged).
+    pub fn note(&self) -> String {
+        let parts = [
+            ("patches", self.stage_own),
+            ("their pairs", self.stage_pairs),
+            ("the library's", self.library_pairs),
+        ];
+        if parts.iter().all(|(_, (done, of))| done == of) {
+            return String::new();
+        }
+        let said: Vec<String> = parts
+            .iter()
+            .filter(|(_, (_, of))| *of > 0)
+            .map(|(what, (done, of))| format!("{what} {done} of {of}"))
+            .collect();
+        format!(" (judged again: {})", said.join(", "))
+    }
 }
 
 /// `crowd check DIR [--stage STAGE] [--pipeline FILE]`: checks, refreshes `report.md`, and
@@ -86,7 +121,7 @@ pub fn command(
         options.max_speed = file.pipeline.matching.max_speed;
         options.turn_rate_deg_s = file.pipeline.export.turn_rate_deg_s;
     }
-    let (report, _) = check(dir, &options)?;
+    let (report, _, _) = check(dir, &options)?;
     crate::report_md::write(dir, Default::default())?;
     let summary = check_summary(&report);
     let findings = findings(&report);
@@ -134,11 +169,12 @@ pub fn after_build(
         ));
         return Ok(());
     }
-    let (report, run) = check(out, &options)?;
+    let (report, run, redone) = check(out, &options)?;
     let seconds = run.seconds;
     ui.say(format!(
-        "   check: done in {seconds:.3} s -> {}",
-        path.display()
+        "   check: done in {seconds:.3} s -> {}{}",
+        path.display(),
+        redone.note()
     ));
     ui.say(check_summary(&report).trim_end());
     Ok(())
@@ -197,12 +233,17 @@ fn input_hash(dir: &Path, stage: &Stage, options: &CheckOptions) -> Result<Hash>
     Ok(h.finish())
 }
 
-fn measure(dir: &Path, options: &CheckOptions) -> Result<CheckReport> {
+fn measure(dir: &Path, options: &CheckOptions) -> Result<(CheckReport, Memo, Redone)> {
     let graph = PatchGraph::load(&dir.join(GRAPH_FILE))?;
     let chosen = chosen(dir, options.stage)?;
     // The stage's files are read (versions, sizes, hashes) before anything is judged: a
     // stale folder is refused in a second, not after the products' minute on the million.
     let stage = StageFiles::open(dir, &graph, chosen)?;
+    let memo = std::fs::read(dir.join(MEMO_FILE))
+        .ok()
+        .and_then(|b| Memo::from_bytes(&b))
+        .unwrap_or_default()
+        .recall();
     let walls = crowd_check::walls(&graph);
     let limit = options.max_speed * crowd_check::products::SPEED_MARGIN;
     // The stage file and the products read different files and share nothing. On a small
@@ -214,17 +255,31 @@ fn measure(dir: &Path, options: &CheckOptions) -> Result<CheckReport> {
     // 2.4 -> 3.5 GB when the stage file was one scene).
     let products = || {
         (
-            library(dir, &walls, limit),
+            library(dir, &walls, limit, &memo),
             gltf(dir, &graph, &walls, limit),
         )
     };
     let (stage, (library, gltf)) = if small_world(dir, chosen) {
-        rayon::join(|| stage_figures(&graph, stage), products)
+        rayon::join(|| stage_figures(&graph, stage, &memo), products)
     } else {
-        (stage_figures(&graph, stage), products())
+        (stage_figures(&graph, stage, &memo), products())
     };
-    let mut report = stage?;
-    report.library = library?;
+    drop(memo);
+    let stage = stage?;
+    let library = library?;
+    let n = graph.patches.len();
+    let mut redone = Redone {
+        stage_own: (stage.redone.0, n),
+        stage_pairs: (stage.redone.1, n),
+        library_pairs: (0, 0),
+    };
+    let mut report = stage.report;
+    let library_memo = library.map(|l| {
+        redone.library_pairs = l.redone;
+        report.library = Some(l.judged.figures);
+        l.judged.memo
+    });
+    let memo = Memo::of(Some(stage.memo), library_memo);
     report.gltf = gltf?;
     // What is judged must be what stage 8 wrote: each file against the manifest's size and hash.
     let manifest = dir.join(stages::EXPORT_FILE);
@@ -253,7 +308,7 @@ fn measure(dir: &Path, options: &CheckOptions) -> Result<CheckReport> {
         p.turn_rate_limit_rad_s = Some(turn_limit);
     }
     report.input_hash = Some(input_hash(dir, chosen, options)?);
-    Ok(report)
+    Ok((report, memo, redone))
 }
 
 /// Whether the world is small enough to judge its three forms at once: its stage file's
@@ -268,12 +323,14 @@ fn small_world(dir: &Path, chosen: &Stage) -> bool {
 const SMALL_WORLD_BYTES: u64 = 1 << 30;
 
 /// What the check of a stage's trajectories reads: its file, its motion left in its side file,
-/// and the crossings of the patterns beside it.
+/// the crossings of the patterns beside it, and the stage's patch keys when they belong to
+/// this side file (`STAGE.keys`; without them every patch is judged).
 struct StageFiles {
     stage: &'static Stage,
     file: TrajectoriesFile,
     motion: crowd_core::trajectories::LazyMotion,
     crossings: Vec<crowd_core::patterns::Crossing>,
+    keys: Option<Vec<Hash>>,
 }
 
 impl StageFiles {
@@ -282,26 +339,48 @@ impl StageFiles {
         let path = dir.join(stage.output);
         let patches = graph.patches.len();
         let (file, motion) = TrajectoriesFile::open_for(&path, stage.kind, stage.version, patches)?;
+        let keys = std::fs::read(crate::reuse::keys_path(&path))
+            .ok()
+            .and_then(|b| crowd_core::patch_keys::Keys::decode(&b))
+            .filter(|k| k.side == file.motion.hash && k.patches.len() == patches)
+            .map(|k| k.patches.into_iter().map(|r| r.key).collect());
         Ok(StageFiles {
             stage,
             file,
             motion,
             crossings,
+            keys,
         })
     }
 }
 
 /// The check of a stage's trajectories, with their motion figures: decoded a strip of the
 /// world at a time (`crowd_check::check_world`).
-fn stage_figures(graph: &PatchGraph, s: StageFiles) -> Result<CheckReport> {
-    let period = s.file.period_s;
-    let mut report = crowd_check::check_world(graph, &s.motion, period, Some(&s.crossings))?;
-    report.stage = s.stage.kind.to_string();
-    Ok(report)
+fn stage_figures(graph: &PatchGraph, s: StageFiles, memo: &Recalled) -> Result<Judged> {
+    let world = crowd_check::World {
+        graph,
+        source: &s.motion,
+        period_s: s.file.period_s,
+        crossings: Some(&s.crossings),
+    };
+    let mut judged = crowd_check::check_world_memo(&world, s.keys.as_deref(), memo)?;
+    judged.report.stage = s.stage.kind.to_string();
+    Ok(judged)
+}
+
+/// The library's figures, and how many of its patches' pairs were judged again (of how many).
+struct LibraryJudged {
+    judged: crowd_check::library::Judged,
+    redone: (usize, usize),
 }
 
 /// The figures of `library.crowd`, when the folder holds one.
-fn library(dir: &Path, walls: &[crowd_check::Wall], limit: f64) -> Result<Option<ProductFigures>> {
+fn library(
+    dir: &Path,
+    walls: &[crowd_check::Wall],
+    limit: f64,
+    memo: &Recalled,
+) -> Result<Option<LibraryJudged>> {
     let path = dir.join(LIBRARY_FILE);
     if !path.exists() {
         return Ok(None);
@@ -316,7 +395,9 @@ fn library(dir: &Path, walls: &[crowd_check::Wall], limit: f64) -> Result<Option
         speed_limit_m_s: limit,
         sample_step_s: Some(SAMPLE_STEP_S),
     };
-    Ok(Some(crowd_check::library::figures(&lib, &inputs)))
+    let judged = crowd_check::library::figures_memo(&lib, &inputs, memo);
+    let redone = (judged.redone, lib.patches.len());
+    Ok(Some(LibraryJudged { judged, redone }))
 }
 
 /// The figures of `world.glb`, when the folder holds one.

@@ -24,7 +24,7 @@ pub struct Table(pub Vec<(u32, u32)>);
 
 impl Table {
     /// The patch's own number of a world crossing index (its place among its crossings).
-    fn local(&self, global: u32) -> u32 {
+    pub fn local(&self, global: u32) -> u32 {
         let mut before = 0;
         for &(start, count) in &self.0 {
             if (start..start + count).contains(&global) {
@@ -36,7 +36,9 @@ impl Table {
         u32::MAX - global
     }
 
-    fn global(&self, mut local: u32) -> u32 {
+    /// The world crossing index of the patch's own number `local` (the inverse of
+    /// [`Table::local`]).
+    pub fn global(&self, mut local: u32) -> u32 {
         for &(start, count) in &self.0 {
             if local < count {
                 return start + local;

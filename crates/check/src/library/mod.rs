@@ -6,9 +6,12 @@
 //! its `next` (a border) and every loop's end to its start (the seam), and the runtime's own
 //! `Sampler` played frame after frame.
 
+use crate::memo::{self, Recalled};
 use crate::products::{OPEN_GAP_M, ProductFigures, Sampled, Seams, Tally, end_velocities};
 use crate::strips::{self, Extent};
 use crate::world::{Clearance, Ends, Pairs, Repeat, Scene};
+use crowd_core::Hash;
+use crowd_geometry::BoxGrid;
 use crowd_runtime::{Library, Sample, Sampler, TICK_S};
 use glam::DVec2;
 use rayon::prelude::*;
@@ -42,6 +45,22 @@ pub fn path(lib: &Library, i: usize) -> Vec<(DVec2, f64)> {
 
 /// The figures of `lib`.
 pub fn figures(lib: &Library, inputs: &Inputs) -> ProductFigures {
+    figures_memo(lib, inputs, &Recalled::default()).figures
+}
+
+/// The library's figures, and what of them a later check may take.
+pub struct Judged {
+    pub figures: ProductFigures,
+    pub memo: memo::LibraryPart,
+    /// Patches whose pairs were judged again (not taken from the memo).
+    pub redone: usize,
+}
+
+/// [`figures`], taking from `memo` the pairs of every patch whose key is unchanged: the hash
+/// of the library's bytes of it and of the patches within reach (their crossings named by
+/// order of appearance, not by number: a change elsewhere renumbers them), and of the
+/// obstacles there. The figures are the same bytes as a check of the whole library.
+pub fn figures_memo(lib: &Library, inputs: &Inputs, memo: &Recalled) -> Judged {
     let period = lib.period_s();
     let path = |i| std::borrow::Cow::Owned(path(lib, i));
     let n = lib.trajectories.len();
@@ -49,8 +68,8 @@ pub fn figures(lib: &Library, inputs: &Inputs) -> ProductFigures {
     let walked = walked(lib);
     // The world's pairs and the played frames at once: the pairs' serial parts (the pieces,
     // the grid) left a core idle, and the sampler holds little (painting's check -1 s).
-    let (clearance, ((borders, seams), sampled)) = rayon::join(
-        || clearance(lib, &walked, inputs.walls),
+    let ((clearance, kept, redone), ((borders, seams), sampled)) = rayon::join(
+        || clearance(lib, &walked, inputs.walls, memo),
         || {
             let sampled = inputs
                 .sample_step_s
@@ -64,7 +83,7 @@ pub fn figures(lib: &Library, inputs: &Inputs) -> ProductFigures {
         walked.iter().map(|w| w.extent.pieces).sum(),
         lib.characters.len() as u64,
     );
-    ProductFigures {
+    let figures = ProductFigures {
         max_border_velocity_jump: Some(borders.max_jump),
         max_border_gap_m: Some(borders.max_gap),
         max_turn_rate_rad_s: sampled.as_ref().and_then(|s| s.max_turn_rate_rad_s),
@@ -77,6 +96,11 @@ pub fn figures(lib: &Library, inputs: &Inputs) -> ProductFigures {
             &seams,
             inputs.speed_limit_m_s,
         )
+    };
+    Judged {
+        figures,
+        memo: memo::LibraryPart(kept),
+        redone,
     }
 }
 
@@ -108,10 +132,18 @@ fn walked(lib: &Library) -> Vec<Walked> {
 
 /// Collisions over the whole tiled world: each trajectory a walker with its copies a period
 /// apart, continued through its exit crossing by its `next` (the same character). Counted a
-/// strip of the library's patches at a time, as the stage files' check is (`strips.rs`).
-fn clearance(lib: &Library, walked: &[Walked], walls: &[crate::Wall]) -> Clearance {
+/// strip of the library's patches at a time, as the stage files' check is (`strips.rs`), for
+/// the patches whose pairs `memo` does not hold; with each patch's pairs by their key, and how
+/// many patches were judged again.
+fn clearance(
+    lib: &Library,
+    walked: &[Walked],
+    walls: &[crate::Wall],
+    memo: &Recalled,
+) -> (Clearance, Vec<([u8; 32], Pairs)>, usize) {
     let radius = f64::from(lib.world.radius_m);
-    let mut extents = vec![Extent::EMPTY; lib.patches.len()];
+    let n = lib.patches.len();
+    let mut extents = vec![Extent::EMPTY; n];
     for (t, w) in lib.trajectories.iter().zip(walked) {
         extents[t.patch as usize].take_in(&w.extent);
     }
@@ -119,42 +151,136 @@ fn clearance(lib: &Library, walked: &[Walked], walls: &[crate::Wall]) -> Clearan
         standers(lib, p).for_each(|q| e.grow(q));
     }
     let reach = 2.0 * radius + 1.0 + 1e-6;
-    let mut pairs = Pairs::default();
-    for strip in strips::plan(&extents, strips::STRIP_PIECES) {
+    let keys = pair_keys(lib, &extents, walls, reach);
+    let mut pairs: Vec<Option<Pairs>> = keys.iter().map(|k| memo.library_pairs(k)).collect();
+    let todo: Vec<usize> = (0..n).filter(|&p| pairs[p].is_none()).collect();
+    for strip in strips::runs(&todo, &extents, strips::STRIP_PIECES) {
         let held = strips::with_surroundings(&extents, &strip, reach);
-        let mut is_held = vec![false; lib.patches.len()];
-        held.iter().for_each(|&p| is_held[p] = true);
-        let mut scene = Scene {
-            radius,
-            repeat: Repeat::Periodic(lib.period_s()),
-            pieces: Vec::new(),
-            ends: Vec::new(),
-            standers: held.iter().flat_map(|&p| standers(lib, p)).collect(),
-            walls: walls.to_vec(),
-            owned: strip.start as u32..strip.end as u32,
-        };
-        // In the library's order of trajectories, as one scene of the world would hold them
-        // (a pair's closest place is its lower piece's).
-        let held: Vec<(usize, Vec<(DVec2, f64)>)> = (0..lib.trajectories.len())
-            .into_par_iter()
-            .filter(|&i| is_held[lib.trajectories[i].patch as usize])
-            .map(|i| (i, path(lib, i)))
-            .collect();
-        let pieces = held.iter().map(|(_, p)| p.len().saturating_sub(1)).sum();
-        scene.pieces.reserve_exact(pieces);
-        for (walker, (i, path)) in held.iter().enumerate() {
-            let t = &lib.trajectories[*i];
-            let (first, last) = (path[0].1, path[path.len() - 1].1);
-            scene.push_path(walker as u32, t.patch, path.iter().copied());
-            scene.ends.push(Ends {
-                entry: (t.entry, first),
-                exit: (t.exit, last),
-            });
+        let scene = strip_scene(lib, &held, &strip, walls);
+        strip
+            .clone()
+            .for_each(|p| pairs[p] = Some(Pairs::default()));
+        for (p, found) in scene.pairs_by_patch() {
+            pairs[p as usize] = Some(found);
         }
-        drop(held);
-        pairs = pairs.merge(scene.pairs());
     }
-    pairs.clearance(radius, lib.period_s())
+    let pairs: Vec<Pairs> = pairs.into_iter().map(Option::unwrap_or_default).collect();
+    let total = pairs.iter().fold(Pairs::default(), |a, b| a.merge(*b));
+    let kept = keys.iter().map(|k| *k.as_bytes()).zip(pairs).collect();
+    (total.clearance(radius, lib.period_s()), kept, todo.len())
+}
+
+/// The scene of library patches `held` (in order), counting the pairs of `strip`'s.
+fn strip_scene(
+    lib: &Library,
+    held: &[usize],
+    strip: &std::ops::Range<usize>,
+    walls: &[crate::Wall],
+) -> Scene {
+    let mut is_held = vec![false; lib.patches.len()];
+    held.iter().for_each(|&p| is_held[p] = true);
+    let mut scene = Scene {
+        radius: f64::from(lib.world.radius_m),
+        repeat: Repeat::Periodic(lib.period_s()),
+        pieces: Vec::new(),
+        ends: Vec::new(),
+        standers: held.iter().flat_map(|&p| standers(lib, p)).collect(),
+        walls: walls.to_vec(),
+        owned: strip.start as u32..strip.end as u32,
+    };
+    // In the library's order of trajectories, as one scene of the world would hold them
+    // (a pair's closest place is its lower piece's).
+    let held: Vec<(usize, Vec<(DVec2, f64)>)> = (0..lib.trajectories.len())
+        .into_par_iter()
+        .filter(|&i| is_held[lib.trajectories[i].patch as usize])
+        .map(|i| (i, path(lib, i)))
+        .collect();
+    let pieces = held.iter().map(|(_, p)| p.len().saturating_sub(1)).sum();
+    scene.pieces.reserve_exact(pieces);
+    for (walker, (i, path)) in held.iter().enumerate() {
+        let t = &lib.trajectories[*i];
+        let (first, last) = (path[0].1, path[path.len() - 1].1);
+        scene.push_path(walker as u32, t.patch, path.iter().copied());
+        scene.ends.push(Ends {
+            entry: (t.entry, first),
+            exit: (t.exit, last),
+        });
+    }
+    scene
+}
+
+/// Each library patch's pairs key: the library's bytes of it and of every patch within
+/// `reach` (where, the trajectories' starts and points, the standers), their crossings named
+/// by order of first appearance among them, and the obstacles within reach.
+fn pair_keys(lib: &Library, extents: &[Extent], walls: &[crate::Wall], reach: f64) -> Vec<Hash> {
+    let n = lib.patches.len();
+    let mut by_patch: Vec<Vec<usize>> = vec![Vec::new(); n];
+    for (i, t) in lib.trajectories.iter().enumerate() {
+        by_patch[t.patch as usize].push(i);
+    }
+    let own: Vec<Hash> = (0..n)
+        .into_par_iter()
+        .map(|p| library_patch_hash(lib, p, &by_patch[p]))
+        .collect();
+    let near = memo::within_reach(extents, reach, f64::from(lib.world.patch_side_m));
+    let grid = BoxGrid::new(walls.iter().copied(), 4.0, reach);
+    let setting = memo::bytes_of(&[
+        u64::from(lib.world.period_ticks),
+        u64::from(lib.world.radius_m.to_bits()),
+        u64::from(lib.world.patch_side_m.to_bits()),
+    ]);
+    (0..n)
+        .into_par_iter()
+        .map(|p| {
+            let mut h = crowd_core::Hasher::new("library pairs", crate::VERSION);
+            h.part("settings", &setting);
+            h.part(
+                "near",
+                memo::pairs_key(
+                    "library near",
+                    (&own, p),
+                    &near[p],
+                    &extents[p],
+                    (walls, &grid, reach),
+                )
+                .as_bytes(),
+            );
+            // Crossings by order of first appearance: which trajectory continues which.
+            let mut seen: std::collections::HashMap<u32, u32> = std::collections::HashMap::new();
+            let mut named = Vec::new();
+            for &q in &near[p] {
+                for &i in &by_patch[q as usize] {
+                    let t = &lib.trajectories[i];
+                    for c in [t.entry, t.exit] {
+                        let next = seen.len() as u32;
+                        named.push(u64::from(*seen.entry(c).or_insert(next)));
+                    }
+                }
+            }
+            h.part("crossings", &memo::bytes_of(&named));
+            h.finish()
+        })
+        .collect()
+}
+
+/// The library's bytes of patch `p` (trajectories `mine`): where it lies, its trajectories'
+/// starts and points, its standers; not its crossings' numbers.
+fn library_patch_hash(lib: &Library, p: usize, mine: &[usize]) -> Hash {
+    let patch = &lib.patches[p];
+    let mut words = vec![u64::from(patch.col), u64::from(patch.row)];
+    for &i in mine {
+        let t = &lib.trajectories[i];
+        words.push(u64::from(t.start));
+        words.push(u64::from(t.points));
+        for q in lib.points_of(t) {
+            words.push(u64::from(q.x) | u64::from(q.y) << 16 | u64::from(q.t) << 32);
+        }
+    }
+    let first = patch.first_stander as usize;
+    for s in &lib.standers[first..first + patch.standers as usize] {
+        words.push(u64::from(s.x) | u64::from(s.y) << 16);
+    }
+    Hash::of(&memo::bytes_of(&words))
 }
 
 /// Library patch `p`'s standers, world metres.
