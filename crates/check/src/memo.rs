@@ -9,6 +9,10 @@
 //! of every patch within reach of it, with the obstacles there.
 //!
 //! A cache, not a stage file: a missing, damaged or foreign memo is only work done again.
+//!
+//! Written by hand as little-endian numbers ([`Bytes`], [`Reader`]): through `ciborium`, the
+//! 47 MB memo of painting took 0.9 s to read and 0.3 s to write, a third of a rebuild's check;
+//! read field by field it takes a twentieth of that.
 
 use crate::motion::PatchTally;
 use crate::strips::Extent;
@@ -20,7 +24,7 @@ use std::collections::HashMap;
 
 /// One patch's own share: where its characters go, how many walk, and its motion tally (when
 /// the check had the patterns).
-#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+#[derive(Debug, Clone, PartialEq)]
 pub(crate) struct Own {
     pub extent: Extent,
     pub walkers: u64,
@@ -30,9 +34,8 @@ pub(crate) struct Own {
 /// What a check remembers: each patch's own share and the pairs it owns, for the stage file
 /// and for the library, by their keys. Written in patch order (the same bytes for the same
 /// world), looked up by key.
-#[derive(Debug, Clone, Default, serde::Serialize, serde::Deserialize)]
+#[derive(Debug, Clone, Default)]
 pub struct Memo {
-    version: u32,
     own: Vec<([u8; 32], Own)>,
     pairs: Vec<([u8; 32], Pairs)>,
     library_pairs: Vec<([u8; 32], Pairs)>,
@@ -47,17 +50,37 @@ pub struct Recalled {
 }
 
 impl Memo {
-    /// The memo as its file holds it (CBOR); `None` when the bytes are not a memo of this
+    /// The memo as its file holds it; `None` when the bytes are not a whole memo of this
     /// version.
     pub fn from_bytes(bytes: &[u8]) -> Option<Memo> {
-        let memo: Memo = ciborium::from_reader(bytes).ok()?;
-        (memo.version == crate::VERSION).then_some(memo)
+        let mut r = Reader(bytes);
+        if r.take(MAGIC.len())? != MAGIC || r.u32()? != crate::VERSION {
+            return None;
+        }
+        let own = r.list(|r| Some((r.key()?, Own::get(r)?)))?;
+        let pairs = r.list(|r| Some((r.key()?, Pairs::get(r)?)))?;
+        let library_pairs = r.list(|r| Some((r.key()?, Pairs::get(r)?)))?;
+        r.0.is_empty().then_some(Memo {
+            own,
+            pairs,
+            library_pairs,
+        })
     }
 
     pub fn to_bytes(&self) -> Vec<u8> {
-        let mut out = Vec::new();
-        ciborium::into_writer(self, &mut out).expect("a memo always encodes");
-        out
+        let mut out = Bytes(MAGIC.to_vec());
+        out.u32(crate::VERSION);
+        out.list(&self.own, |o, (k, own)| {
+            o.0.extend_from_slice(k);
+            own.put(o);
+        });
+        for list in [&self.pairs, &self.library_pairs] {
+            out.list(list, |o, (k, p)| {
+                o.0.extend_from_slice(k);
+                p.put(o);
+            });
+        }
+        out.0
     }
 
     /// For lookups by key.
@@ -74,7 +97,6 @@ impl Memo {
     pub fn of(stage: Option<StagePart>, library: Option<LibraryPart>) -> Memo {
         let stage = stage.unwrap_or_default();
         Memo {
-            version: crate::VERSION,
             own: stage.own,
             pairs: stage.pairs,
             library_pairs: library.map_or_else(Vec::new, |l| l.0),
@@ -173,4 +195,124 @@ pub(crate) fn pairs_key(
 /// `values` as little-endian bytes, for a hash.
 pub(crate) fn bytes_of(values: &[u64]) -> Vec<u8> {
     values.iter().flat_map(|v| v.to_le_bytes()).collect()
+}
+
+const MAGIC: &[u8; 8] = b"CRWDMEMO";
+
+/// A memo being written: little-endian numbers.
+pub(crate) struct Bytes(pub Vec<u8>);
+
+impl Bytes {
+    pub fn u8(&mut self, v: u8) {
+        self.0.push(v);
+    }
+    pub fn u32(&mut self, v: u32) {
+        self.0.extend_from_slice(&v.to_le_bytes());
+    }
+    pub fn u64(&mut self, v: u64) {
+        self.0.extend_from_slice(&v.to_le_bytes());
+    }
+    pub fn f64(&mut self, v: f64) {
+        self.u64(v.to_bits());
+    }
+    pub fn vec2(&mut self, v: DVec2) {
+        self.f64(v.x);
+        self.f64(v.y);
+    }
+    /// `items`, after their count.
+    pub fn list<T>(&mut self, items: &[T], mut put: impl FnMut(&mut Bytes, &T)) {
+        self.u64(items.len() as u64);
+        items.iter().for_each(|i| put(self, i));
+    }
+    /// `v`, after whether there is one.
+    pub fn option<T>(&mut self, v: &Option<T>, put: impl FnOnce(&mut Bytes, &T)) {
+        self.u8(u8::from(v.is_some()));
+        if let Some(v) = v {
+            put(self, v);
+        }
+    }
+}
+
+/// A memo being read: every read is `None` past the end.
+pub(crate) struct Reader<'a>(pub &'a [u8]);
+
+impl<'a> Reader<'a> {
+    fn take(&mut self, n: usize) -> Option<&'a [u8]> {
+        if n > self.0.len() {
+            return None;
+        }
+        let (head, rest) = self.0.split_at(n);
+        self.0 = rest;
+        Some(head)
+    }
+    pub fn u8(&mut self) -> Option<u8> {
+        Some(self.take(1)?[0])
+    }
+    pub fn u32(&mut self) -> Option<u32> {
+        Some(u32::from_le_bytes(self.take(4)?.try_into().ok()?))
+    }
+    pub fn u64(&mut self) -> Option<u64> {
+        Some(u64::from_le_bytes(self.take(8)?.try_into().ok()?))
+    }
+    pub fn f64(&mut self) -> Option<f64> {
+        Some(f64::from_bits(self.u64()?))
+    }
+    pub fn vec2(&mut self) -> Option<DVec2> {
+        Some(DVec2::new(self.f64()?, self.f64()?))
+    }
+    fn key(&mut self) -> Option<[u8; 32]> {
+        self.take(32)?.try_into().ok()
+    }
+    /// A list written by [`Bytes::list`] (its count checked against what is left, so a damaged
+    /// count allocates nothing).
+    pub fn list<T>(&mut self, mut get: impl FnMut(&mut Reader<'a>) -> Option<T>) -> Option<Vec<T>> {
+        let n = usize::try_from(self.u64()?).ok()?;
+        if n > self.0.len() {
+            return None;
+        }
+        (0..n).map(|_| get(self)).collect()
+    }
+    /// An option written by [`Bytes::option`].
+    pub fn option<T>(
+        &mut self,
+        get: impl FnOnce(&mut Reader<'a>) -> Option<T>,
+    ) -> Option<Option<T>> {
+        match self.u8()? {
+            0 => Some(None),
+            1 => get(self).map(Some),
+            _ => None,
+        }
+    }
+}
+
+impl Own {
+    fn put(&self, o: &mut Bytes) {
+        self.extent.put(o);
+        o.u64(self.walkers);
+        o.option(&self.tally, |o, t| t.put(o));
+    }
+
+    fn get(r: &mut Reader) -> Option<Own> {
+        Some(Own {
+            extent: Extent::get(r)?,
+            walkers: r.u64()?,
+            tally: r.option(PatchTally::get)?,
+        })
+    }
+}
+
+impl Extent {
+    fn put(&self, o: &mut Bytes) {
+        o.vec2(self.lo);
+        o.vec2(self.hi);
+        o.u64(self.pieces);
+    }
+
+    fn get(r: &mut Reader) -> Option<Extent> {
+        Some(Extent {
+            lo: r.vec2()?,
+            hi: r.vec2()?,
+            pieces: r.u64()?,
+        })
+    }
 }

@@ -6,6 +6,7 @@
 //! is on screen; weighting its vertices by the time around them instead would spread a corner
 //! over seconds and reward coarse paths. Percentiles are over frames, so by time.
 
+use crate::memo::{Bytes, Reader};
 use crowd_core::PatchGraph;
 use crowd_core::patch_keys::Table;
 use crowd_core::patterns::{Crossing, Way, border_point};
@@ -135,7 +136,7 @@ fn vertex_bins(v1: DVec2, v2: DVec2) -> (u32, Option<u32>) {
 
 /// One patch's share of the motion figures: its walking time, its frames' bins (sparse:
 /// (bin, frames)), its fastest piece (trajectory, time), and its trajectories' ends.
-#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+#[derive(Debug, Clone, PartialEq)]
 pub(crate) struct PatchTally {
     walking: u64,
     in_band: u64,
@@ -150,11 +151,60 @@ pub(crate) struct PatchTally {
 
 /// A trajectory's end at a crossing: the crossing as the patch numbers it
 /// (`patch_keys::Table`), whether it enters there, and the velocity there.
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct End {
     local: u32,
     entry: bool,
     v: DVec2,
+}
+
+impl PatchTally {
+    /// For a memo (`memo.rs`).
+    pub fn put(&self, o: &mut Bytes) {
+        o.u64(self.walking);
+        o.u64(self.in_band);
+        for bins in [&self.accel, &self.turn] {
+            o.list(bins, |o, &(bin, n)| {
+                o.u32(bin);
+                o.u32(n);
+            });
+        }
+        o.f64(self.fastest.0);
+        o.option(&self.fastest.1, |o, &(i, t)| {
+            o.u32(i);
+            o.f64(t);
+        });
+        o.list(&self.ends, |o, e| {
+            o.u32(e.local);
+            o.u8(u8::from(e.entry));
+            o.vec2(e.v);
+        });
+        o.f64(self.pos_err);
+        o.f64(self.time_err);
+    }
+
+    pub fn get(r: &mut Reader) -> Option<PatchTally> {
+        let bin = |r: &mut Reader| {
+            let bin = r.u32()?;
+            (bin < BINS as u32).then_some((bin, r.u32()?))
+        };
+        Some(PatchTally {
+            walking: r.u64()?,
+            in_band: r.u64()?,
+            accel: r.list(bin)?,
+            turn: r.list(bin)?,
+            fastest: (r.f64()?, r.option(|r| Some((r.u32()?, r.f64()?)))?),
+            ends: r.list(|r| {
+                Some(End {
+                    local: r.u32()?,
+                    entry: r.u8()? != 0,
+                    v: r.vec2()?,
+                })
+            })?,
+            pos_err: r.f64()?,
+            time_err: r.f64()?,
+        })
+    }
 }
 
 /// Counts of each bin in `bins`, by bin.

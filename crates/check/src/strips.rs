@@ -14,7 +14,7 @@ pub(crate) const STRIP_PIECES: u64 = 4_000_000;
 
 /// Where a patch's characters go: the box of every point of its trajectories and of its
 /// standers, world metres, and how many pieces its trajectories have.
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct Extent {
     pub lo: DVec2,
     pub hi: DVec2,

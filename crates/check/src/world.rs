@@ -64,7 +64,7 @@ pub(crate) struct Scene {
 
 /// The pairs a scene (or a strip of one) counts: collisions, and the nearest approaches,
 /// kept apart so that strips add up to what the whole scene gives ([`Pairs::merge`]).
-#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize, serde::Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub(crate) struct Pairs {
     collisions: u64,
     across_borders: u64,
@@ -81,6 +81,32 @@ impl Pairs {
             nearest_walkers: nearer(self.nearest_walkers, o.nearest_walkers),
             nearest_fixed: nearer(self.nearest_fixed, o.nearest_fixed),
         }
+    }
+
+    /// For a memo (`memo.rs`).
+    pub fn put(&self, o: &mut crate::memo::Bytes) {
+        o.u64(self.collisions);
+        o.u64(self.across_borders);
+        o.option(&self.nearest_walkers, |o, n| {
+            o.f64(n.0);
+            o.f64(n.1);
+            o.vec2(n.2);
+            o.u8(u8::from(n.3));
+        });
+        o.option(&self.nearest_fixed, |o, m| {
+            o.f64(m.0);
+            o.f64(m.1);
+            o.vec2(m.2);
+        });
+    }
+
+    pub fn get(r: &mut crate::memo::Reader) -> Option<Pairs> {
+        Some(Pairs {
+            collisions: r.u64()?,
+            across_borders: r.u64()?,
+            nearest_walkers: r.option(|r| Some((r.f64()?, r.f64()?, r.vec2()?, r.u8()? != 0)))?,
+            nearest_fixed: r.option(|r| Some((r.f64()?, r.f64()?, r.vec2()?)))?,
+        })
     }
 
     /// The figures of the pairs, for characters of `radius` repeating every `period`.

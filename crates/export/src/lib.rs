@@ -17,7 +17,7 @@ use crowd_core::{Hash, Hasher};
 
 /// The stage name in `export.ron`'s header.
 pub const STAGE: &str = "export";
-pub const VERSION: u32 = 10;
+pub const VERSION: u32 = 11;
 
 /// What stage 8 reads of a pipeline besides its input files.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]

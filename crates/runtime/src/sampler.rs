@@ -69,6 +69,12 @@ const TICKS_PER_S: f64 = 1.0 / TICK_S;
 impl<'a> Sampler<'a> {
     /// A sampler whose first frame may be at any time.
     pub fn new(lib: &'a Library) -> Sampler<'a> {
+        Sampler::with_headings(lib, crate::turn::library_headings(lib))
+    }
+
+    /// [`Sampler::new`] with the library's headings made already: `headings` must be
+    /// [`crate::turn::library_headings`] of `lib` (made, say, a character per thread).
+    pub fn with_headings(lib: &'a Library, headings: crate::turn::PointHeadings) -> Sampler<'a> {
         let mut cursors = Vec::with_capacity(lib.walkers() as usize);
         for (c, ch) in lib.characters.iter().enumerate() {
             for _ in 0..ch.laps {
@@ -98,7 +104,7 @@ impl<'a> Sampler<'a> {
             .collect();
         Sampler {
             lib,
-            loops: Loops::new(lib),
+            loops: Loops::new(lib, headings),
             scale: Scale::of(lib),
             walkers: Walkers::new(cursors.len()),
             cursors,

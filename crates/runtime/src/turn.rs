@@ -142,32 +142,46 @@ pub fn loop_headings_walking(
     };
     // Walk the loop from its first walking direction until the heading at the loop's start
     // repeats: a heading that catches up with its target once forgets where it started, so
-    // two laps settle any loop that walks straight for as long as a turn takes.
-    let lap = |h0: f64| {
-        let mut h = vec![h0; n];
+    // two laps settle any loop that walks straight for as long as a turn takes. Headings are
+    // kept within a turn (`turn_between(.., 0)`), so a lap that meets the lap before it at a
+    // key, to the bit, is that lap from there on (each key's heading is a function of the
+    // one before it alone): it stops there, and a loop of 5 million keys is walked about once,
+    // not twice (and no heading drifts by whole turns, whose `fmod` was a tenth of the time).
+    let lap = |h0: f64, before: Option<&[f64]>| {
+        let mut h = Vec::with_capacity(n);
+        h.push(h0);
         for k in 0..n - 1 {
             let (t0, t1) = (times[k], times[k + 1]);
-            h[k + 1] = match (directions[k], next_walk[k]) {
-                (Some(d), _) => towards(h[k], d, (rate * (t1 - t0)).min(MAX_PIECE_TURN)),
+            let from = h[k];
+            let next = match (directions[k], next_walk[k]) {
+                (Some(d), _) => towards(from, d, (rate * (t1 - t0)).min(MAX_PIECE_TURN)),
                 // Standing: the run's one turn ends as it walks off; this piece turns only
                 // for the part of it that falls inside the piece.
                 (None, Some((d, walk_off))) => {
-                    let starts = walk_off - turn_between(d, h[k]).abs() / rate;
+                    let starts = walk_off - turn_between(d, from).abs() / rate;
                     let step = (rate * (t1 - starts.max(t0)).max(0.0)).min(MAX_PIECE_TURN);
-                    towards(h[k], d, step)
+                    towards(from, d, step)
                 }
-                (None, None) => h[k],
+                (None, None) => from,
             };
+            let next = turn_between(next, 0.0);
+            h.push(next);
+            if let Some(b) = before
+                && b[k + 1].to_bits() == next.to_bits()
+            {
+                h.extend_from_slice(&b[k + 2..]);
+                break;
+            }
         }
         h
     };
-    let mut h = lap(first_walk);
+    let mut h = lap(first_walk, None);
     for _ in 0..8 {
         let end = h[n - 1];
         if turn_between(end, h[0]).abs() <= 1e-12 {
             break;
         }
-        h = lap(end);
+        h = lap(end, Some(&h));
     }
     // The loop's end is its start (a loop that never caught up keeps its last lap's start).
     let wrapped: Vec<f64> = h.iter().map(|&a| turn_between(a, 0.0)).collect();
@@ -179,8 +193,13 @@ pub fn loop_headings_walking(
 /// Whether the piece of `lib` from point `a` to the next, `b`, walks ([`walks`], on the
 /// quantised points as the library holds them).
 fn piece_walks(lib: &crate::Library, a: crate::Point, b: crate::Point) -> bool {
-    let steps = f64::from(i32::from(b.x) - i32::from(a.x))
-        .hypot(f64::from(i32::from(b.y) - i32::from(a.y)));
+    // Whole steps: their squares add up exactly, and the root is rounded once (`hypot` was a
+    // twentieth of loading a library's headings).
+    let (dx, dy) = (
+        f64::from(i32::from(b.x) - i32::from(a.x)),
+        f64::from(i32::from(b.y) - i32::from(a.y)),
+    );
+    let steps = (dx * dx + dy * dy).sqrt();
     let metres = steps * f64::from(lib.world.patch_side_m) / crate::format::QUANT_STEPS;
     walks(metres, f64::from(b.t.wrapping_sub(a.t)) * crate::TICK_S)
 }
@@ -200,27 +219,39 @@ pub struct PointHeadings {
 /// whether the piece from it walks. Stage 8 takes `world.glb`'s headings from here and the
 /// runtime's sampler its own, so the glTF and the runtime face the same way.
 pub fn library_headings(lib: &crate::Library) -> PointHeadings {
-    let mut out = PointHeadings {
-        heading: vec![0.0; lib.points.len()],
-        walks: vec![false; lib.points.len()],
-    };
+    let mut out = PointHeadings::for_points(lib);
     for ch in &lib.characters {
-        let one = character_headings(lib, ch);
+        out.take(lib, ch, &character_headings(lib, ch));
+    }
+    out
+}
+
+impl PointHeadings {
+    /// Room for every point of `lib`, to [`PointHeadings::take`] each character's into (a
+    /// reader with threads makes the characters' in parallel, then takes them in).
+    pub fn for_points(lib: &crate::Library) -> PointHeadings {
+        PointHeadings {
+            heading: vec![0.0; lib.points.len()],
+            walks: vec![false; lib.points.len()],
+        }
+    }
+
+    /// Takes in character `ch`'s share, `one` ([`character_headings`]), at its points.
+    pub fn take(&mut self, lib: &crate::Library, ch: &crate::Character, one: &PointHeadings) {
         let (mut heading, mut walks) = (one.heading.iter(), one.walks.iter());
         let mut at = ch.first_trajectory;
         for _ in 0..ch.trajectories {
             let tr = &lib.trajectories[at as usize];
             let first = tr.first_point as usize;
             for i in 0..tr.points as usize {
-                out.heading[first + i] = *heading.next().expect("a heading per point");
+                self.heading[first + i] = *heading.next().expect("a heading per point");
                 if i > 0 {
-                    out.walks[first + i - 1] = *walks.next().expect("one per piece");
+                    self.walks[first + i - 1] = *walks.next().expect("one per piece");
                 }
             }
             at = tr.next;
         }
     }
-    out
 }
 
 /// One character's share of [`library_headings`], in its loop's order: the heading at every

@@ -336,8 +336,16 @@ pub fn sample(lib: &Library, step: f64, fastest: f64) -> Sampled {
     let runs: Vec<(u64, u64)> = (0..frames.div_ceil(FRAMES_PER_RUN))
         .map(|r| (r * FRAMES_PER_RUN, ((r + 1) * FRAMES_PER_RUN).min(frames)))
         .collect();
-    // One sampler made (its headings computed once), copied for each run.
-    let sampler = Sampler::new(lib);
+    // One sampler made (its headings computed once, a character per thread: serially they
+    // were a second of painting's check), copied for each run.
+    let per_character: Vec<crowd_runtime::turn::PointHeadings> = (lib.characters.par_iter())
+        .map(|ch| crowd_runtime::turn::character_headings(lib, ch))
+        .collect();
+    let mut headings = crowd_runtime::turn::PointHeadings::for_points(lib);
+    for (ch, one) in lib.characters.iter().zip(per_character) {
+        headings.take(lib, ch, &one);
+    }
+    let sampler = Sampler::with_headings(lib, headings);
     let (max_speed, jumps, max_turn) = runs
         .par_iter()
         .map(|&(first, last)| play(sampler.clone(), step, fastest, first..=last))

@@ -182,7 +182,7 @@ impl Entry {
 }
 
 impl Loops {
-    pub fn new(lib: &Library) -> Loops {
+    pub fn new(lib: &Library, model: crate::turn::PointHeadings) -> Loops {
         let mut loops = Loops {
             first: Vec::with_capacity(lib.characters.len() + 1),
             trajectories: Vec::with_capacity(lib.trajectories.len()),
@@ -214,7 +214,6 @@ impl Loops {
             }
         }
         loops.first.push(loops.trajectories.len());
-        let model = crate::turn::library_headings(lib);
         loops.headings = model
             .heading
             .iter()
