@@ -426,12 +426,12 @@ pub fn patch_key(
 ) -> crowd_core::Hash {
     let motion = crowd_core::patch_keys::local_bytes(&seen.tables[p], matched);
     let mut h = crowd_core::Hasher::new("collide patch", VERSION);
-    h.value("world", &seen.graph.world)
-        .value("radius", &seen.graph.radius_m)
-        .value("index", &p)
-        .value("surroundings", &seen.surroundings(p))
+    h.binary("world", &seen.graph.world)
+        .binary("radius", &seen.graph.radius_m)
+        .binary("index", &p)
+        .binary("surroundings", &seen.surroundings(p))
         .part("motion", &motion)
-        .value("inputs", inputs);
+        .binary("inputs", inputs);
     h.finish()
 }
 

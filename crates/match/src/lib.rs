@@ -311,14 +311,14 @@ pub fn patch_key(
 ) -> crowd_core::Hash {
     use crowd_core::trajectories::TrajectoriesFile;
     crowd_core::Hasher::new("match patch", TrajectoriesFile::VERSION)
-        .value("world", &seen.graph.world)
-        .value("radius", &seen.graph.radius_m)
-        .value("index", &p)
-        .value("standers", &standers)
-        .value("surroundings", &seen.surroundings(p))
-        .value("period", &inputs.period_s)
-        .value("seed", &inputs.seed)
-        .value("settings", &inputs.settings)
+        .binary("world", &seen.graph.world)
+        .binary("radius", &seen.graph.radius_m)
+        .binary("index", &p)
+        .binary("standers", &standers)
+        .binary("surroundings", &seen.surroundings(p))
+        .binary("period", &inputs.period_s)
+        .binary("seed", &inputs.seed)
+        .binary("settings", &inputs.settings)
         .finish()
 }
 

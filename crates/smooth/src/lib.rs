@@ -58,7 +58,7 @@ pub fn patch_keys(
         .into_par_iter()
         .map(|p| {
             let mut h = crowd_core::Hasher::new("smooth patch part", VERSION);
-            h.value("surroundings", &seen.surroundings(p))
+            h.binary("surroundings", &seen.surroundings(p))
                 .part("motion", &local_bytes(&seen.tables[p], &collided[p]));
             h.finish()
         })
@@ -67,12 +67,12 @@ pub fn patch_keys(
         .into_par_iter()
         .map(|p| {
             let mut h = crowd_core::Hasher::new("smooth patch", VERSION);
-            h.value("world", &seen.graph.world)
-                .value("radius", &seen.graph.radius_m)
-                .value("inputs", inputs)
-                .value("own", &own[p]);
+            h.binary("world", &seen.graph.world)
+                .binary("radius", &seen.graph.radius_m)
+                .binary("inputs", inputs)
+                .binary("own", &own[p]);
             for q in neighbours(seen.graph, p) {
-                h.value("neighbour", &q.map(|q| own[q]));
+                h.binary("neighbour", &q.map(|q| own[q]));
             }
             h.finish()
         })
