@@ -121,7 +121,9 @@ pub fn world_glb(w: &World) -> Vec<u8> {
             }
             let path = loop_path(w, lp);
             let first = firsts[lp];
+            // A loop of 60,000 laps (painting's longest) has its slots made in parallel too.
             (0..laps[lp])
+                .into_par_iter()
                 .filter(|&lap| !hidden(keys::window_box(&path, lap)))
                 .map(|lap| {
                     let keys = slot_keys(&path, lap);
@@ -138,7 +140,7 @@ pub fn world_glb(w: &World) -> Vec<u8> {
                         shown,
                     }
                 })
-                .collect()
+                .collect::<Vec<Slot>>()
         })
         .flatten()
         .collect();
