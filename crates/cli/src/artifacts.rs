@@ -130,8 +130,8 @@ impl<'p> Artifacts<'p> {
     /// Stage 2's graph.
     pub fn graph(&mut self) -> Result<Rc<PatchGraph>> {
         if self.graph.is_none() {
-            let graph = PatchGraph::load(&self.path(stages::GRAPH.output))?;
-            self.graph = Some(Rc::new(graph));
+            let graph = PatchGraph::load_shared(&self.path(stages::GRAPH.output))?;
+            self.graph = Some(Rc::new(PatchGraph::clone(&graph)));
         }
         Ok(self.graph.clone().expect("just loaded"))
     }

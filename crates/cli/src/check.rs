@@ -234,7 +234,7 @@ fn input_hash(dir: &Path, stage: &Stage, options: &CheckOptions) -> Result<Hash>
 }
 
 fn measure(dir: &Path, options: &CheckOptions) -> Result<(CheckReport, Memo, Redone)> {
-    let graph = PatchGraph::load(&dir.join(GRAPH_FILE))?;
+    let graph = PatchGraph::load_shared(&dir.join(GRAPH_FILE))?;
     let chosen = chosen(dir, options.stage)?;
     // The stage's files are read (versions, sizes, hashes) before anything is judged: a
     // stale folder is refused in a second, not after the products' minute on the million.

@@ -143,7 +143,7 @@ pub fn render(path: &Path, out: &Path, patch: Option<u32>) -> Result<&'static st
     let beside = |name: &str| path.with_file_name(name);
     let (image, legend) = match header.stage.as_str() {
         Patterns::STAGE => {
-            let graph = PatchGraph::load(&beside(GRAPH_FILE))?;
+            let graph = PatchGraph::load_shared(&beside(GRAPH_FILE))?;
             let (patterns, _) = Patterns::load(path)?;
             (
                 crowd_render::render_patterns(&graph, &patterns),
@@ -154,7 +154,7 @@ pub fn render(path: &Path, out: &Path, patch: Option<u32>) -> Result<&'static st
         | crowd_collide::STAGE
         | crowd_smooth::STAGE
         | crowd_moments::STAGE) => {
-            let graph = PatchGraph::load(&beside(GRAPH_FILE))?;
+            let graph = PatchGraph::load_shared(&beside(GRAPH_FILE))?;
             let (patterns, crossings) = Patterns::load_for(&beside(PATTERNS_FILE), &graph)?;
             let patches = graph.patches.len();
             if let Some(p) = patch
@@ -186,7 +186,7 @@ pub fn render(path: &Path, out: &Path, patch: Option<u32>) -> Result<&'static st
             (crowd_render::render_maps(&maps), crowd_render::MAPS_LEGEND)
         }
         PatchGraph::STAGE => (
-            crowd_render::render_graph(&PatchGraph::load(path)?),
+            crowd_render::render_graph(&*PatchGraph::load_shared(path)?),
             crowd_render::GRAPH_LEGEND,
         ),
         other => bail!(

@@ -25,7 +25,7 @@ pub struct Warning {
 /// The warnings of the build in `dir`, from its stage files and `check.ron` (those it has).
 pub fn gather(dir: &Path) -> Result<Vec<Warning>> {
     let graph_path = dir.join(GRAPH_FILE);
-    let Ok(graph) = PatchGraph::load(&graph_path) else {
+    let Ok(graph) = PatchGraph::load_shared(&graph_path) else {
         return Ok(Vec::new());
     };
     let mut out = pockets(&graph);
@@ -328,7 +328,7 @@ pub(crate) fn shipped(figures: &crowd_check::CheckReport) -> Vec<Warning> {
 
 /// Draws the world's patch graph with the patches `warnings` name in red, into a PNG at `out`.
 pub fn draw(dir: &Path, warnings: &[Warning], out: &Path) -> Result<&'static str> {
-    let graph = PatchGraph::load(&dir.join(GRAPH_FILE))?;
+    let graph = PatchGraph::load_shared(&dir.join(GRAPH_FILE))?;
     let marked: Vec<u32> = warnings.iter().flat_map(|w| w.patches.clone()).collect();
     crowd_render::save_png(&crowd_render::render_marked(&graph, &marked), out)?;
     Ok(crowd_render::MARKED_LEGEND)

@@ -185,9 +185,33 @@ impl PatchGraph {
 
     /// Reads and checks `graph.ron`.
     pub fn load(path: &std::path::Path) -> crate::Result<PatchGraph> {
-        let graph: PatchGraph = crate::files::read_ron(path)?;
+        let text = std::fs::read_to_string(path).map_err(|e| crate::Error::io(path, "read", e))?;
+        Self::parse(path, &text)
+    }
+
+    fn parse(path: &std::path::Path, text: &str) -> crate::Result<PatchGraph> {
+        let graph: PatchGraph = crate::files::parse_ron(path, text)?;
         crate::files::expect_stage(path, &graph.header, Self::STAGE, Self::VERSION)?;
         graph.check(path)?;
+        Ok(graph)
+    }
+
+    /// [`PatchGraph::load`], parsed once per content in a process: a build reads `graph.ron`
+    /// for its stages, its check, its warnings and each report picture (3.5 MB of RON on
+    /// painting, 0.15 s a time). The file is read and hashed each time, so an edit is seen.
+    pub fn load_shared(path: &std::path::Path) -> crate::Result<std::sync::Arc<PatchGraph>> {
+        use std::sync::{Arc, Mutex};
+        static LAST: Mutex<Option<(crate::Hash, Arc<PatchGraph>)>> = Mutex::new(None);
+        let text = std::fs::read_to_string(path).map_err(|e| crate::Error::io(path, "read", e))?;
+        let hash = crate::Hash::of(text.as_bytes());
+        let held = LAST.lock().unwrap_or_else(|e| e.into_inner()).clone();
+        if let Some((h, graph)) = held
+            && h == hash
+        {
+            return Ok(graph);
+        }
+        let graph = Arc::new(Self::parse(path, &text)?);
+        *LAST.lock().unwrap_or_else(|e| e.into_inner()) = Some((hash, graph.clone()));
         Ok(graph)
     }
 
