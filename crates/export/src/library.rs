@@ -12,6 +12,7 @@ use crowd_core::patterns::Crossing;
 use crowd_core::trajectories::PatchMotion;
 use crowd_runtime::{Character, Library, Point, TICK_S, World};
 use glam::DVec2;
+use rayon::prelude::*;
 
 /// Worst-case quantisation error of positions, as a share of the patch side.
 pub const POSITION_ERROR_SHARE: f64 = 0.5 / 65535.0;
@@ -58,7 +59,6 @@ pub fn build(
     let period_ticks = period_ticks as u64;
     let count = |n: usize, what| u32::try_from(n).map_err(|_| LibraryError::TooMany(what));
     let side = graph.world.patch_side_m;
-    let quant = |v: f64| ((v / side).clamp(0.0, 1.0) * 65535.0).round() as u16;
     let ticks = |t: f64| (t / TICK_S).round() as i64;
     let pt = period_ticks as i64;
 
@@ -72,80 +72,57 @@ pub fn build(
         input_hash,
         turn_rate_deg_s: crowd_runtime::turn::DEFAULT_TURN_RATE_DEG_S as f32,
     };
-    let mut patches = Vec::with_capacity(motion.len());
-    let mut standers = Vec::new();
-    let mut trajectories = Vec::with_capacity(links.refs.len());
-    let mut points = Vec::new();
-    let mut eased_m = 0.0f64;
     // Starts first: a trajectory's end is snapped to its successor's start.
     let start_of = |i: usize| {
         let r = links.refs[i];
         ticks(motion[r.patch].trajectories[r.index].points[0].t).rem_euclid(pt)
     };
-    for (p, m) in motion.iter().enumerate() {
+    let quantised = Quantised {
+        side,
+        period_ticks: pt,
+        start_of: &start_of,
+    };
+    // Patches are quantised in parallel (painting's 9 million points were most of a brush
+    // stroke's library on one core), then laid end to end in patch order.
+    let firsts: Vec<usize> = motion
+        .iter()
+        .scan(0usize, |n, m| {
+            let first = *n;
+            *n += m.trajectories.len();
+            Some(first)
+        })
+        .collect();
+    let parts: Vec<Result<PatchPart, LibraryError>> = (motion.par_iter().zip(&firsts))
+        .enumerate()
+        .map(|(p, (m, &first))| quantised.patch(p, m, first, links))
+        .collect();
+    let mut patches = Vec::with_capacity(motion.len());
+    let mut standers = Vec::new();
+    let mut trajectories = Vec::with_capacity(links.refs.len());
+    let mut points = Vec::new();
+    let mut eased_m = 0.0f64;
+    for (p, part) in parts.into_iter().enumerate() {
+        let part = part?;
         let cell = graph.patches[p].cell;
         patches.push(crowd_runtime::Patch {
             col: cell.col,
             row: cell.row,
             first_trajectory: count(trajectories.len(), "trajectories")?,
-            trajectories: count(m.trajectories.len(), "trajectories")?,
+            trajectories: count(part.trajectories.len(), "trajectories")?,
             first_stander: count(standers.len(), "standers")?,
-            standers: count(m.standers.len(), "standers")?,
+            standers: count(part.standers.len(), "standers")?,
         });
-        standers.extend(m.standers.iter().map(|s| Point {
-            x: quant(s.x),
-            y: quant(s.y),
-            t: 0,
-        }));
-        for tr in &m.trajectories {
-            let i = trajectories.len();
-            let start = start_of(i);
-            // Relative ticks as differences of absolute ones: each point's time is then within
-            // half a tick of exact.
-            let t0 = ticks(tr.points[0].t);
-            let first_point = count(points.len(), "points")?;
-            // The end, snapped: the successor's start a whole number of periods on.
-            let succ = start_of(links.next[i]);
-            let exact = ticks(tr.points[tr.points.len() - 1].t) - t0;
-            let gap = (succ - start).rem_euclid(pt);
-            let mut end = gap + pt * ((exact - gap) as f64 / pt as f64).round() as i64;
-            while end < 1 {
-                end += pt;
-            }
-            if end > i64::from(crowd_runtime::MAX_PERIODS_PER_TRAJECTORY) * pt {
-                return Err(LibraryError::TooMany("periods in one trajectory (64)"));
-            }
-            let mut last = 0i64;
-            for (k, cp) in tr.points.iter().enumerate() {
-                let t = if k == 0 {
-                    0
-                } else if k + 1 == tr.points.len() {
-                    end
-                } else {
-                    (ticks(cp.t) - t0).clamp(last, end)
-                };
-                last = t;
-                points.push(Point {
-                    x: quant(cp.pos.x),
-                    y: quant(cp.pos.y),
-                    t: u32::try_from(t).map_err(|_| LibraryError::TooMany("ticks in a walk"))?,
-                });
-            }
-            eased_m = eased_m.max(ease_ticks(
-                &mut points[first_point as usize..],
-                side,
-                &tr.points,
-            ));
-            trajectories.push(crowd_runtime::Trajectory {
-                patch: p as u32,
-                entry: tr.entry,
-                exit: tr.exit,
-                next: count(links.next[i], "trajectories")?,
-                first_point,
-                points: count(tr.points.len(), "points")?,
-                start: start as u32,
-            });
+        standers.extend(part.standers);
+        let offset = count(points.len(), "points")?;
+        for mut t in part.trajectories {
+            t.first_point = offset
+                .checked_add(t.first_point)
+                .ok_or(LibraryError::TooMany("points"))?;
+            trajectories.push(t);
         }
+        points.extend(part.points);
+        count(points.len(), "points")?;
+        eased_m = eased_m.max(part.eased_m);
     }
     let characters = links
         .loops
@@ -192,6 +169,104 @@ pub fn build(
         characters,
     };
     Ok((library, eased_m))
+}
+
+/// What quantises a patch's motion for the library: the patch side, the period in ticks, and
+/// each trajectory's start in ticks (by its index in the library).
+struct Quantised<'a, F: Fn(usize) -> i64> {
+    side: f64,
+    period_ticks: i64,
+    start_of: &'a F,
+}
+
+/// One patch's records, its trajectories' `first_point` counted from its own first point.
+struct PatchPart {
+    standers: Vec<Point>,
+    trajectories: Vec<crowd_runtime::Trajectory>,
+    points: Vec<Point>,
+    eased_m: f64,
+}
+
+impl<F: Fn(usize) -> i64> Quantised<'_, F> {
+    fn quant(&self, v: f64) -> u16 {
+        ((v / self.side).clamp(0.0, 1.0) * 65535.0).round() as u16
+    }
+
+    /// Patch `p`'s standers, trajectories (the first numbered `first` in the library) and
+    /// points.
+    fn patch(
+        &self,
+        p: usize,
+        m: &PatchMotion,
+        first: usize,
+        links: &Links,
+    ) -> Result<PatchPart, LibraryError> {
+        let count = |n: usize, what| u32::try_from(n).map_err(|_| LibraryError::TooMany(what));
+        let ticks = |t: f64| (t / TICK_S).round() as i64;
+        let pt = self.period_ticks;
+        let mut part = PatchPart {
+            standers: (m.standers.iter())
+                .map(|s| Point {
+                    x: self.quant(s.x),
+                    y: self.quant(s.y),
+                    t: 0,
+                })
+                .collect(),
+            trajectories: Vec::with_capacity(m.trajectories.len()),
+            points: Vec::new(),
+            eased_m: 0.0,
+        };
+        for (k, tr) in m.trajectories.iter().enumerate() {
+            let i = first + k;
+            let start = (self.start_of)(i);
+            // Relative ticks as differences of absolute ones: each point's time is then within
+            // half a tick of exact.
+            let t0 = ticks(tr.points[0].t);
+            let first_point = part.points.len();
+            // The end, snapped: the successor's start a whole number of periods on.
+            let succ = (self.start_of)(links.next[i]);
+            let exact = ticks(tr.points[tr.points.len() - 1].t) - t0;
+            let gap = (succ - start).rem_euclid(pt);
+            let mut end = gap + pt * ((exact - gap) as f64 / pt as f64).round() as i64;
+            while end < 1 {
+                end += pt;
+            }
+            if end > i64::from(crowd_runtime::MAX_PERIODS_PER_TRAJECTORY) * pt {
+                return Err(LibraryError::TooMany("periods in one trajectory (64)"));
+            }
+            let mut last = 0i64;
+            for (k, cp) in tr.points.iter().enumerate() {
+                let t = if k == 0 {
+                    0
+                } else if k + 1 == tr.points.len() {
+                    end
+                } else {
+                    (ticks(cp.t) - t0).clamp(last, end)
+                };
+                last = t;
+                part.points.push(Point {
+                    x: self.quant(cp.pos.x),
+                    y: self.quant(cp.pos.y),
+                    t: u32::try_from(t).map_err(|_| LibraryError::TooMany("ticks in a walk"))?,
+                });
+            }
+            part.eased_m = part.eased_m.max(ease_ticks(
+                &mut part.points[first_point..],
+                self.side,
+                &tr.points,
+            ));
+            part.trajectories.push(crowd_runtime::Trajectory {
+                patch: p as u32,
+                entry: tr.entry,
+                exit: tr.exit,
+                next: count(links.next[i], "trajectories")?,
+                first_point: count(first_point, "points")?,
+                points: count(tr.points.len(), "points")?,
+                start: start as u32,
+            });
+        }
+        Ok(part)
+    }
 }
 
 /// Moves a point's rounded time by a tick where the rounding made a short piece next to it
