@@ -322,19 +322,23 @@ fn handovers(lib: &Library, walked: &[Walked]) -> (Seams, Seams) {
 /// Everywhere.
 const EVERYWHERE: [f32; 4] = [f32::MIN, f32::MIN, f32::MAX, f32::MAX];
 
-/// Frames played by one sampler of [`sample`]: the period is cut into runs this long, played
-/// in parallel (a run's first frame searches each walker's loop; the others step on).
-const FRAMES_PER_RUN: u64 = 125;
+/// Runs of frames per thread in [`sample`]: the period is cut into this many runs a thread,
+/// each played by its own sampler in parallel (a run's first frame searches each walker's
+/// loop, the others step on: runs of 125 frames were 8 searches of painting's 98,865 walkers
+/// on 2 threads, a twentieth of its check).
+const RUNS_PER_THREAD: u64 = 2;
 
 /// Plays `lib` through the runtime's sampler every `step` seconds over one period (every
 /// walker then walks each of its loop's periods once over all its laps): the longest step of
 /// any character between frames, and how many are longer than `fastest` allows. The frames
-/// are played in runs of [`FRAMES_PER_RUN`], each by its own sampler, in parallel (the same
+/// are played in runs ([`RUNS_PER_THREAD`]), each by its own sampler, in parallel (the same
 /// figures for any thread count: a maximum and a count).
 pub fn sample(lib: &Library, step: f64, fastest: f64) -> Sampled {
     let frames = (lib.period_s() / step).round().max(1.0) as u64;
-    let runs: Vec<(u64, u64)> = (0..frames.div_ceil(FRAMES_PER_RUN))
-        .map(|r| (r * FRAMES_PER_RUN, ((r + 1) * FRAMES_PER_RUN).min(frames)))
+    let threads = rayon::current_num_threads() as u64;
+    let per_run = frames.div_ceil(RUNS_PER_THREAD * threads).max(1);
+    let runs: Vec<(u64, u64)> = (0..frames.div_ceil(per_run))
+        .map(|r| (r * per_run, ((r + 1) * per_run).min(frames)))
         .collect();
     // One sampler made (its headings computed once, a character per thread: serially they
     // were a second of painting's check), copied for each run.

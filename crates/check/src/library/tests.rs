@@ -245,3 +245,29 @@ fn walkers_crossing_at_once_collide_and_so_does_one_walking_into_a_stander() {
     let f = figures_of(&library(1, &[east], &[(6.0, 4.2)]));
     assert_eq!((f.collisions, f.standers), (1, 1), "{f:?}");
 }
+
+/// The sampler's figures do not depend on how its frames were cut into runs: played on 1, 2
+/// and 5 threads (1 to 10 runs) they are the same bits, a jump included.
+#[test]
+fn the_played_frames_give_the_same_figures_on_any_thread_count() {
+    let ways = [
+        round(0, 0, square(17.5)),
+        Way {
+            start: 3.0,
+            ..round(1, 1, square(18.5))
+        },
+    ];
+    let lib = library(1, &ways, &[]);
+    let on = |threads| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        pool.install(|| sample(&lib, 0.02, 1.0))
+    };
+    let one = on(1);
+    assert!(one.jumps > 0, "{one:?}");
+    for threads in [2, 5] {
+        assert_eq!(on(threads), one, "{threads} threads");
+    }
+}
