@@ -124,12 +124,11 @@ impl LoopPath {
 /// face the same way.
 pub(super) fn loop_path(w: &World, lp: usize) -> LoopPath {
     let lib = w.library;
-    // The headings walk the whole loop in order: made beside the path (a loop of 5 million
-    // keys was a second of painting's export on one core either way).
-    let (table, (times, points, turn_times)) = rayon::join(
-        || turn::character_headings(lib, &lib.characters[lp]),
-        || loop_keys(w, lp),
-    );
+    // The headings walk the whole loop in order. Made beside the path (`rayon::join`) they
+    // took 0.4 s off painting's export, but a thread waiting there took up other loops, and
+    // the million's export held 11.5 GB against 10.0: one after the other.
+    let table = turn::character_headings(lib, &lib.characters[lp]);
+    let (times, points, turn_times) = loop_keys(w, lp);
     // A trajectory's first point is the one before's last (the same instant and place): its
     // heading is left out but for the loop's first.
     let members = &w.links.loops[lp];
