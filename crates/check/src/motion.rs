@@ -10,7 +10,7 @@ use crate::memo::{Bytes, Reader};
 use crowd_core::PatchGraph;
 use crowd_core::patch_keys::Table;
 use crowd_core::patterns::{Crossing, Way, border_point};
-use crowd_core::trajectories::{PatchMotion, position_at};
+use crowd_core::trajectories::{PatchMotion, position_on};
 use crowd_geometry::Segment;
 use glam::DVec2;
 
@@ -256,8 +256,17 @@ pub(crate) fn patch_tally(
         // Frames every FRAME_S from the entry, as a player samples the path.
         let (t0, t1) = (pts[0].t, pts[pts.len() - 1].t);
         let frames = ((t1 - t0) / FRAME_S).floor() as usize;
+        // The piece that holds each frame's time, found walking on from the last frame's
+        // (`position_at`'s search for every frame was a tenth of a check from nothing).
+        let mut k = 0;
         let samples: Vec<DVec2> = (0..=frames)
-            .map(|i| position_at(pts, t0 + i as f64 * FRAME_S))
+            .map(|i| {
+                let t = t0 + i as f64 * FRAME_S;
+                while k < pts.len() && pts[k].t <= t {
+                    k += 1;
+                }
+                position_on(pts, k.clamp(1, pts.len() - 1), t)
+            })
             .collect();
         for w in samples.windows(3) {
             let (v1, v2) = ((w[1] - w[0]) / FRAME_S, (w[2] - w[1]) / FRAME_S);
