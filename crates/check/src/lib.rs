@@ -150,58 +150,18 @@ fn judge(
         .crossings
         .map(|c| crowd_core::patch_keys::Seen::new(graph, c).tables);
     let own_keys = keys.map(|k| own_keys(w, k));
-    let own = in_order((0..n).into_par_iter().map(|p| {
-        let known = own_keys.as_ref().and_then(|k| memo.own(&k[p]));
-        if let Some(o) = known {
-            return Ok((o.clone(), false));
-        }
-        let m = w.source.patch(p)?;
-        let tally = (w.crossings.zip(tables.as_ref()))
-            .map(|(c, t)| motion::patch_tally((graph, c, w.period_s), p, &m, &t[p]));
-        let own = Own {
-            extent: strips::Extent::of(graph, p, &m),
-            walkers: m.trajectories.len() as u64,
-            tally,
-        };
-        Ok((own, true))
-    }))?;
+    let own = own_shares(w, tables.as_deref(), own_keys.as_deref(), memo)?;
     let extents: Vec<strips::Extent> = own.iter().map(|o| o.0.extent).collect();
     let walls = walls(graph);
     let reach = 2.0 * graph.radius_m + 1.0 + 1e-6;
-    let pair_keys = own_keys.as_ref().map(|k| {
-        let near = memo::within_reach(&extents, reach, graph.world.patch_side_m);
-        let grid = BoxGrid::new(walls.iter().copied(), 4.0, reach);
-        (0..n)
-            .into_par_iter()
-            .map(|p| {
-                memo::pairs_key(
-                    "check pairs",
-                    (k, p),
-                    &near[p],
-                    &extents[p],
-                    (&walls, &grid, reach),
-                )
-            })
-            .collect::<Vec<Hash>>()
-    });
-    let mut pairs: Vec<Option<world::Pairs>> = match &pair_keys {
+    let pair_keys = own_keys
+        .as_ref()
+        .map(|k| pair_keys(graph, k, &extents, (&walls, reach)));
+    let known: Vec<Option<world::Pairs>> = match &pair_keys {
         Some(k) => k.iter().map(|k| memo.pairs(k)).collect(),
         None => vec![None; n],
     };
-    let todo: Vec<usize> = (0..n).filter(|&p| pairs[p].is_none()).collect();
-    for strip in strips::runs(&todo, &extents, budget) {
-        let held = strips::with_surroundings(&extents, &strip, reach);
-        let motion = in_order(held.par_iter().map(|&p| w.source.patch(p)))?;
-        let scene = strip_scene(graph, &held, &motion, &strip, (w.period_s, &walls));
-        drop(motion);
-        strip
-            .clone()
-            .for_each(|p| pairs[p] = Some(world::Pairs::default()));
-        for (p, found) in scene.pairs_by_patch() {
-            pairs[p as usize] = Some(found);
-        }
-    }
-    let pairs: Vec<world::Pairs> = pairs.into_iter().map(Option::unwrap_or_default).collect();
+    let (pairs, judged_pairs) = owned_pairs(w, &extents, (&walls, reach), known, budget)?;
     let total = pairs
         .iter()
         .fold(world::Pairs::default(), |a, b| a.merge(*b));
@@ -228,17 +188,13 @@ fn judge(
         gltf: None,
         input_hash: None,
     };
-    let redone = (own.iter().filter(|o| o.1).count(), todo.len());
+    let redone = (own.iter().filter(|o| o.1).count(), judged_pairs);
     let memo = match (own_keys, pair_keys) {
         (Some(ok), Some(pk)) => memo::StagePart {
-            own: ok
-                .iter()
-                .zip(own)
+            own: (ok.iter().zip(own))
                 .map(|(k, o)| (*k.as_bytes(), o.0))
                 .collect(),
-            pairs: pk
-                .iter()
-                .zip(pairs)
+            pairs: (pk.iter().zip(pairs))
                 .map(|(k, p)| (*k.as_bytes(), p))
                 .collect(),
         },
@@ -249,6 +205,74 @@ fn judge(
         memo,
         redone,
     })
+}
+
+/// Every patch's own share, from `memo` by its key or measured (with whether it was).
+fn own_shares(
+    w: &World,
+    tables: Option<&[crowd_core::patch_keys::Table]>,
+    own_keys: Option<&[Hash]>,
+    memo: &Recalled,
+) -> crowd_core::Result<Vec<(Own, bool)>> {
+    let graph = w.graph;
+    in_order((0..graph.patches.len()).into_par_iter().map(|p| {
+        if let Some(o) = own_keys.and_then(|k| memo.own(&k[p])) {
+            return Ok((o.clone(), false));
+        }
+        let m = w.source.patch(p)?;
+        let tally = (w.crossings.zip(tables))
+            .map(|(c, t)| motion::patch_tally((graph, c, w.period_s), p, &m, &t[p]));
+        let own = Own {
+            extent: strips::Extent::of(graph, p, &m),
+            walkers: m.trajectories.len() as u64,
+            tally,
+        };
+        Ok((own, true))
+    }))
+}
+
+/// Each patch's pairs key ([`memo::pairs_key`]).
+fn pair_keys(
+    graph: &PatchGraph,
+    own_keys: &[Hash],
+    extents: &[strips::Extent],
+    (walls, reach): (&[Wall], f64),
+) -> Vec<Hash> {
+    let near = memo::within_reach(extents, reach, graph.world.patch_side_m);
+    let grid = BoxGrid::new(walls.iter().copied(), 4.0, reach);
+    (0..graph.patches.len())
+        .into_par_iter()
+        .map(|p| {
+            let wall = (walls, &grid, reach);
+            memo::pairs_key("check pairs", (own_keys, p), &near[p], &extents[p], wall)
+        })
+        .collect()
+}
+
+/// The pairs each patch owns: those `known` (from the memo), and the rest judged a strip at a
+/// time; with how many patches were judged.
+fn owned_pairs(
+    w: &World,
+    extents: &[strips::Extent],
+    (walls, reach): (&[Wall], f64),
+    mut known: Vec<Option<world::Pairs>>,
+    budget: u64,
+) -> crowd_core::Result<(Vec<world::Pairs>, usize)> {
+    let todo: Vec<usize> = (0..known.len()).filter(|&p| known[p].is_none()).collect();
+    for strip in strips::runs(&todo, extents, budget) {
+        let held = strips::with_surroundings(extents, &strip, reach);
+        let motion = in_order(held.par_iter().map(|&p| w.source.patch(p)))?;
+        let scene = strip_scene(w.graph, &held, &motion, &strip, (w.period_s, walls));
+        drop(motion);
+        strip
+            .clone()
+            .for_each(|p| known[p] = Some(world::Pairs::default()));
+        for (p, found) in scene.pairs_by_patch() {
+            known[p as usize] = Some(found);
+        }
+    }
+    let pairs = known.into_iter().map(Option::unwrap_or_default).collect();
+    Ok((pairs, todo.len()))
 }
 
 /// Each patch's own key: its stage key, where it lies, and what the check measures it with.
