@@ -102,11 +102,6 @@ impl Memo {
             library_pairs: library.map_or_else(Vec::new, |l| l.0),
         }
     }
-
-    /// Patches remembered: own shares, owned pairs, the library's owned pairs.
-    pub fn sizes(&self) -> (usize, usize, usize) {
-        (self.own.len(), self.pairs.len(), self.library_pairs.len())
-    }
 }
 
 impl Recalled {
