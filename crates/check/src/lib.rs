@@ -255,24 +255,19 @@ fn owned_pairs(
     w: &World,
     extents: &[strips::Extent],
     (walls, reach): (&[Wall], f64),
-    mut known: Vec<Option<world::Pairs>>,
+    known: Vec<Option<world::Pairs>>,
     budget: u64,
 ) -> crowd_core::Result<(Vec<world::Pairs>, usize)> {
-    let todo: Vec<usize> = (0..known.len()).filter(|&p| known[p].is_none()).collect();
-    for strip in strips::runs(&todo, extents, budget) {
-        let held = strips::with_surroundings(extents, &strip, reach);
+    strips::judge_pairs(known, (extents, reach, budget), |strip, held| {
         let motion = in_order(held.par_iter().map(|&p| w.source.patch(p)))?;
-        let scene = strip_scene(w.graph, &held, &motion, &strip, (w.period_s, walls));
-        drop(motion);
-        strip
-            .clone()
-            .for_each(|p| known[p] = Some(world::Pairs::default()));
-        for (p, found) in scene.pairs_by_patch() {
-            known[p as usize] = Some(found);
-        }
-    }
-    let pairs = known.into_iter().map(Option::unwrap_or_default).collect();
-    Ok((pairs, todo.len()))
+        Ok(strip_scene(
+            w.graph,
+            held,
+            &motion,
+            strip,
+            (w.period_s, walls),
+        ))
+    })
 }
 
 /// Each patch's own key: its stage key, where it lies, and what the check measures it with.

@@ -3,6 +3,7 @@
 //! within reach of it present but not counted (`world::Scene::owned`). What the check holds then grows with a strip, not with the world:
 //! a million walkers' 165 million pieces held 20 GB at once.
 
+use crate::world::{Pairs, Scene};
 use crowd_core::PatchGraph;
 use crowd_core::trajectories::PatchMotion;
 use glam::DVec2;
@@ -99,6 +100,30 @@ pub(crate) fn runs(todo: &[usize], extents: &[Extent], budget: u64) -> Vec<Range
 
 /// See [`runs`].
 const GAP: usize = 16;
+
+/// The pairs each patch owns: those `known` (a check's memo) as they are, the rest judged a
+/// strip at a time ([`runs`] of about `budget` pieces) in the scene `scene_of` makes of a strip
+/// and the patches it holds ([`with_surroundings`] within `reach`); with how many patches were
+/// judged. The stage files' check and the library's share it.
+pub(crate) fn judge_pairs(
+    mut known: Vec<Option<Pairs>>,
+    (extents, reach, budget): (&[Extent], f64, u64),
+    mut scene_of: impl FnMut(&Range<usize>, &[usize]) -> crowd_core::Result<Scene>,
+) -> crowd_core::Result<(Vec<Pairs>, usize)> {
+    let todo: Vec<usize> = (0..known.len()).filter(|&p| known[p].is_none()).collect();
+    for strip in runs(&todo, extents, budget) {
+        let held = with_surroundings(extents, &strip, reach);
+        let scene = scene_of(&strip, &held)?;
+        strip
+            .clone()
+            .for_each(|p| known[p] = Some(Pairs::default()));
+        for (p, found) in scene.pairs_by_patch() {
+            known[p as usize] = Some(found);
+        }
+    }
+    let pairs = known.into_iter().map(Option::unwrap_or_default).collect();
+    Ok((pairs, todo.len()))
+}
 
 /// The patches a strip's scene holds, in order: the strip's own, and every other whose
 /// characters come within `reach` of the strip's box (they may meet one of its characters).

@@ -152,22 +152,16 @@ fn clearance(
     }
     let reach = 2.0 * radius + 1.0 + 1e-6;
     let keys = pair_keys(lib, &extents, walls, reach);
-    let mut pairs: Vec<Option<Pairs>> = keys.iter().map(|k| memo.library_pairs(k)).collect();
-    let todo: Vec<usize> = (0..n).filter(|&p| pairs[p].is_none()).collect();
-    for strip in strips::runs(&todo, &extents, strips::STRIP_PIECES) {
-        let held = strips::with_surroundings(&extents, &strip, reach);
-        let scene = strip_scene(lib, &held, &strip, walls);
-        strip
-            .clone()
-            .for_each(|p| pairs[p] = Some(Pairs::default()));
-        for (p, found) in scene.pairs_by_patch() {
-            pairs[p as usize] = Some(found);
-        }
-    }
-    let pairs: Vec<Pairs> = pairs.into_iter().map(Option::unwrap_or_default).collect();
+    let known = keys.iter().map(|k| memo.library_pairs(k)).collect();
+    let (pairs, judged) = strips::judge_pairs(
+        known,
+        (&extents, reach, strips::STRIP_PIECES),
+        |strip, held| Ok(strip_scene(lib, held, strip, walls)),
+    )
+    .expect("a library in memory is always at hand");
     let total = pairs.iter().fold(Pairs::default(), |a, b| a.merge(*b));
     let kept = keys.iter().map(|k| *k.as_bytes()).zip(pairs).collect();
-    (total.clearance(radius, lib.period_s()), kept, todo.len())
+    (total.clearance(radius, lib.period_s()), kept, judged)
 }
 
 /// The scene of library patches `held` (in order), counting the pairs of `strip`'s.
