@@ -185,6 +185,42 @@ fn a_frame_is_the_same_whether_time_ran_forward_to_it_or_jumped_there() {
     assert!(a.iter().zip(&b).all(|(x, y)| x == y), "the same samples");
 }
 
+/// `Sampler::playing` (what `crowd check` plays again after a brush stroke) places each of its
+/// walkers to the bit where `Sampler::new` places it, frame after frame and after a jump.
+#[test]
+fn a_sampler_of_some_walkers_places_them_as_the_sampler_of_all() {
+    let lib = library(scene("city"));
+    let some: Vec<u32> = (0..lib.walkers() as u32).filter(|w| w % 7 == 3).collect();
+    assert!(some.len() > 10);
+    let headings = crowd_runtime::turn::library_headings(&lib);
+    let mut part = Sampler::playing(&lib, headings, &some).expect("walkers of the library");
+    let mut all = Sampler::new(&lib);
+    let (mut a, mut b) = (Vec::new(), Vec::new());
+    let times = (0..600).map(|f| f as f64 / 30.0).chain([7.5, 1e3]);
+    for t in times {
+        all.sample(t, EVERYWHERE, &mut a);
+        part.sample(t, EVERYWHERE, &mut b);
+        assert_eq!(b.len(), some.len(), "t = {t}");
+        for (i, s) in b.iter().enumerate() {
+            let whole = a[some[i] as usize];
+            assert_eq!(whole.id, some[i]);
+            assert_eq!(
+                (s.id, s.x, s.y, s.heading),
+                (i as u32, whole.x, whole.y, whole.heading),
+                "t = {t}"
+            );
+        }
+    }
+    assert!(
+        Sampler::playing(
+            &lib,
+            crowd_runtime::turn::library_headings(&lib),
+            &[lib.walkers() as u32]
+        )
+        .is_none()
+    );
+}
+
 fn bands_library() -> &'static Vec<u8> {
     static BYTES: OnceLock<Vec<u8>> = OnceLock::new();
     BYTES.get_or_init(|| std::fs::read(scene("bands").join("library.crowd")).unwrap())

@@ -14,6 +14,7 @@
 //! 47 MB memo of painting took 0.9 s to read and 0.3 s to write, a third of a rebuild's check;
 //! read field by field it takes a twentieth of that.
 
+use crate::library::Played;
 use crate::motion::PatchTally;
 use crate::strips::Extent;
 use crate::world::Pairs;
@@ -39,6 +40,7 @@ pub struct Memo {
     own: Vec<([u8; 32], Own)>,
     pairs: Vec<([u8; 32], Pairs)>,
     library_pairs: Vec<([u8; 32], Pairs)>,
+    played: Vec<([u8; 32], Played)>,
 }
 
 /// A [`Memo`] read for lookups.
@@ -47,6 +49,7 @@ pub struct Recalled {
     own: HashMap<[u8; 32], Own>,
     pairs: HashMap<[u8; 32], Pairs>,
     library_pairs: HashMap<[u8; 32], Pairs>,
+    played: HashMap<[u8; 32], Played>,
 }
 
 impl Memo {
@@ -60,10 +63,12 @@ impl Memo {
         let own = r.list(|r| Some((r.key()?, Own::get(r)?)))?;
         let pairs = r.list(|r| Some((r.key()?, Pairs::get(r)?)))?;
         let library_pairs = r.list(|r| Some((r.key()?, Pairs::get(r)?)))?;
+        let played = r.list(|r| Some((r.key()?, Played::get(r)?)))?;
         r.0.is_empty().then_some(Memo {
             own,
             pairs,
             library_pairs,
+            played,
         })
     }
 
@@ -80,6 +85,10 @@ impl Memo {
                 p.put(o);
             });
         }
+        out.list(&self.played, |o, (k, p)| {
+            o.0.extend_from_slice(k);
+            p.put(o);
+        });
         out.0
     }
 
@@ -89,6 +98,7 @@ impl Memo {
             own: self.own.into_iter().collect(),
             pairs: self.pairs.into_iter().collect(),
             library_pairs: self.library_pairs.into_iter().collect(),
+            played: self.played.into_iter().collect(),
         }
     }
 
@@ -96,10 +106,12 @@ impl Memo {
     /// judge, a later one judges whole).
     pub fn of(stage: Option<StagePart>, library: Option<LibraryPart>) -> Memo {
         let stage = stage.unwrap_or_default();
+        let library = library.unwrap_or_default();
         Memo {
             own: stage.own,
             pairs: stage.pairs,
-            library_pairs: library.map_or_else(Vec::new, |l| l.0),
+            library_pairs: library.pairs,
+            played: library.played,
         }
     }
 }
@@ -116,6 +128,10 @@ impl Recalled {
     pub(crate) fn library_pairs(&self, key: &Hash) -> Option<Pairs> {
         self.library_pairs.get(key.as_bytes()).copied()
     }
+
+    pub(crate) fn played(&self, key: &[u8; 32]) -> Option<Played> {
+        self.played.get(key).copied()
+    }
 }
 
 /// The stage file's part of a memo.
@@ -125,9 +141,13 @@ pub struct StagePart {
     pub(crate) pairs: Vec<([u8; 32], Pairs)>,
 }
 
-/// The library's part of a memo: each patch's pairs by their key.
+/// The library's part of a memo: each patch's pairs by their key, and each walker's share of
+/// the sampler's figures by its window's key.
 #[derive(Default)]
-pub struct LibraryPart(pub(crate) Vec<([u8; 32], Pairs)>);
+pub struct LibraryPart {
+    pub(crate) pairs: Vec<([u8; 32], Pairs)>,
+    pub(crate) played: Vec<([u8; 32], Played)>,
+}
 
 /// Per patch, the patches whose characters come within `reach` of its own (itself included,
 /// in index order), from their extents.
@@ -308,6 +328,22 @@ impl Extent {
             lo: r.vec2()?,
             hi: r.vec2()?,
             pieces: r.u64()?,
+        })
+    }
+}
+
+impl Played {
+    fn put(&self, o: &mut Bytes) {
+        o.f64(self.max_step2);
+        o.f64(self.max_turn);
+        o.u64(self.jumps);
+    }
+
+    fn get(r: &mut Reader) -> Option<Played> {
+        Some(Played {
+            max_step2: r.f64()?,
+            max_turn: r.f64()?,
+            jumps: r.u64()?,
         })
     }
 }

@@ -117,7 +117,8 @@ pub struct Sampled {
     pub frames: u64,
     /// The longest step between two frames over the step's time, m/s.
     pub max_speed_m_s: f64,
-    /// Steps longer than the library's fastest piece allows (plus 1 mm of f32 rounding).
+    /// Steps longer than the walker's fastest piece allows (of the stretch of loop it walks
+    /// over the period; plus 1 mm of f32 rounding).
     pub jumps: u64,
     /// The fastest turn of any character between two frames, rad/s (None: checked before
     /// headings were).

@@ -74,6 +74,8 @@ pub struct Redone {
     pub stage_own: (usize, usize),
     pub stage_pairs: (usize, usize),
     pub library_pairs: (usize, usize),
+    /// Walkers the runtime's sampler played again.
+    pub played: (usize, usize),
 }
 
 impl Redone {
@@ -83,6 +85,7 @@ impl Redone {
             ("patches", self.stage_own),
             ("their pairs", self.stage_pairs),
             ("the library's", self.library_pairs),
+            ("walkers played", self.played),
         ];
         if parts.iter().all(|(_, (done, of))| done == of) {
             return String::new();
@@ -272,10 +275,12 @@ fn measure(dir: &Path, options: &CheckOptions) -> Result<(CheckReport, Memo, Red
         stage_own: (stage.redone.0, n),
         stage_pairs: (stage.redone.1, n),
         library_pairs: (0, 0),
+        played: (0, 0),
     };
     let mut report = stage.report;
     let library_memo = library.map(|l| {
         redone.library_pairs = l.redone;
+        redone.played = l.played;
         report.library = Some(l.judged.figures);
         l.judged.memo
     });
@@ -368,10 +373,12 @@ fn stage_figures(graph: &PatchGraph, s: StageFiles, memo: &Recalled) -> Result<J
     Ok(judged)
 }
 
-/// The library's figures, and how many of its patches' pairs were judged again (of how many).
+/// The library's figures, and how many of its patches' pairs were judged again and of its walkers
+/// played again (each of how many).
 struct LibraryJudged {
     judged: crowd_check::library::Judged,
     redone: (usize, usize),
+    played: (usize, usize),
 }
 
 /// The figures of `library.crowd`, when the folder holds one.
@@ -397,7 +404,12 @@ fn library(
     };
     let judged = crowd_check::library::figures_memo(&lib, &inputs, memo);
     let redone = (judged.redone, lib.patches.len());
-    Ok(Some(LibraryJudged { judged, redone }))
+    let played = (judged.replayed, lib.walkers() as usize);
+    Ok(Some(LibraryJudged {
+        judged,
+        redone,
+        played,
+    }))
 }
 
 /// The figures of `world.glb`, when the folder holds one.

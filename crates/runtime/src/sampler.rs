@@ -15,6 +15,8 @@ mod steps;
 mod turning;
 mod walker;
 
+pub use walker::packed_heading;
+
 use crate::format::{Library, TICK_S};
 use place::place;
 use steps::Steps;
@@ -77,9 +79,10 @@ impl<'a> Sampler<'a> {
     pub fn with_headings(lib: &'a Library, headings: crate::turn::PointHeadings) -> Sampler<'a> {
         let mut cursors = Vec::with_capacity(lib.walkers() as usize);
         for (c, ch) in lib.characters.iter().enumerate() {
-            for _ in 0..ch.laps {
+            for lap in 0..ch.laps {
                 cursors.push(Cursor {
                     character: c as u32,
+                    lap,
                     ..Cursor::default()
                 });
             }
@@ -102,6 +105,49 @@ impl<'a> Sampler<'a> {
                 heading: 0.0,
             })
             .collect();
+        Sampler::of(lib, headings, cursors, standers)
+    }
+
+    /// A sampler of only the walkers `walkers` (ids below `lib.walkers()`, each at most once),
+    /// and no standers: a sample's `id` is then the walker's place in `walkers`. Each walker is
+    /// placed exactly as [`Sampler::new`] places it, so a reader can play again only the
+    /// walkers whose part of the library changed (`crowd check` after a brush stroke).
+    ///
+    /// Returns `None` when an id is not a walker of `lib`.
+    pub fn playing(
+        lib: &'a Library,
+        headings: crate::turn::PointHeadings,
+        walkers: &[u32],
+    ) -> Option<Sampler<'a>> {
+        // Each loop's first walker id, to find a walker's loop by a binary search.
+        let firsts: Vec<u32> = (lib.characters.iter())
+            .scan(0u32, |next, ch| {
+                let first = *next;
+                *next += ch.laps;
+                Some(first)
+            })
+            .collect();
+        let cursors = walkers
+            .iter()
+            .map(|&id| {
+                let character = firsts.partition_point(|&f| f <= id).checked_sub(1)?;
+                let lap = id - firsts[character];
+                (lap < lib.characters[character].laps).then_some(Cursor {
+                    character: character as u32,
+                    lap,
+                    ..Cursor::default()
+                })
+            })
+            .collect::<Option<Vec<Cursor>>>()?;
+        Some(Sampler::of(lib, headings, cursors, Vec::new()))
+    }
+
+    fn of(
+        lib: &'a Library,
+        headings: crate::turn::PointHeadings,
+        cursors: Vec<Cursor>,
+        standers: Vec<Sample>,
+    ) -> Sampler<'a> {
         Sampler {
             lib,
             loops: Loops::new(lib, headings),
@@ -208,7 +254,7 @@ impl<'a> Sampler<'a> {
             let w = &mut self.walkers;
             let (c, mut h) = (&mut self.cursors[id as usize], w.get(id as usize));
             if now - (epoch + i64::from(h.end)) as f64 > period {
-                walker::seek(lib, loops, c, &mut h, id, now, epoch);
+                walker::seek(lib, loops, c, &mut h, now, epoch);
             } else {
                 walker::walk_on(lib, loops, c, &mut h, now, epoch);
             }
@@ -246,7 +292,7 @@ impl<'a> Sampler<'a> {
             self.turning.clear();
             for (id, c) in self.cursors.iter_mut().enumerate() {
                 let mut h = w.get(id);
-                walker::seek(lib, loops, c, &mut h, id as u32, now, epoch);
+                walker::seek(lib, loops, c, &mut h, now, epoch);
                 w.set(id, &h);
                 let four = (&mut w.fours[id / 4], id % 4);
                 if let Some(t) = loops.face(lib, four, id as u32, now, epoch) {

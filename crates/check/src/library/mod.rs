@@ -6,13 +6,18 @@
 //! its `next` (a border) and every loop's end to its start (the seam), and the runtime's own
 //! `Sampler` played frame after frame.
 
+mod sampled;
+
+pub(crate) use sampled::Played;
+pub use sampled::sample;
+
 use crate::memo::{self, Recalled};
-use crate::products::{OPEN_GAP_M, ProductFigures, Sampled, Seams, Tally, end_velocities};
+use crate::products::{OPEN_GAP_M, ProductFigures, Seams, Tally, end_velocities};
 use crate::strips::{self, Extent};
 use crate::world::{Clearance, Ends, Pairs, Repeat, Scene};
 use crowd_core::Hash;
 use crowd_geometry::BoxGrid;
-use crowd_runtime::{Library, Sample, Sampler, TICK_S};
+use crowd_runtime::{Library, TICK_S};
 use glam::DVec2;
 use rayon::prelude::*;
 
@@ -54,6 +59,8 @@ pub struct Judged {
     pub memo: memo::LibraryPart,
     /// Patches whose pairs were judged again (not taken from the memo).
     pub redone: usize,
+    /// Walkers the sampler played again (not taken from the memo).
+    pub replayed: usize,
 }
 
 /// [`figures`], taking from `memo` the pairs of every patch whose key is unchanged: the hash
@@ -73,10 +80,14 @@ pub fn figures_memo(lib: &Library, inputs: &Inputs, memo: &Recalled) -> Judged {
         || {
             let sampled = inputs
                 .sample_step_s
-                .map(|step| sample(lib, step, tally.max_speed));
+                .map(|step| sampled::sample_memo(lib, step, memo));
             (handovers(lib, &walked), sampled)
         },
     );
+    let (sampled, played, replayed) = match sampled {
+        Some(s) => (Some(s.sampled), s.kept, s.replayed),
+        None => (None, Vec::new(), 0),
+    };
     let counts = (
         lib.walkers(),
         lib.standers.len() as u64,
@@ -99,8 +110,12 @@ pub fn figures_memo(lib: &Library, inputs: &Inputs, memo: &Recalled) -> Judged {
     };
     Judged {
         figures,
-        memo: memo::LibraryPart(kept),
+        memo: memo::LibraryPart {
+            pairs: kept,
+            played,
+        },
         redone,
+        replayed,
     }
 }
 
@@ -311,101 +326,6 @@ fn handovers(lib: &Library, walked: &[Walked]) -> (Seams, Seams) {
         }
     }
     (borders, seams)
-}
-
-/// Everywhere.
-const EVERYWHERE: [f32; 4] = [f32::MIN, f32::MIN, f32::MAX, f32::MAX];
-
-/// Runs of frames per thread in [`sample`]: the period is cut into this many runs a thread,
-/// each played by its own sampler in parallel (a run's first frame searches each walker's
-/// loop, the others step on: runs of 125 frames were 8 searches of painting's 98,865 walkers
-/// on 2 threads, a twentieth of its check).
-const RUNS_PER_THREAD: u64 = 2;
-
-/// Plays `lib` through the runtime's sampler every `step` seconds over one period (every
-/// walker then walks each of its loop's periods once over all its laps): the longest step of
-/// any character between frames, and how many are longer than `fastest` allows. The frames
-/// are played in runs ([`RUNS_PER_THREAD`]), each by its own sampler, in parallel (the same
-/// figures for any thread count: a maximum and a count).
-pub fn sample(lib: &Library, step: f64, fastest: f64) -> Sampled {
-    let frames = (lib.period_s() / step).round().max(1.0) as u64;
-    let threads = rayon::current_num_threads() as u64;
-    let per_run = frames.div_ceil(RUNS_PER_THREAD * threads).max(1);
-    let runs: Vec<(u64, u64)> = (0..frames.div_ceil(per_run))
-        .map(|r| (r * per_run, ((r + 1) * per_run).min(frames)))
-        .collect();
-    // One sampler made (its headings computed once, a character per thread: serially they
-    // were a second of painting's check), copied for each run.
-    let per_character: Vec<crowd_runtime::turn::PointHeadings> = (lib.characters.par_iter())
-        .map(|ch| crowd_runtime::turn::character_headings(lib, ch))
-        .collect();
-    let mut headings = crowd_runtime::turn::PointHeadings::for_points(lib);
-    for (ch, one) in lib.characters.iter().zip(per_character) {
-        headings.take(lib, ch, &one);
-    }
-    let sampler = Sampler::with_headings(lib, headings);
-    let (max_speed, jumps, max_turn) = runs
-        .par_iter()
-        .map(|&(first, last)| play(sampler.clone(), step, fastest, first..=last))
-        .reduce(
-            || (0.0, 0, 0.0),
-            |a, b| (a.0.max(b.0), a.1 + b.1, a.2.max(b.2)),
-        );
-    Sampled {
-        step_s: step,
-        frames,
-        max_speed_m_s: max_speed,
-        jumps,
-        max_turn_rate_rad_s: Some(max_turn),
-    }
-}
-
-/// [`sample`]'s frames `frames` (each compared with the one before it, the first only as
-/// that): the fastest step, the jumps and the fastest turn (rad/s).
-fn play(
-    mut sampler: Sampler,
-    step: f64,
-    fastest: f64,
-    frames: std::ops::RangeInclusive<u64>,
-) -> (f64, u64, f64) {
-    let (mut before, mut now): (Vec<Sample>, Vec<Sample>) = (Vec::new(), Vec::new());
-    sampler.sample(*frames.start() as f64 * step, EVERYWHERE, &mut before);
-    // Squared steps against the squared jump threshold: no root (or `hypot`, a sixth of the
-    // check once) per character and frame.
-    let jump2 = (fastest * step + 1e-3).powi(2);
-    let (mut max_step2, mut jumps, mut max_turn) = (0.0f64, 0u64, 0.0f64);
-    for f in frames.skip(1) {
-        sampler.sample(f as f64 * step, EVERYWHERE, &mut now);
-        for (a, b) in before.iter().zip(&now) {
-            if a.id != b.id {
-                max_step2 = f64::INFINITY; // a character missing from a frame
-                jumps += 1;
-                continue;
-            }
-            let (dx, dy) = (f64::from(b.x - a.x), f64::from(b.y - a.y));
-            let d2 = dx * dx + dy * dy;
-            max_step2 = max_step2.max(d2);
-            jumps += u64::from(d2 > jump2);
-            max_turn = max_turn.max(turn_between(a.heading, b.heading) / step);
-        }
-        jumps += before.len().abs_diff(now.len()) as u64;
-        std::mem::swap(&mut before, &mut now);
-    }
-    let max_speed = max_step2.sqrt() / step;
-    (max_speed, jumps, max_turn)
-}
-
-/// The smaller angle between two headings (radians), whichever way round.
-fn turn_between(from: f32, to: f32) -> f64 {
-    use std::f64::consts::TAU;
-    let mut turn = f64::from(to - from);
-    if turn < 0.0 {
-        turn += TAU;
-    }
-    if !(0.0..TAU).contains(&turn) {
-        turn = turn.rem_euclid(TAU); // headings outside one turn
-    }
-    turn.min(TAU - turn)
 }
 
 #[cfg(test)]

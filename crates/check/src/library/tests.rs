@@ -250,8 +250,11 @@ fn walkers_crossing_at_once_collide_and_so_does_one_walking_into_a_stander() {
 /// and 5 threads (1 to 10 runs) they are the same bits, a jump included.
 #[test]
 fn the_played_frames_give_the_same_figures_on_any_thread_count() {
+    // The first loop ends half a metre from its start: a jump at its seam.
+    let mut open = square(17.5);
+    open[5].1 = 1.5;
     let ways = [
-        round(0, 0, square(17.5)),
+        round(0, 0, open),
         Way {
             start: 3.0,
             ..round(1, 1, square(18.5))
@@ -263,11 +266,92 @@ fn the_played_frames_give_the_same_figures_on_any_thread_count() {
             .num_threads(threads)
             .build()
             .unwrap();
-        pool.install(|| sample(&lib, 0.02, 1.0))
+        pool.install(|| sample(&lib, 0.02))
     };
     let one = on(1);
     assert!(one.jumps > 0, "{one:?}");
     for threads in [2, 5] {
         assert_eq!(on(threads), one, "{threads} threads");
     }
+}
+
+/// A loop of `n` trajectories of 10 s, one a patch along a row, walked left to right at
+/// 0.6 m/s through each patch's middle (6 laps of a 20 s period for n = 12), and a walker
+/// going round patch 0 on its own. `bend` moves the middle point of trajectory `at` up.
+fn long_loop(n: u32, (at, bend): (u32, f64)) -> Library {
+    // The walker round patch 0 first: a patch's trajectories are one run of the library's.
+    let mut ways = vec![round(0, n, square(17.5))];
+    ways.extend((0..n).map(|i| Way {
+        patch: i,
+        entry: i,
+        exit: (i + 1) % n,
+        next: 1 + (i + 1) % n,
+        start: f64::from(i % 2) * 10.0,
+        points: vec![
+            (1.0, 4.0, 0.0),
+            (4.0, 4.0 + if i == at { bend } else { 0.0 }, 5.0),
+            (7.0, 4.0, 10.0),
+        ],
+    }));
+    library(n, &ways, &[])
+}
+
+fn memo_of(shares: Vec<([u8; 32], Played)>) -> Recalled {
+    let part = memo::LibraryPart {
+        pairs: Vec::new(),
+        played: shares,
+    };
+    memo::Memo::from_bytes(&memo::Memo::of(None, Some(part)).to_bytes())
+        .expect("a memo reads back")
+        .recall()
+}
+
+proptest::proptest! {
+    #![proptest_config(proptest::prelude::ProptestConfig::with_cases(12))]
+
+    /// The sampler's memo: after one trajectory of a loop changes, the walkers whose stretch
+    /// of loop does not reach it are not played again, and the figures are the bits of
+    /// playing every walker.
+    #[test]
+    fn a_memo_of_the_played_frames_gives_the_figures_of_playing_all(
+        at in 0u32..12,
+        bend in 0.05f64..2.5,
+    ) {
+        let before = long_loop(12, (0, 0.0));
+        let first = sampled::sample_memo(&before, 0.02, &Recalled::default());
+        proptest::prop_assert_eq!(first.replayed, 7);
+        let memo = memo_of(first.kept);
+        let again = sampled::sample_memo(&before, 0.02, &memo);
+        proptest::prop_assert_eq!(again.replayed, 0);
+        proptest::prop_assert_eq!(&again.sampled, &first.sampled);
+
+        let after = long_loop(12, (at, bend));
+        let played = sampled::sample_memo(&after, 0.02, &memo);
+        proptest::prop_assert_eq!(&played.sampled, &sample(&after, 0.02));
+        // A lap's 20 s (and the trajectory after) are 4 of the 12 trajectories, 2 on from the
+        // lap before's: the bent one and the next (whose first headings it may turn) are in
+        // at most 3 laps' stretches. The walker round patch 0 is never played again.
+        proptest::prop_assert!(
+            (1..=3).contains(&played.replayed),
+            "{} of 7 walkers played again",
+            played.replayed
+        );
+    }
+}
+
+/// A jump is judged against the walker's own pace: a slow walker's 3 cm jump at its seam is
+/// one, though another walker of the library runs at 2 m/s (4 cm a frame).
+#[test]
+fn a_slow_walker_s_small_jump_is_a_jump_whoever_else_runs() {
+    let slow = vec![
+        (3.0, 3.0, 0.0),
+        (4.5, 3.0, 5.0),
+        (4.5, 4.5, 10.0),
+        (3.0, 4.5, 15.0),
+        (3.0, 3.03, 20.0),
+    ];
+    let ways = [round(0, 0, slow), round(1, 1, square(18.5))];
+    let s = sample(&library(1, &ways, &[]), 0.02);
+    assert!((s.max_speed_m_s - 2.0).abs() < 1e-2, "{s:?}");
+    assert_eq!(s.jumps, 1, "{s:?}");
 }

@@ -126,6 +126,9 @@ pub(super) struct Cursor {
     /// The last point of `traj`.
     pub last: u32,
     pub character: u32,
+    /// Which of its loop's `laps` walkers it is: it walks the loop this many periods behind
+    /// the first.
+    pub lap: u32,
 }
 
 /// Every loop's trajectories in walking order, with the tick each starts at from the loop's
@@ -136,8 +139,6 @@ pub(super) struct Loops {
     first: Vec<usize>,
     trajectories: Vec<u32>,
     starts: Vec<u64>,
-    /// Per loop, the id of its first walker (lap 0).
-    first_id: Vec<u32>,
     /// Per trajectory, what a walker leaving it needs: one record, so that leaving is one
     /// fetch (which the sampler asks for a block ahead), not a chain of four.
     pub onward: Vec<Onward>,
@@ -187,7 +188,6 @@ impl Loops {
             first: Vec::with_capacity(lib.characters.len() + 1),
             trajectories: Vec::with_capacity(lib.trajectories.len()),
             starts: Vec::with_capacity(lib.trajectories.len()),
-            first_id: Vec::with_capacity(lib.characters.len()),
             onward: lib
                 .trajectories
                 .iter()
@@ -199,11 +199,8 @@ impl Loops {
             headings: Vec::new(),
             rate: f64::from(lib.world.turn_rate_deg_s).to_radians() * crate::TICK_S,
         };
-        let mut id = 0;
         for ch in &lib.characters {
             loops.first.push(loops.trajectories.len());
-            loops.first_id.push(id);
-            id += ch.laps;
             let (mut at, mut tick) = (ch.first_trajectory, 0u64);
             for _ in 0..ch.trajectories {
                 let tr = &lib.trajectories[at as usize];
@@ -218,7 +215,7 @@ impl Loops {
             .heading
             .iter()
             .zip(&model.walks)
-            .map(|(&h, &walks)| (turns(h as f32) & !WALKS) | if walks { WALKS } else { 0 })
+            .map(|(&h, &walks)| packed_heading(h, walks))
             .collect();
         loops
     }
@@ -267,6 +264,13 @@ impl Loops {
 /// The bit of a [`Loops::headings`] entry that says the piece from that point walks (the
 /// heading keeps 32768ths of a turn, 2e-4 rad).
 pub(super) const WALKS: u16 = 1;
+
+/// A point's entry of [`Loops::headings`]: its heading (radians, [`crate::turn`]) in 65536ths
+/// of a turn, the lowest bit whether the piece from it walks. What the sampler plays of a
+/// heading, so a reader that keys what it played hashes these.
+pub fn packed_heading(heading: f64, walks: bool) -> u16 {
+    (turns(heading as f32) & !WALKS) | if walks { WALKS } else { 0 }
+}
 
 /// A heading in radians as 65536ths of a turn (within 5e-5 rad).
 #[inline(always)]
@@ -373,22 +377,20 @@ fn enter(c: &mut Cursor, h: &mut Hot, e: Entry, point: u32) {
     (h.at, h.col, h.row) = (e.first + point, e.col, e.row);
 }
 
-/// Places walker `id` on its loop at absolute tick `now` by search: a binary search of the
+/// Places a walker on its loop at absolute tick `now` by search: a binary search of the
 /// loop's trajectories, then of the trajectory's points.
-#[allow(clippy::too_many_arguments)]
 pub(super) fn seek(
     lib: &Library,
     loops: &Loops,
     c: &mut Cursor,
     h: &mut Hot,
-    id: u32,
     now: f64,
     epoch: i64,
 ) {
     let k = c.character as usize;
     let ch = &lib.characters[k];
     let period = i64::from(lib.world.period_ticks);
-    let lap = i64::from(id - loops.first_id[k]);
+    let lap = i64::from(c.lap);
     let start = i64::from(lib.trajectories[ch.first_trajectory as usize].start) + lap * period;
     let length = i64::from(ch.laps) * period;
     // The loop began its current pass at a whole tick; `now` is somewhere in that pass.

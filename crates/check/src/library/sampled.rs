@@ -1,0 +1,316 @@
+//! The runtime's `Sampler` played over one period, a walker at a time as far as its figures go:
+//! each walker's fastest step, fastest turn and jumps are kept in the memo by the hash of
+//! everything the sampler reads to play it ([`window_keys`]), so a check after a brush stroke
+//! plays again only the walkers whose stretch of loop the stroke reached.
+//!
+//! Over one period a walker walks one period's stretch of its loop (its window): a lap of a
+//! loop of `laps` periods. What the sampler shows of it then depends only on the trajectories
+//! of that stretch (their points, their patch's place, the headings at their points) and on
+//! where the stretch begins against the frames' times, with the library's period, turn rate
+//! and patch side. The figures are maxima and a count, so the walkers' shares give the same
+//! bits whichever were played again.
+
+use crate::memo::Recalled;
+use crate::products::Sampled;
+use crowd_core::Hash;
+use crowd_runtime::turn::PointHeadings;
+use crowd_runtime::{Library, Sample, Sampler, TICK_S};
+use rayon::prelude::*;
+
+/// One walker's share of the sampler's figures over the period.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub(crate) struct Played {
+    /// Its longest step between two frames, squared (m^2; infinite when it went missing).
+    pub max_step2: f64,
+    /// Its fastest turn between two frames, rad/s.
+    pub max_turn: f64,
+    /// Its steps longer than the fastest piece of its stretch of loop allows.
+    pub jumps: u64,
+}
+
+impl Played {
+    fn merge(&mut self, other: &Played) {
+        self.max_step2 = self.max_step2.max(other.max_step2);
+        self.max_turn = self.max_turn.max(other.max_turn);
+        self.jumps += other.jumps;
+    }
+}
+
+/// The sampler's figures, each walker's share by its key (in id order), and how many walkers
+/// were played again.
+pub(crate) struct SampledShares {
+    pub sampled: Sampled,
+    pub kept: Vec<([u8; 32], Played)>,
+    pub replayed: usize,
+}
+
+/// Everywhere.
+const EVERYWHERE: [f32; 4] = [f32::MIN, f32::MIN, f32::MAX, f32::MAX];
+
+/// Runs of frames per thread in [`sample_memo`]: the period is cut into this many runs a
+/// thread, each played by its own sampler in parallel (a run's first frame searches each
+/// walker's loop, the others step on: runs of 125 frames were 8 searches of painting's 98,865
+/// walkers on 2 threads, a twentieth of its check).
+const RUNS_PER_THREAD: u64 = 2;
+
+/// Plays `lib` through the runtime's sampler every `step` seconds over one period (every
+/// walker then walks each of its loop's periods once over all its laps): the longest step of
+/// any character between frames, and how many are longer than the walker's fastest piece
+/// allows (of the stretch of loop it walks over the period: a jump of a slow walker is one,
+/// whoever else runs). The frames are played in runs ([`RUNS_PER_THREAD`]), each by its own
+/// sampler, in parallel (the same figures for any thread count: a maximum and a count).
+pub fn sample(lib: &Library, step: f64) -> Sampled {
+    sample_memo(lib, step, &Recalled::default()).sampled
+}
+
+/// [`sample`], taking from `memo` the share of every walker whose key ([`window_keys`]) it
+/// holds and playing only the others.
+pub(crate) fn sample_memo(lib: &Library, step: f64, memo: &Recalled) -> SampledShares {
+    let frames = (lib.period_s() / step).round().max(1.0) as u64;
+    let headings = headings(lib);
+    let (keys, fastest) = window_keys(lib, &headings, (step, frames));
+    let known: Vec<Option<Played>> = keys.iter().map(|k| memo.played(k)).collect();
+    let todo: Vec<u32> = (0..keys.len() as u32)
+        .filter(|&w| known[w as usize].is_none())
+        .collect();
+    let played = if todo.is_empty() {
+        Vec::new()
+    } else {
+        let sampler = Sampler::playing(lib, headings, &todo).expect("every id is a walker");
+        // Squared steps against squared jump thresholds: no root (or `hypot`, a sixth of the
+        // check once) per character and frame.
+        let jump2: Vec<f64> = (todo.iter())
+            .map(|&w| (fastest[w as usize] * step + 1e-3).powi(2))
+            .collect();
+        play_all(&sampler, step, &jump2, frames)
+    };
+    let mut fresh = todo.iter().zip(played);
+    let mut whole = Played::default();
+    let kept: Vec<([u8; 32], Played)> = (keys.into_iter().zip(known).enumerate())
+        .map(|(w, (key, known))| {
+            let share = known.unwrap_or_else(|| {
+                let (&id, p) = fresh.next().expect("a share for every walker played");
+                debug_assert_eq!(id as usize, w);
+                p
+            });
+            whole.merge(&share);
+            (key, share)
+        })
+        .collect();
+    SampledShares {
+        sampled: Sampled {
+            step_s: step,
+            frames,
+            max_speed_m_s: whole.max_step2.sqrt() / step,
+            jumps: whole.jumps,
+            max_turn_rate_rad_s: Some(whole.max_turn),
+        },
+        kept,
+        replayed: todo.len(),
+    }
+}
+
+/// The library's headings, made a character per thread (serially they were a second of
+/// painting's check).
+fn headings(lib: &Library) -> PointHeadings {
+    let per_character: Vec<PointHeadings> = (lib.characters.par_iter())
+        .map(|ch| crowd_runtime::turn::character_headings(lib, ch))
+        .collect();
+    let mut headings = PointHeadings::for_points(lib);
+    for (ch, one) in lib.characters.iter().zip(per_character) {
+        headings.take(lib, ch, &one);
+    }
+    headings
+}
+
+/// Every frame `0 ..= frames` (`step` apart) of `sampler`'s walkers, in runs in parallel:
+/// each walker's share, with its squared jump threshold from `jump2`.
+fn play_all(sampler: &Sampler, step: f64, jump2: &[f64], frames: u64) -> Vec<Played> {
+    let threads = rayon::current_num_threads() as u64;
+    let per_run = frames.div_ceil(RUNS_PER_THREAD * threads).max(1);
+    let runs: Vec<(u64, u64)> = (0..frames.div_ceil(per_run))
+        .map(|r| (r * per_run, ((r + 1) * per_run).min(frames)))
+        .collect();
+    let n = sampler.characters();
+    runs.par_iter()
+        .map(|&(first, last)| play(sampler.clone(), step, jump2, first..=last))
+        .reduce(
+            || vec![Played::default(); n],
+            |mut a, b| {
+                a.iter_mut().zip(&b).for_each(|(a, b)| a.merge(b));
+                a
+            },
+        )
+}
+
+/// [`sample`]'s frames `frames` (each compared with the one before it, the first only as
+/// that): each character's fastest step, jumps and fastest turn (rad/s). Every character is
+/// in view, so character `i` is sample `i` of each frame.
+fn play(
+    mut sampler: Sampler,
+    step: f64,
+    jump2: &[f64],
+    frames: std::ops::RangeInclusive<u64>,
+) -> Vec<Played> {
+    let (mut before, mut now): (Vec<Sample>, Vec<Sample>) = (Vec::new(), Vec::new());
+    let mut played = vec![Played::default(); sampler.characters()];
+    sampler.sample(*frames.start() as f64 * step, EVERYWHERE, &mut before);
+    for f in frames.skip(1) {
+        sampler.sample(f as f64 * step, EVERYWHERE, &mut now);
+        let pairs = before.iter().zip(&now).zip(played.iter_mut());
+        for (((a, b), p), &jump2) in pairs.zip(jump2) {
+            if a.id != b.id {
+                p.max_step2 = f64::INFINITY; // a character missing from a frame
+                p.jumps += 1;
+                continue;
+            }
+            let (dx, dy) = (f64::from(b.x - a.x), f64::from(b.y - a.y));
+            let d2 = dx * dx + dy * dy;
+            p.max_step2 = p.max_step2.max(d2);
+            p.jumps += u64::from(d2 > jump2);
+            p.max_turn = p.max_turn.max(turn_between(a.heading, b.heading) / step);
+        }
+        if before.len() != now.len() {
+            // A character missing from a frame: charged to the last, whose place it took.
+            let last = played.last_mut().expect("a character per sample");
+            last.max_step2 = f64::INFINITY;
+            last.jumps += before.len().abs_diff(now.len()) as u64;
+        }
+        std::mem::swap(&mut before, &mut now);
+    }
+    played
+}
+
+/// The smaller angle between two headings (radians), whichever way round.
+fn turn_between(from: f32, to: f32) -> f64 {
+    use std::f64::consts::TAU;
+    let mut turn = f64::from(to - from);
+    if turn < 0.0 {
+        turn += TAU;
+    }
+    if !(0.0..TAU).contains(&turn) {
+        turn = turn.rem_euclid(TAU); // headings outside one turn
+    }
+    turn.min(TAU - turn)
+}
+
+/// Per walker, in id order, the hash of all the sampler reads to play it over frames
+/// `0 ..= frames`, `step` seconds apart: the trajectories of its window (a period of its loop
+/// from where it is at time 0, and the one after), each by [`trajectory_keys`], where the
+/// window begins against time 0, and the library's period, turn rate and patch side and the
+/// frames; and the fastest piece of its window, m/s.
+fn window_keys(
+    lib: &Library,
+    headings: &PointHeadings,
+    (step, frames): (f64, u64),
+) -> (Vec<[u8; 32]>, Vec<f64>) {
+    let trajectories = trajectory_keys(lib, headings);
+    let mut global = Vec::new();
+    global.extend_from_slice(b"crowd-check sampled walker");
+    global.extend_from_slice(&crate::VERSION.to_le_bytes());
+    for bits in [step.to_bits(), frames] {
+        global.extend_from_slice(&bits.to_le_bytes());
+    }
+    global.extend_from_slice(&lib.world.period_ticks.to_le_bytes());
+    global.extend_from_slice(&lib.world.turn_rate_deg_s.to_bits().to_le_bytes());
+    global.extend_from_slice(&lib.world.patch_side_m.to_bits().to_le_bytes());
+    // The last frame's tick, past which no walker is placed.
+    let span = (frames as f64 * step / TICK_S).ceil() as u64 + 1;
+    let per_character: Vec<Vec<([u8; 32], f64)>> = (lib.characters.par_iter())
+        .map(|ch| {
+            let order = loop_order(lib, ch);
+            (0..ch.laps)
+                .map(|lap| window_key(lib, ch, lap, &order, span, &trajectories, &global))
+                .collect()
+        })
+        .collect();
+    per_character.into_iter().flatten().unzip()
+}
+
+/// A loop's trajectories in walking order, each with the tick it starts at from the loop's
+/// start (as the sampler's `Loops` keeps them).
+fn loop_order(lib: &Library, ch: &crowd_runtime::Character) -> Vec<(u32, u64)> {
+    let (mut at, mut tick) = (ch.first_trajectory, 0u64);
+    (0..ch.trajectories)
+        .map(|_| {
+            let tr = &lib.trajectories[at as usize];
+            let this = (at, tick);
+            tick += u64::from(lib.duration_ticks(tr));
+            at = tr.next;
+            this
+        })
+        .collect()
+}
+
+/// Lap `lap` of loop `ch`'s window key and fastest piece (see [`window_keys`]): where the
+/// sampler's search puts it at tick 0, then its trajectories on until a `span` of ticks has
+/// passed, and one more.
+fn window_key(
+    lib: &Library,
+    ch: &crowd_runtime::Character,
+    lap: u32,
+    order: &[(u32, u64)],
+    span: u64,
+    trajectories: &[([u8; 32], f64)],
+    global: &[u8],
+) -> ([u8; 32], f64) {
+    let period = u64::from(lib.world.period_ticks);
+    let length = (u64::from(ch.laps) * period).max(1);
+    let start =
+        u64::from(lib.trajectories[ch.first_trajectory as usize].start) + u64::from(lap) * period;
+    // How far into its loop the walker is at tick 0 (the sampler's `seek`), and the
+    // trajectory it is on.
+    let into = (length - start % length) % length;
+    if order.is_empty() {
+        return (*Hash::of(global).as_bytes(), 0.0);
+    }
+    let first = order.partition_point(|&(_, s)| s <= into).max(1) - 1;
+    let mut bytes = global.to_vec();
+    bytes.extend_from_slice(&(into - order[first].1).to_le_bytes());
+    let (end, mut fastest) = (into + span, 0.0f64);
+    for k in first.. {
+        let (traj, from_start) = order[k % order.len()];
+        let (key, speed) = &trajectories[traj as usize];
+        bytes.extend_from_slice(key);
+        fastest = fastest.max(*speed);
+        // Every pass round the loop starts `length` later (so this ends, whatever the loop).
+        if (k / order.len()) as u64 * length + from_start > end {
+            break;
+        }
+    }
+    (*Hash::of(&bytes).as_bytes(), fastest)
+}
+
+/// Per trajectory, the hash of what the sampler reads of it: its patch's place in the grid,
+/// its points and the headings there ([`crowd_runtime::packed_heading`]); and its fastest
+/// piece (m/s, in world metres as [`super::path`] plays it; a piece of no time is a jump,
+/// not a speed).
+fn trajectory_keys(lib: &Library, headings: &PointHeadings) -> Vec<([u8; 32], f64)> {
+    (lib.trajectories.par_iter())
+        .map(|tr| {
+            let patch = &lib.patches[tr.patch as usize];
+            let mut bytes = Vec::with_capacity(8 + 10 * tr.points as usize);
+            bytes.extend_from_slice(&patch.col.to_le_bytes());
+            bytes.extend_from_slice(&patch.row.to_le_bytes());
+            let first = tr.first_point as usize;
+            for (i, p) in lib.points_of(tr).iter().enumerate() {
+                let at = first + i;
+                let packed =
+                    crowd_runtime::packed_heading(headings.heading[at], headings.walks[at]);
+                bytes.extend_from_slice(&p.x.to_le_bytes());
+                bytes.extend_from_slice(&p.y.to_le_bytes());
+                bytes.extend_from_slice(&p.t.to_le_bytes());
+                bytes.extend_from_slice(&packed.to_le_bytes());
+            }
+            let fastest = (lib.points_of(tr).windows(2))
+                .filter(|w| w[1].t > w[0].t)
+                .map(|w| {
+                    let [a, b] = [w[0], w[1]].map(|p| lib.world_position(patch, p));
+                    let metres = (b[0] - a[0]).hypot(b[1] - a[1]);
+                    metres / (f64::from(w[1].t - w[0].t) * TICK_S)
+                })
+                .fold(0.0, f64::max);
+            (*Hash::of(&bytes).as_bytes(), fastest)
+        })
+        .collect()
+}
