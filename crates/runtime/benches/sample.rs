@@ -3,7 +3,7 @@
 //! any library named by CROWD_LIBRARY, such as `build/painting/library.crowd`, 94,388). Time
 //! runs forward at 60 frames a second, as in a game; the whole world is in view (every
 //! character is written out), then a quarter of it; and, for the floor, a frame at a time that
-//! does not move.
+//! does not move. And the headings a player makes as it loads the library.
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use crowd_runtime::{Library, Sampler};
@@ -79,5 +79,28 @@ fn frames(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, frames);
+/// What a player pays for the headings when it loads the library (`Sampler::new`): every
+/// loop's, and the longest loop's alone (painting's has 5.6 million points, on one core).
+fn headings(c: &mut Criterion) {
+    let lib = library();
+    let mut group = c.benchmark_group("headings");
+    group.sample_size(10);
+    group.throughput(Throughput::Elements(lib.points.len() as u64));
+    group.bench_function(format!("{} points", lib.points.len()), |b| {
+        b.iter(|| crowd_runtime::turn::library_headings(&lib).heading.len())
+    });
+    let longest = (lib.characters.iter())
+        .max_by_key(|ch| ch.trajectories)
+        .expect("a loop");
+    group.bench_function("the longest loop", |b| {
+        b.iter(|| {
+            crowd_runtime::turn::character_headings(&lib, longest)
+                .heading
+                .len()
+        })
+    });
+    group.finish();
+}
+
+criterion_group!(benches, frames, headings);
 criterion_main!(benches);

@@ -314,7 +314,7 @@ impl<'a> Sampler<'a> {
 
 /// A hint that `p` will be read soon; nothing is read now, so any address is harmless.
 #[inline(always)]
-fn prefetch<T>(p: *const T) {
+pub(crate) fn prefetch<T>(p: *const T) {
     #[cfg(target_arch = "x86_64")]
     {
         use std::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
