@@ -567,9 +567,13 @@ fn smooth(a: &mut Artifacts, out: &Path, hash: Hash, ui: &Ui) -> Result<Ran> {
     }
     let collided = a.take_motion(&COLLIDE)?;
     let seen = Seen::new(&graph, &patterns.1);
-    let keys = crowd_smooth::patch_keys(&seen, &collided.1, &inputs);
+    // The last build's side file is read (and its hash checked) meanwhile.
+    let motion: &[PatchMotion] = &collided.1;
+    let (keys, previous) = rayon::join(
+        || crowd_smooth::patch_keys(&seen, motion, &inputs),
+        || reuse::Previous::load(out),
+    );
     let counted = |counts: [u64; 3]| counts.iter().flat_map(|c| c.to_le_bytes()).collect();
-    let previous = reuse::Previous::load(out);
     let mut done = reuse::reusable(previous.as_ref(), &keys, &seen.tables);
     let todo: Vec<usize> = (0..done.len()).filter(|&p| done[p].is_none()).collect();
     let made = crowd_smooth::smooth_patches(&graph, &patterns.1, &collided.1, &inputs, &bar, &todo);

@@ -3,21 +3,48 @@
 use serde::{Deserialize, Serialize};
 use std::fmt;
 
+/// Bytes from which [`Hash::of`] hashes on every core (blake3's `update_rayon` pays from
+/// about 128 KiB).
+const PARALLEL_BYTES: usize = 1 << 20;
+/// The pieces [`Hash::of_file`] reads: long enough for every core, short enough to hold.
+const FILE_PIECE_BYTES: usize = 8 << 20;
+
 /// A BLAKE3 hash, written as 64 hex digits in stage files.
 #[derive(Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub struct Hash([u8; 32]);
 
 impl Hash {
-    /// Hash of a byte string.
+    /// Hash of a byte string: on every core when it is long (the same hash; painting's
+    /// 426 MB side file took 0.12 s on one).
     pub fn of(bytes: &[u8]) -> Hash {
-        Hash(*blake3::hash(bytes).as_bytes())
+        if bytes.len() < PARALLEL_BYTES {
+            return Hash(*blake3::hash(bytes).as_bytes());
+        }
+        let mut hasher = blake3::Hasher::new();
+        hasher.update_rayon(bytes);
+        Hash(*hasher.finalize().as_bytes())
     }
 
     /// Hash and length of a file's bytes, read in pieces (a 400 MB side file is checked
-    /// without holding it).
+    /// without holding it), each hashed on every core.
     pub fn of_file(path: &std::path::Path) -> std::io::Result<(u64, Hash)> {
+        use std::io::Read;
+        let mut file = std::fs::File::open(path)?;
         let mut hasher = blake3::Hasher::new();
-        hasher.update_reader(std::fs::File::open(path)?)?;
+        let mut piece = vec![0u8; FILE_PIECE_BYTES];
+        loop {
+            let n = match file.read(&mut piece) {
+                Ok(0) => break,
+                Ok(n) => n,
+                Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+                Err(e) => return Err(e),
+            };
+            if n < PARALLEL_BYTES {
+                hasher.update(&piece[..n]);
+            } else {
+                hasher.update_rayon(&piece[..n]);
+            }
+        }
         Ok((hasher.count(), Hash(*hasher.finalize().as_bytes())))
     }
 
@@ -128,6 +155,20 @@ impl Hasher {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// On every core or on one, in pieces or whole: the same hash.
+    #[test]
+    fn a_long_input_hashes_the_same_on_every_core_and_from_its_file() {
+        let bytes: Vec<u8> = (0..FILE_PIECE_BYTES + 3 * PARALLEL_BYTES + 12_345)
+            .map(|i| (i * 7 + i / 4099) as u8)
+            .collect();
+        let one = Hash(*blake3::hash(&bytes).as_bytes());
+        assert_eq!(Hash::of(&bytes), one);
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("long.bin");
+        std::fs::write(&path, &bytes).unwrap();
+        assert_eq!(Hash::of_file(&path).unwrap(), (bytes.len() as u64, one));
+    }
 
     #[test]
     fn hex_round_trips() {
