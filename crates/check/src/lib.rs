@@ -305,7 +305,7 @@ fn strip_scene(
     graph: &PatchGraph,
     held: &[usize],
     motion: &[Cow<'_, PatchMotion>],
-    strip: &std::ops::Range<usize>,
+    strip: &[usize],
     (period_s, walls): (f64, &[Wall]),
 ) -> Scene {
     let trajectories = || motion.iter().flat_map(|m| &m.trajectories);
@@ -319,7 +319,7 @@ fn strip_scene(
         ends: Vec::with_capacity(trajectories().count()),
         standers: Vec::new(),
         walls: walls.to_vec(),
-        owned: strip.start as u32..strip.end as u32,
+        owned: world::Owned::only(strip, graph.patches.len()),
     };
     let mut walker = 0u32;
     for (&p, m) in held.iter().zip(motion) {

@@ -1,13 +1,14 @@
 //! The world cut into strips for the check: runs of patches of about [`STRIP_PIECES`] pieces
 //! (of the patches to judge: all, or those a change reached), each checked with the patches
-//! within reach of it present but not counted (`world::Scene::owned`). What the check holds then grows with a strip, not with the world:
+//! within reach of them present but not counted (`world::Scene::owned`). What the check holds
+//! then grows with a strip, not with the world:
 //! a million walkers' 165 million pieces held 20 GB at once.
 
 use crate::world::{Pairs, Scene};
 use crowd_core::PatchGraph;
 use crowd_core::trajectories::PatchMotion;
+use crowd_geometry::BoxGrid;
 use glam::DVec2;
-use std::ops::Range;
 
 /// Pieces a strip holds at most, give or take a chunk of patches (56 bytes each, with the
 /// spatial grid's entries about 400 MB).
@@ -71,35 +72,30 @@ impl Extent {
     }
 }
 
-/// The strips that judge patches `todo` (in order): runs of patches of about `budget` pieces
-/// (a run of one patch however many it holds), each from one patch of `todo` to another, with
-/// the patches between them when they are at most [`GAP`] apart (judging a few more is cheaper
-/// than another scene of the same surroundings).
-pub(crate) fn runs(todo: &[usize], extents: &[Extent], budget: u64) -> Vec<Range<usize>> {
-    let mut strips: Vec<Range<usize>> = Vec::new();
+/// The strips that judge patches `todo` (in order): runs of its patches of about `budget`
+/// pieces (a run of one patch however many it holds). A strip owns only its patches of `todo`,
+/// wherever they are: the few hundred a brush stroke reaches are one scene with the patches
+/// around them, not one scene per row of the world each with its own (3.4 times as many
+/// pieces on painting's stroke).
+pub(crate) fn runs(todo: &[usize], extents: &[Extent], budget: u64) -> Vec<Vec<usize>> {
+    let mut strips: Vec<Vec<usize>> = Vec::new();
     let mut pieces = 0u64;
     for &p in todo {
-        let joined = |last: &Range<usize>| {
-            let more: u64 = extents[last.end..=p].iter().map(|e| e.pieces).sum();
-            (p <= last.end + GAP && pieces + more <= budget).then_some(more)
-        };
+        let more = extents[p].pieces;
         match strips.last_mut() {
-            Some(last) if p < last.end => {} // a repeat
-            Some(last) if let Some(more) = joined(last) => {
+            Some(last) if last.last().is_some_and(|&q| p <= q) => {} // a repeat
+            Some(last) if pieces + more <= budget => {
                 pieces += more;
-                last.end = p + 1;
+                last.push(p);
             }
             _ => {
-                strips.push(p..p + 1);
-                pieces = extents[p].pieces;
+                strips.push(vec![p]);
+                pieces = more;
             }
         }
     }
     strips
 }
-
-/// See [`runs`].
-const GAP: usize = 16;
 
 /// The pairs each patch owns: those `known` (a check's memo) as they are, the rest judged a
 /// strip at a time ([`runs`] of about `budget` pieces) in the scene `scene_of` makes of a strip
@@ -108,42 +104,82 @@ const GAP: usize = 16;
 pub(crate) fn judge_pairs(
     mut known: Vec<Option<Pairs>>,
     (extents, reach, budget): (&[Extent], f64, u64),
-    mut scene_of: impl FnMut(&Range<usize>, &[usize]) -> crowd_core::Result<Scene>,
+    mut scene_of: impl FnMut(&[usize], &[usize]) -> crowd_core::Result<Scene>,
 ) -> crowd_core::Result<(Vec<Pairs>, usize)> {
     let todo: Vec<usize> = (0..known.len()).filter(|&p| known[p].is_none()).collect();
+    let near = Surroundings::new(extents, reach);
     for strip in runs(&todo, extents, budget) {
-        let held = with_surroundings(extents, &strip, reach);
+        let held = near.of(&strip);
+        let t0 = std::time::Instant::now();
         let scene = scene_of(&strip, &held)?;
+        let t1 = t0.elapsed();
+        eprintln!(
+            "TT strip {} held {} pieces {} made {:?}",
+            strip.len(),
+            held.len(),
+            scene.pieces.len(),
+            t1
+        );
         strip
-            .clone()
-            .for_each(|p| known[p] = Some(Pairs::default()));
+            .iter()
+            .for_each(|&p| known[p] = Some(Pairs::default()));
+        let t0 = std::time::Instant::now();
         for (p, found) in scene.pairs_by_patch() {
             known[p as usize] = Some(found);
         }
+        eprintln!("TT judged {:?}", t0.elapsed());
     }
     let pairs = known.into_iter().map(Option::unwrap_or_default).collect();
     Ok((pairs, todo.len()))
 }
 
-/// The patches a strip's scene holds, in order: the strip's own, and every other whose
-/// characters come within `reach` of the strip's box (they may meet one of its characters).
-pub(crate) fn with_surroundings(
-    extents: &[Extent],
-    strip: &Range<usize>,
+/// Which patches' characters come within reach of which: the patches' boxes in a grid.
+pub(crate) struct Surroundings<'a> {
+    extents: &'a [Extent],
     reach: f64,
-) -> Vec<usize> {
-    let own = &extents[strip.clone()];
-    let (lo, hi) = own
-        .iter()
-        .filter(|e| !e.is_empty())
-        .fold((DVec2::INFINITY, DVec2::NEG_INFINITY), |(lo, hi), e| {
-            (lo.min(e.lo), hi.max(e.hi))
+    grid: BoxGrid,
+}
+
+impl<'a> Surroundings<'a> {
+    pub fn new(extents: &'a [Extent], reach: f64) -> Surroundings<'a> {
+        let boxes = extents.iter().map(|e| {
+            if e.is_empty() {
+                (DVec2::ZERO, DVec2::ZERO)
+            } else {
+                (e.lo, e.hi)
+            }
         });
-    let (lo, hi) = (lo - DVec2::splat(reach), hi + DVec2::splat(reach));
-    let near = |e: &Extent| !e.is_empty() && e.lo.cmple(hi).all() && e.hi.cmpge(lo).all();
-    (0..extents.len())
-        .filter(|p| strip.contains(p) || near(&extents[*p]))
-        .collect()
+        // Cells of about a patch: the boxes are patches give or take a stray walker.
+        let side = extents
+            .iter()
+            .find(|e| !e.is_empty())
+            .map_or(1.0, |e| (e.hi - e.lo).max_element().max(1.0));
+        Surroundings {
+            extents,
+            reach,
+            grid: BoxGrid::new(boxes, side, reach),
+        }
+    }
+
+    /// The patches a strip's scene holds, in order: the strip's own, and every other whose
+    /// characters come within reach of one of them (they may meet one of its characters).
+    pub fn of(&self, strip: &[usize]) -> Vec<usize> {
+        let mut held: Vec<usize> = strip.to_vec();
+        for &p in strip {
+            let e = &self.extents[p];
+            if e.is_empty() {
+                continue;
+            }
+            self.grid.near(e.lo, e.hi, |q| {
+                if e.near(&self.extents[q as usize], self.reach) {
+                    held.push(q as usize);
+                }
+            });
+        }
+        held.sort_unstable();
+        held.dedup();
+        held
+    }
 }
 
 #[cfg(test)]
@@ -168,21 +204,16 @@ mod tests {
         for todo in [&every, &some] {
             for budget in [0, 1, 100, 500, 2_000, u64::MAX] {
                 let strips = runs(todo, &extents, budget);
-                for w in strips.windows(2) {
-                    assert!(w[0].end <= w[1].start);
-                }
-                for p in todo.iter() {
-                    assert_eq!(strips.iter().filter(|s| s.contains(p)).count(), 1);
-                }
+                let walked: Vec<usize> = strips.iter().flatten().copied().collect();
+                assert_eq!(&walked, todo, "each patch once, in order");
                 for s in &strips {
-                    assert!(todo.contains(&s.start) && todo.contains(&(s.end - 1)));
-                    let pieces: u64 = extents[s.clone()].iter().map(|e| e.pieces).sum();
+                    let pieces: u64 = s.iter().map(|&p| extents[p].pieces).sum();
                     assert!(s.len() == 1 || pieces <= budget, "{s:?} {pieces} {budget}");
                 }
             }
         }
-        assert_eq!(runs(&every, &extents, u64::MAX), vec![0..1000]);
-        assert_eq!(runs(&some, &extents, u64::MAX).len(), 11);
+        assert_eq!(runs(&every, &extents, u64::MAX), vec![every.clone()]);
+        assert_eq!(runs(&some, &extents, u64::MAX), vec![some.clone()]);
         assert!(runs(&[], &extents, 10).is_empty());
     }
 
@@ -191,9 +222,15 @@ mod tests {
         // A row of 8 m patches along x; the strip is patch 2.
         let mut extents: Vec<Extent> = (0..6).map(|i| at(8.0 * i as f64, 0.0, 1)).collect();
         extents[4] = Extent::EMPTY;
-        assert_eq!(with_surroundings(&extents, &(2..3), 1.6), vec![1, 2, 3]);
+        assert_eq!(Surroundings::new(&extents, 1.6).of(&[2]), vec![1, 2, 3]);
         // A walker of patch 5 that strays to x = 25 comes within reach of patch 2's box.
         extents[5].lo.x = 25.0;
-        assert_eq!(with_surroundings(&extents, &(2..3), 1.6), vec![1, 2, 3, 5]);
+        assert_eq!(Surroundings::new(&extents, 1.6).of(&[2]), vec![1, 2, 3, 5]);
+        // Patches 0 and 5 far apart: each with its own neighbours, not what lies between.
+        let row: Vec<Extent> = (0..12).map(|i| at(8.0 * i as f64, 0.0, 1)).collect();
+        assert_eq!(
+            Surroundings::new(&row, 1.6).of(&[0, 9]),
+            vec![0, 1, 8, 9, 10]
+        );
     }
 }

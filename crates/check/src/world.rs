@@ -55,11 +55,36 @@ pub(crate) struct Scene {
     pub standers: Vec<DVec2>,
     /// Obstacle boxes, world metres (min, max).
     pub walls: Vec<crate::Wall>,
-    /// The patches whose pairs this scene counts ([`Scene::EVERY_PATCH`]: all). A pair of
-    /// walkers belongs to the lower of their two patches, a walker's pairs with what stands
-    /// still to its own: a strip of the world is checked with the patches around it present
-    /// but not counted, and every pair is counted in exactly one strip.
-    pub owned: std::ops::Range<u32>,
+    /// The patches whose pairs this scene counts. A pair of walkers belongs to the lower of
+    /// their two patches, a walker's pairs with what stands still to its own: a strip of the
+    /// world is checked with the patches around it present but not counted, and every pair is
+    /// counted in exactly one strip.
+    pub owned: Owned,
+}
+
+/// The patches whose pairs a [`Scene`] counts.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Owned {
+    Every,
+    /// Patch `p` is counted when `set[p]`.
+    Only(Vec<bool>),
+}
+
+impl Owned {
+    /// `patches` of a world of `of` patches.
+    pub fn only(patches: &[usize], of: usize) -> Owned {
+        let mut set = vec![false; of];
+        patches.iter().for_each(|&p| set[p] = true);
+        Owned::Only(set)
+    }
+
+    #[inline]
+    pub fn contains(&self, patch: u32) -> bool {
+        match self {
+            Owned::Every => true,
+            Owned::Only(set) => set.get(patch as usize).copied().unwrap_or(false),
+        }
+    }
 }
 
 /// The pairs a scene (or a strip of one) counts: collisions, and the nearest approaches,
@@ -198,12 +223,9 @@ fn note<V: Copy + Closer>(list: &mut Vec<(u32, V)>, owner: u32, v: V) {
 }
 
 impl Scene {
-    /// [`Scene::owned`] when the scene counts every pair.
-    pub const EVERY_PATCH: std::ops::Range<u32> = 0..u32::MAX;
-
     /// Whether the pair of `a` and `b` is counted here (it belongs to the lower patch).
     fn owns_pair(&self, a: &Piece, b: &Piece) -> bool {
-        self.owned.contains(&a.patch.min(b.patch))
+        self.owned.contains(a.patch.min(b.patch))
     }
 
     /// Files one walker's path (world metres and seconds, in time order) as pieces. Callers
@@ -366,7 +388,7 @@ impl Scene {
         let found = self
             .pieces
             .par_iter()
-            .filter(|piece| self.owned.contains(&piece.patch))
+            .filter(|piece| self.owned.contains(piece.patch))
             .map(|piece| {
                 let s = &piece.seg;
                 let (lo, hi) = (s.p0.min(s.p1), s.p0.max(s.p1));
@@ -571,7 +593,7 @@ mod tests {
             ends: vec![],
             standers: vec![],
             walls: vec![],
-            owned: Scene::EVERY_PATCH,
+            owned: Owned::Every,
         }
     }
 

@@ -280,7 +280,7 @@ pub fn figures(bytes: &[u8], inputs: &Inputs) -> Result<ProductFigures, GlbError
         ends: Vec::new(),
         standers: nodes.standers.clone(),
         walls: inputs.walls.to_vec(),
-        owned: Scene::EVERY_PATCH,
+        owned: crate::world::Owned::Every,
     };
     scene
         .pieces

@@ -180,12 +180,7 @@ fn clearance(
 }
 
 /// The scene of library patches `held` (in order), counting the pairs of `strip`'s.
-fn strip_scene(
-    lib: &Library,
-    held: &[usize],
-    strip: &std::ops::Range<usize>,
-    walls: &[crate::Wall],
-) -> Scene {
+fn strip_scene(lib: &Library, held: &[usize], strip: &[usize], walls: &[crate::Wall]) -> Scene {
     let mut is_held = vec![false; lib.patches.len()];
     held.iter().for_each(|&p| is_held[p] = true);
     let mut scene = Scene {
@@ -195,7 +190,7 @@ fn strip_scene(
         ends: Vec::new(),
         standers: held.iter().flat_map(|&p| standers(lib, p)).collect(),
         walls: walls.to_vec(),
-        owned: strip.start as u32..strip.end as u32,
+        owned: crate::world::Owned::only(strip, lib.patches.len()),
     };
     // In the library's order of trajectories, as one scene of the world would hold them
     // (a pair's closest place is its lower piece's).
