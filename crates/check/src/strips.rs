@@ -110,24 +110,13 @@ pub(crate) fn judge_pairs(
     let near = Surroundings::new(extents, reach);
     for strip in runs(&todo, extents, budget) {
         let held = near.of(&strip);
-        let t0 = std::time::Instant::now();
         let scene = scene_of(&strip, &held)?;
-        let t1 = t0.elapsed();
-        eprintln!(
-            "TT strip {} held {} pieces {} made {:?}",
-            strip.len(),
-            held.len(),
-            scene.pieces.len(),
-            t1
-        );
         strip
             .iter()
             .for_each(|&p| known[p] = Some(Pairs::default()));
-        let t0 = std::time::Instant::now();
         for (p, found) in scene.pairs_by_patch() {
             known[p as usize] = Some(found);
         }
-        eprintln!("TT judged {:?}", t0.elapsed());
     }
     let pairs = known.into_iter().map(Option::unwrap_or_default).collect();
     Ok((pairs, todo.len()))
