@@ -158,9 +158,21 @@ pub(super) fn loop_path(w: &World, lp: usize) -> LoopPath {
 /// each trajectory's first point left out but for the loop's first.
 fn loop_keys(w: &World, lp: usize) -> (Vec<f64>, Vec<DVec2>, Vec<f64>) {
     let lib = w.library;
-    let (mut times, mut points, mut turn_times) = (Vec::new(), Vec::new(), Vec::new());
+    // Made at their size: painting's longest loop has 5.6 million keys, and lists grown key
+    // by key touched fresh memory several times over.
+    let members = &w.links.loops[lp];
+    // (A trajectory's first point is left out but for the loop's first.)
+    let points: usize = (members.iter())
+        .map(|&i| lib.trajectories[i].points as usize)
+        .sum();
+    let keys = points.saturating_sub(members.len().saturating_sub(1));
+    let (mut times, mut points, mut turn_times) = (
+        Vec::with_capacity(keys),
+        Vec::with_capacity(keys),
+        Vec::with_capacity(keys),
+    );
     let (mut offset, mut tick) = (0.0, 0u64);
-    for &i in &w.links.loops[lp] {
+    for &i in members {
         let r = w.links.refs[i];
         let tr = &w.motion[r.patch].trajectories[r.index];
         let origin = w.graph.world_from_patch(w.graph.patches[r.patch].cell);
