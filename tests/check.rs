@@ -63,7 +63,7 @@ fn a_build_checks_the_library_and_the_gltf_it_ships() {
         "| largest speed (m/s) |",
         "| largest velocity jump at a seam (m/s) |",
         "| open loops (end 1 cm or more from any start) | 0 |",
-        "| runtime's sampler: steps beyond the fastest piece | 0 | - |",
+        "| runtime's sampler: steps beyond the walker's fastest piece | 0 | - |",
         "| check |",
     ] {
         assert!(md.contains(row), "{row} in\n{md}");

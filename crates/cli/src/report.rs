@@ -299,7 +299,7 @@ pub const PRODUCT_ROWS: [(&str, &str); 17] = [
     ("sampled_max_speed", "runtime's sampler: fastest step (m/s)"),
     (
         "sampler_jumps",
-        "runtime's sampler: steps beyond the fastest piece",
+        "runtime's sampler: steps beyond the walker's fastest piece",
     ),
 ];
 
