@@ -62,7 +62,7 @@ pub struct CheckReport {
 }
 
 /// The check's version: part of its input hash, bumped when what `check.ron` holds changes.
-pub const VERSION: u32 = 10;
+pub const VERSION: u32 = 11;
 
 /// Checks the whole world of `motion` (per patch, in patch order) laid out by `graph`.
 pub fn check(graph: &PatchGraph, motion: &[PatchMotion], period_s: f64) -> CheckReport {

@@ -15,7 +15,7 @@ pub mod turn;
 pub use crc::crc32;
 pub use error::LoadError;
 pub use format::{
-    Character, Crossing, Library, MAGIC, MAX_PERIODS_PER_TRAJECTORY, Patch, Point, TICK_S,
-    Trajectory, VERSION, World,
+    Character, Crossing, Library, MAGIC, MAX_PERIODS_PER_TRAJECTORY, Patch, Point, QUANT_STEPS,
+    TICK_S, Trajectory, VERSION, World,
 };
 pub use sampler::{Sample, Sampler, packed_heading};

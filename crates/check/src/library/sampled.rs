@@ -283,17 +283,22 @@ fn window_key(
 
 /// Per trajectory, the hash of what the sampler reads of it: its patch's place in the grid,
 /// its points and the headings there ([`crowd_runtime::packed_heading`]); and its fastest
-/// piece (m/s, in world metres as [`super::path`] plays it; a piece of no time is a jump,
-/// not a speed).
+/// piece (m/s; a piece of no time is a jump, not a speed).
 fn trajectory_keys(lib: &Library, headings: &PointHeadings) -> Vec<([u8; 32], f64)> {
+    // Metres per position step per tick, to turn the fastest piece in steps a tick into m/s.
+    let step_m_s = f64::from(lib.world.patch_side_m) / crowd_runtime::QUANT_STEPS / TICK_S;
     (lib.trajectories.par_iter())
-        .map(|tr| {
+        .map_init(Vec::new, |bytes, tr| {
             let patch = &lib.patches[tr.patch as usize];
-            let mut bytes = Vec::with_capacity(8 + 10 * tr.points as usize);
+            bytes.clear();
             bytes.extend_from_slice(&patch.col.to_le_bytes());
             bytes.extend_from_slice(&patch.row.to_le_bytes());
             let first = tr.first_point as usize;
-            for (i, p) in lib.points_of(tr).iter().enumerate() {
+            let points = lib.points_of(tr);
+            // The fastest piece's squared steps a tick (whole steps: their squares add up
+            // exactly, and one root is taken at the end).
+            let mut fastest2 = 0.0f64;
+            for (i, p) in points.iter().enumerate() {
                 let at = first + i;
                 let packed =
                     crowd_runtime::packed_heading(headings.heading[at], headings.walks[at]);
@@ -301,16 +306,16 @@ fn trajectory_keys(lib: &Library, headings: &PointHeadings) -> Vec<([u8; 32], f6
                 bytes.extend_from_slice(&p.y.to_le_bytes());
                 bytes.extend_from_slice(&p.t.to_le_bytes());
                 bytes.extend_from_slice(&packed.to_le_bytes());
+                if let Some(a) = i.checked_sub(1).map(|k| points[k])
+                    && p.t > a.t
+                {
+                    let dx = f64::from(i32::from(p.x) - i32::from(a.x));
+                    let dy = f64::from(i32::from(p.y) - i32::from(a.y));
+                    let dt = f64::from(p.t - a.t);
+                    fastest2 = fastest2.max((dx * dx + dy * dy) / (dt * dt));
+                }
             }
-            let fastest = (lib.points_of(tr).windows(2))
-                .filter(|w| w[1].t > w[0].t)
-                .map(|w| {
-                    let [a, b] = [w[0], w[1]].map(|p| lib.world_position(patch, p));
-                    let metres = (b[0] - a[0]).hypot(b[1] - a[1]);
-                    metres / (f64::from(w[1].t - w[0].t) * TICK_S)
-                })
-                .fold(0.0, f64::max);
-            (*Hash::of(&bytes).as_bytes(), fastest)
+            (*Hash::of(bytes).as_bytes(), fastest2.sqrt() * step_m_s)
         })
         .collect()
 }
