@@ -259,25 +259,18 @@ fn measure(dir: &Path, options: &CheckOptions) -> Result<(CheckReport, Memo, Red
     // world they are judged at once, each while the other waits on its serial parts (reading,
     // decoding, sorting), which left a core idle (ring's check: 0.86 -> 0.75 s; with the memo,
     // the library and the glTF at once as well: painting's stroke 2.7 -> 2.5 s); on a big one,
-    // one after the other, as together they hold half as much memory again. Since the check takes a strip of the
-    // world at a time, painting is small: 11.8 -> 10.8 s at once, 1.0 -> 1.4 GB (it held
-    // 2.4 -> 3.5 GB when the stage file was one scene).
-    let products = || {
-        (
-            library(dir, &walls, limit, &memo),
-            gltf(dir, &graph, &walls, limit),
-        )
-    };
+    // one after the other, as together they hold half as much memory again. Since the check
+    // takes a strip of the world at a time, painting is small: 11.8 -> 10.8 s at once, 1.0 ->
+    // 1.4 GB (it held 2.4 -> 3.5 GB when the stage file was one scene).
+    let library = || library(dir, &walls, limit, &memo);
+    let gltf = || gltf(dir, &graph, &walls, limit);
     let (stage, (library, gltf)) = if small_world(dir, chosen) {
-        let products = || {
-            rayon::join(
-                || library(dir, &walls, limit, &memo),
-                || gltf(dir, &graph, &walls, limit),
-            )
-        };
-        rayon::join(|| stage_figures(&graph, stage, &memo), products)
+        rayon::join(
+            || stage_figures(&graph, stage, &memo),
+            || rayon::join(library, gltf),
+        )
     } else {
-        (stage_figures(&graph, stage, &memo), products())
+        (stage_figures(&graph, stage, &memo), (library(), gltf()))
     };
     drop(memo);
     let stage = stage?;

@@ -31,7 +31,9 @@ impl Hash {
         use std::io::Read;
         let mut file = std::fs::File::open(path)?;
         let mut hasher = blake3::Hasher::new();
-        let mut piece = vec![0u8; FILE_PIECE_BYTES];
+        // No larger than the file (most hashed files are a few kilobytes of RON).
+        let len = file.metadata().map_or(FILE_PIECE_BYTES as u64, |m| m.len());
+        let mut piece = vec![0u8; (len as usize).clamp(1, FILE_PIECE_BYTES)];
         loop {
             let n = match file.read(&mut piece) {
                 Ok(0) => break,

@@ -334,10 +334,9 @@ const PREFETCH_LEGS: usize = 4;
 mod tests {
     use super::*;
 
-    /// The headings as they were first written (a list grown per point, an `Option` per
-    /// piece, a new list per lap): what the faster ones must give to the bit.
-    /// [`loop_headings`] with whether each piece walks given (`walking[k]`: from key `k` to
-    /// `k + 1`), as the library's quantised points say ([`piece_walks`]).
+    /// [`loop_headings_walking`] as it was first written (a list grown per point, an
+    /// `Option` per piece, a new list per lap), kept as the oracle the faster one must match
+    /// to the bit.
     fn reference_loop_headings_walking(
         times: &[f64],
         points: &[[f64; 2]],
