@@ -154,14 +154,15 @@ fn judge(
     let extents: Vec<strips::Extent> = own.iter().map(|o| o.0.extent).collect();
     let walls = walls(graph);
     let reach = 2.0 * graph.radius_m + 1.0 + 1e-6;
+    let near = strips::within_reach(&extents, reach, graph.world.patch_side_m);
     let pair_keys = own_keys
         .as_ref()
-        .map(|k| pair_keys(graph, k, &extents, (&walls, reach)));
+        .map(|k| pair_keys(graph, k, (&extents, &near), (&walls, reach)));
     let known: Vec<Option<world::Pairs>> = match &pair_keys {
         Some(k) => k.iter().map(|k| memo.pairs(k)).collect(),
         None => vec![None; n],
     };
-    let (pairs, judged_pairs) = owned_pairs(w, &extents, (&walls, reach), known, budget)?;
+    let (pairs, judged_pairs) = owned_pairs(w, (&extents, &near), &walls, known, budget)?;
     let total = pairs
         .iter()
         .fold(world::Pairs::default(), |a, b| a.merge(*b));
@@ -235,10 +236,9 @@ fn own_shares(
 fn pair_keys(
     graph: &PatchGraph,
     own_keys: &[Hash],
-    extents: &[strips::Extent],
+    (extents, near): (&[strips::Extent], &[Vec<u32>]),
     (walls, reach): (&[Wall], f64),
 ) -> Vec<Hash> {
-    let near = memo::within_reach(extents, reach, graph.world.patch_side_m);
     let grid = BoxGrid::new(walls.iter().copied(), 4.0, reach);
     (0..graph.patches.len())
         .into_par_iter()
@@ -253,12 +253,12 @@ fn pair_keys(
 /// time; with how many patches were judged.
 fn owned_pairs(
     w: &World,
-    extents: &[strips::Extent],
-    (walls, reach): (&[Wall], f64),
+    (extents, near): (&[strips::Extent], &[Vec<u32>]),
+    walls: &[Wall],
     known: Vec<Option<world::Pairs>>,
     budget: u64,
 ) -> crowd_core::Result<(Vec<world::Pairs>, usize)> {
-    strips::judge_pairs(known, (extents, reach, budget), |strip, held| {
+    strips::judge_pairs(known, (extents, near, budget), |strip, held| {
         let motion = in_order(held.par_iter().map(|&p| w.source.patch(p)))?;
         Ok(strip_scene(
             w.graph,

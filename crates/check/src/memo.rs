@@ -157,35 +157,6 @@ pub struct LibraryPart {
     pub(crate) played: Vec<([u8; 32], Played)>,
 }
 
-/// Per patch, the patches whose characters come within `reach` of its own (itself included,
-/// in index order), from their extents.
-pub(crate) fn within_reach(extents: &[Extent], reach: f64, cell: f64) -> Vec<Vec<u32>> {
-    let boxes = extents.iter().map(|e| {
-        if e.is_empty() {
-            (DVec2::ZERO, DVec2::ZERO)
-        } else {
-            (e.lo, e.hi)
-        }
-    });
-    let grid = BoxGrid::new(boxes, cell, reach);
-    extents
-        .iter()
-        .map(|e| {
-            if e.is_empty() {
-                return Vec::new();
-            }
-            let mut near = Vec::new();
-            grid.near(e.lo, e.hi, |q| {
-                if e.near(&extents[q as usize], reach) {
-                    near.push(q);
-                }
-            });
-            near.sort_unstable();
-            near
-        })
-        .collect()
-}
-
 /// The key of the pairs patch `p` owns: its own key and those of the patches within reach,
 /// and the obstacles within reach of it.
 pub(crate) fn pairs_key(

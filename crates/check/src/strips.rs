@@ -99,18 +99,16 @@ pub(crate) fn runs(todo: &[usize], extents: &[Extent], budget: u64) -> Vec<Vec<u
 
 /// The pairs each patch owns: those `known` (a check's memo) as they are, the rest judged a
 /// strip at a time ([`runs`] of about `budget` pieces) in the scene `scene_of` makes of a strip
-/// and the patches it holds ([`with_surroundings`] within `reach`); with how many patches were
-/// judged. The stage files' check and the library's share it.
+/// and the patches it holds ([`held`], from each patch's `near`: [`within_reach`]); with how
+/// many patches were judged. The stage files' check and the library's share it.
 pub(crate) fn judge_pairs(
     mut known: Vec<Option<Pairs>>,
-    (extents, reach, budget): (&[Extent], f64, u64),
+    (extents, near, budget): (&[Extent], &[Vec<u32>], u64),
     mut scene_of: impl FnMut(&[usize], &[usize]) -> crowd_core::Result<Scene>,
 ) -> crowd_core::Result<(Vec<Pairs>, usize)> {
     let todo: Vec<usize> = (0..known.len()).filter(|&p| known[p].is_none()).collect();
-    let near = Surroundings::new(extents, reach);
     for strip in runs(&todo, extents, budget) {
-        let held = near.of(&strip);
-        let scene = scene_of(&strip, &held)?;
+        let scene = scene_of(&strip, &held(&strip, near))?;
         strip
             .iter()
             .for_each(|&p| known[p] = Some(Pairs::default()));
@@ -122,53 +120,46 @@ pub(crate) fn judge_pairs(
     Ok((pairs, todo.len()))
 }
 
-/// Which patches' characters come within reach of which: the patches' boxes in a grid.
-pub(crate) struct Surroundings<'a> {
-    extents: &'a [Extent],
-    reach: f64,
-    grid: BoxGrid,
+/// The patches a strip's scene holds, in order: the strip's own, and every other whose
+/// characters come within reach of one of them (`near`: [`within_reach`]; they may meet one of
+/// its characters).
+pub(crate) fn held(strip: &[usize], near: &[Vec<u32>]) -> Vec<usize> {
+    let mut held: Vec<usize> = strip.to_vec();
+    for &p in strip {
+        held.extend(near[p].iter().map(|&q| q as usize));
+    }
+    held.sort_unstable();
+    held.dedup();
+    held
 }
 
-impl<'a> Surroundings<'a> {
-    pub fn new(extents: &'a [Extent], reach: f64) -> Surroundings<'a> {
-        let boxes = extents.iter().map(|e| {
-            if e.is_empty() {
-                (DVec2::ZERO, DVec2::ZERO)
-            } else {
-                (e.lo, e.hi)
-            }
-        });
-        // Cells of about a patch: the boxes are patches give or take a stray walker.
-        let side = extents
-            .iter()
-            .find(|e| !e.is_empty())
-            .map_or(1.0, |e| (e.hi - e.lo).max_element().max(1.0));
-        Surroundings {
-            extents,
-            reach,
-            grid: BoxGrid::new(boxes, side, reach),
+/// Per patch, the patches whose characters come within `reach` of its own (itself included,
+/// in index order), from their extents in a grid of `cell`-wide squares.
+pub(crate) fn within_reach(extents: &[Extent], reach: f64, cell: f64) -> Vec<Vec<u32>> {
+    let boxes = extents.iter().map(|e| {
+        if e.is_empty() {
+            (DVec2::ZERO, DVec2::ZERO)
+        } else {
+            (e.lo, e.hi)
         }
-    }
-
-    /// The patches a strip's scene holds, in order: the strip's own, and every other whose
-    /// characters come within reach of one of them (they may meet one of its characters).
-    pub fn of(&self, strip: &[usize]) -> Vec<usize> {
-        let mut held: Vec<usize> = strip.to_vec();
-        for &p in strip {
-            let e = &self.extents[p];
+    });
+    let grid = BoxGrid::new(boxes, cell, reach);
+    extents
+        .iter()
+        .map(|e| {
             if e.is_empty() {
-                continue;
+                return Vec::new();
             }
-            self.grid.near(e.lo, e.hi, |q| {
-                if e.near(&self.extents[q as usize], self.reach) {
-                    held.push(q as usize);
+            let mut near = Vec::new();
+            grid.near(e.lo, e.hi, |q| {
+                if e.near(&extents[q as usize], reach) {
+                    near.push(q);
                 }
             });
-        }
-        held.sort_unstable();
-        held.dedup();
-        held
-    }
+            near.sort_unstable();
+            near
+        })
+        .collect()
 }
 
 #[cfg(test)]
@@ -211,15 +202,14 @@ mod tests {
         // A row of 8 m patches along x; the strip is patch 2.
         let mut extents: Vec<Extent> = (0..6).map(|i| at(8.0 * i as f64, 0.0, 1)).collect();
         extents[4] = Extent::EMPTY;
-        assert_eq!(Surroundings::new(&extents, 1.6).of(&[2]), vec![1, 2, 3]);
+        let of =
+            |extents: &[Extent], strip: &[usize]| held(strip, &within_reach(extents, 1.6, 8.0));
+        assert_eq!(of(&extents, &[2]), vec![1, 2, 3]);
         // A walker of patch 5 that strays to x = 25 comes within reach of patch 2's box.
         extents[5].lo.x = 25.0;
-        assert_eq!(Surroundings::new(&extents, 1.6).of(&[2]), vec![1, 2, 3, 5]);
+        assert_eq!(of(&extents, &[2]), vec![1, 2, 3, 5]);
         // Patches 0 and 5 far apart: each with its own neighbours, not what lies between.
         let row: Vec<Extent> = (0..12).map(|i| at(8.0 * i as f64, 0.0, 1)).collect();
-        assert_eq!(
-            Surroundings::new(&row, 1.6).of(&[0, 9]),
-            vec![0, 1, 8, 9, 10]
-        );
+        assert_eq!(of(&row, &[0, 9]), vec![0, 1, 8, 9, 10]);
     }
 }

@@ -166,11 +166,12 @@ fn clearance(
         standers(lib, p).for_each(|q| e.grow(q));
     }
     let reach = 2.0 * radius + 1.0 + 1e-6;
-    let keys = pair_keys(lib, &extents, walls, reach);
+    let near = strips::within_reach(&extents, reach, f64::from(lib.world.patch_side_m));
+    let keys = pair_keys(lib, (&extents, &near), walls, reach);
     let known = keys.iter().map(|k| memo.library_pairs(k)).collect();
     let (pairs, judged) = strips::judge_pairs(
         known,
-        (&extents, reach, strips::STRIP_PIECES),
+        (&extents, &near, strips::STRIP_PIECES),
         |strip, held| Ok(strip_scene(lib, held, strip, walls)),
     )
     .expect("a library in memory is always at hand");
@@ -216,7 +217,12 @@ fn strip_scene(lib: &Library, held: &[usize], strip: &[usize], walls: &[crate::W
 /// Each library patch's pairs key: the library's bytes of it and of every patch within
 /// `reach` (where, the trajectories' starts and points, the standers), their crossings named
 /// by order of first appearance among them, and the obstacles within reach.
-fn pair_keys(lib: &Library, extents: &[Extent], walls: &[crate::Wall], reach: f64) -> Vec<Hash> {
+fn pair_keys(
+    lib: &Library,
+    (extents, near): (&[Extent], &[Vec<u32>]),
+    walls: &[crate::Wall],
+    reach: f64,
+) -> Vec<Hash> {
     let n = lib.patches.len();
     let mut by_patch: Vec<Vec<usize>> = vec![Vec::new(); n];
     for (i, t) in lib.trajectories.iter().enumerate() {
@@ -226,7 +232,6 @@ fn pair_keys(lib: &Library, extents: &[Extent], walls: &[crate::Wall], reach: f6
         .into_par_iter()
         .map(|p| library_patch_hash(lib, p, &by_patch[p]))
         .collect();
-    let near = memo::within_reach(extents, reach, f64::from(lib.world.patch_side_m));
     let grid = BoxGrid::new(walls.iter().copied(), 4.0, reach);
     let setting = memo::bytes_of(&[
         u64::from(lib.world.period_ticks),
