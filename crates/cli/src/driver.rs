@@ -156,6 +156,9 @@ fn run_stages(
             artifacts.keep_bytes(stage, bytes.to_vec());
         }
         pending.stage(ran.writes);
+        for (path, hash) in ran.hashes {
+            pending.know(path, hash);
+        }
         let peak = run
             .peak_mb
             .map(|mb| format!(", peak {mb:.0} MB"))

@@ -45,7 +45,10 @@ fn main() -> ExitCode {
     unsafe { mi_option_set(MI_OPTION_PURGE_DELAY, PURGE_DELAY_MS) };
     no_transparent_huge_pages();
     let cli = crowd::cli::Cli::parse();
-    match crowd::cli::run(cli) {
+    let result = crowd::cli::run(cli);
+    // The files a build replaced are removed in the background: none is left behind.
+    crowd_core::files::wait_for_retired();
+    match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(err) => {
             eprintln!("error: {err}");

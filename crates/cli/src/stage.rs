@@ -8,7 +8,7 @@ use crate::ui::Ui;
 use anyhow::Result;
 use crowd_core::Hash;
 use crowd_core::files::Writes;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// One stage of the pipeline.
 pub struct Stage {
@@ -52,6 +52,10 @@ pub struct Ran {
     /// The seconds its parts took, by name (stage 7: each edit), for `timings.ron` as
     /// `"stage: part"`.
     pub parts: Vec<(String, f64)>,
+    /// Hashes of files among `writes` that the stage made anyway (a side file's, the
+    /// library's), told to `Hash::of_file` once the files are in place: the check after the
+    /// build then does not read them again (painting: 530 MB).
+    pub hashes: Vec<(PathBuf, Hash)>,
 }
 
 impl Ran {
@@ -60,7 +64,14 @@ impl Ran {
             writes,
             note: None,
             parts: Vec::new(),
+            hashes: Vec::new(),
         }
+    }
+
+    /// This run, knowing that the file it writes at `path` hashes to `hash`.
+    pub fn knowing(mut self, path: PathBuf, hash: Hash) -> Ran {
+        self.hashes.push((path, hash));
+        self
     }
 
     /// The bytes written to `path`.

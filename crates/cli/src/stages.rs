@@ -403,11 +403,13 @@ fn matching(a: &mut Artifacts, out: &Path, hash: Hash, ui: &Ui) -> Result<Ran> {
     let extra = vec![Vec::new(); keys.len()];
     let writes = with_keys(out, writes, file.motion.hash, keys, &seen.tables, extra);
     let note = reuse::note(motion.len() - todo.len(), motion.len());
+    let side = side_file(out, &file);
     a.made_motion(&MATCH, (file, motion));
     Ok(Ran {
         note: Some(note),
         ..Ran::files(writes)
-    })
+    }
+    .knowing(side.0, side.1))
 }
 
 fn collide(a: &mut Artifacts, out: &Path, hash: Hash, ui: &Ui) -> Result<Ran> {
@@ -514,11 +516,13 @@ fn finish_collide(
         .map(|r| ron::to_string(r).map(String::into_bytes))
         .collect::<std::result::Result<Vec<_>, _>>()?;
     let writes = with_keys(out, writes, file.motion.hash, keys, &tables, extra);
+    let side = side_file(out, &file);
     a.made_motion(&COLLIDE, (file, motion));
     Ok(Ran {
         note: Some(note),
         ..Ran::files(writes)
-    })
+    }
+    .knowing(side.0, side.1))
 }
 
 /// Stage 5's refusal when a patch stalls.
@@ -602,11 +606,13 @@ fn smooth(a: &mut Artifacts, out: &Path, hash: Hash, ui: &Ui) -> Result<Ran> {
     let (file, writes) = crowd_smooth::encode(out, &motion, summary, &collided_file, &inputs, hash);
     let writes = with_keys(out, writes, file.motion.hash, keys, &seen.tables, extra);
     let note = reuse::note(motion.len() - todo.len(), motion.len());
+    let side = side_file(out, &file);
     a.made_motion(&SMOOTH, (file, motion));
     Ok(Ran {
         note: Some(note),
         ..Ran::files(writes)
-    })
+    }
+    .knowing(side.0, side.1))
 }
 
 /// Stage 6 put together from the shards' parts: their patch bytes one after another make the
@@ -644,11 +650,13 @@ fn smooth_gathered(
     let (file, writes) =
         crowd_smooth::encode_gathered(out, encoded, summary, &collided_file, inputs, hash);
     let writes = with_keys(out, writes, file.motion.hash, keys, &seen.tables, extra);
+    let side = side_file(out, &file);
     a.made_lazy_motion(&SMOOTH, (file, gathered.motion));
     Ok(Ran {
         note: Some(reuse::note(counts.len(), counts.len())),
         ..Ran::files(writes)
-    })
+    }
+    .knowing(side.0, side.1))
 }
 
 /// A stage's writes with its keys file put before its stage file (which comes last).
@@ -664,6 +672,11 @@ fn with_keys(
     writes.push(reuse::keys_file(out, side, keys, tables, extra));
     writes.push(seal);
     writes
+}
+
+/// Where a trajectories file's side file goes, and its hash.
+fn side_file(out: &Path, file: &TrajectoriesFile) -> (std::path::PathBuf, Hash) {
+    (out.with_file_name(&file.motion.file), file.motion.hash)
 }
 
 /// A shard's files (`encode`), in `dir/shards`, made first so that they can be written.
@@ -693,11 +706,13 @@ fn edit(a: &mut Artifacts, out: &Path, hash: Hash, ui: &Ui) -> Result<Ran> {
     let parts = edits.iter().map(|e| e.name.clone()).zip(seconds).collect();
     let (file, writes) = crowd_moments::encode(out, &motion, edits, &smoothed.0, hash);
     drop(smoothed);
+    let side = side_file(out, &file);
     a.made_motion(&EDIT, (file, motion));
     Ok(Ran {
         parts,
         ..Ran::files(writes)
-    })
+    }
+    .knowing(side.0, side.1))
 }
 
 fn export(a: &mut Artifacts, out: &Path, hash: Hash, _: &Ui) -> Result<Ran> {
@@ -712,7 +727,12 @@ fn export(a: &mut Artifacts, out: &Path, hash: Hash, _: &Ui) -> Result<Ran> {
     )?;
     let export = crowd_export::export(&graph, &patterns.1, kept, &inputs, hash)
         .map_err(|e| anyhow!("{}: cannot export: {e}", out.display()))?;
-    Ok(Ran::files(crowd_export::writes(out, export)))
+    let f = &export.file;
+    let library = (out.with_file_name(&f.library), f.library_hash);
+    let gltf = (out.with_file_name(&f.gltf), f.gltf_hash);
+    Ok(Ran::files(crowd_export::writes(out, export))
+        .knowing(library.0, library.1)
+        .knowing(gltf.0, gltf.1))
 }
 
 /// `stage`'s motion thinned out for export (`crowd_export::simplify`): from the motion this

@@ -9,6 +9,49 @@ const PARALLEL_BYTES: usize = 1 << 20;
 /// The pieces [`Hash::of_file`] reads: long enough for every core, short enough to hold.
 const FILE_PIECE_BYTES: usize = 8 << 20;
 
+/// What tells a file apart from the one it was (the file itself, not its name: a rename in
+/// place of it is another), where the system says: device, inode, length, and the times of its
+/// last write and last change. `None` where it does not: such files are always read.
+///
+/// Files this process writes are forgotten before they are written ([`Hash::forget_file`]), so
+/// a timestamp's granularity does not matter for them; a file another process rewrites in
+/// place, to the same length, within the same tick while this one holds the build folder's
+/// lock is not told apart.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct FileStamp([i64; 7]);
+
+impl FileStamp {
+    #[cfg(unix)]
+    fn of(m: &std::fs::Metadata) -> Option<FileStamp> {
+        use std::os::unix::fs::MetadataExt;
+        Some(FileStamp([
+            m.dev() as i64,
+            m.ino() as i64,
+            m.len() as i64,
+            m.mtime(),
+            m.mtime_nsec(),
+            m.ctime(),
+            m.ctime_nsec(),
+        ]))
+    }
+
+    #[cfg(not(unix))]
+    fn of(_: &std::fs::Metadata) -> Option<FileStamp> {
+        None
+    }
+}
+
+type FileHashes = std::collections::HashMap<std::path::PathBuf, (FileStamp, (u64, Hash))>;
+
+/// The hashes [`Hash::of_file`] read in this process.
+fn file_hashes() -> std::sync::MutexGuard<'static, FileHashes> {
+    static HASHES: std::sync::OnceLock<std::sync::Mutex<FileHashes>> = std::sync::OnceLock::new();
+    HASHES
+        .get_or_init(Default::default)
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner)
+}
+
 /// A BLAKE3 hash, written as 64 hex digits in stage files.
 #[derive(Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub struct Hash([u8; 32]);
@@ -27,9 +70,45 @@ impl Hash {
 
     /// Hash and length of a file's bytes, read in pieces (a 400 MB side file is checked
     /// without holding it), each hashed on every core.
+    ///
+    /// A file hashed before in this process, unchanged since, is not read again (a build's
+    /// check and report read the 425 MB side file and the library two and three times):
+    /// see [`FileStamp`].
     pub fn of_file(path: &std::path::Path) -> std::io::Result<(u64, Hash)> {
+        let file = std::fs::File::open(path)?;
+        let stamp = FileStamp::of(&file.metadata()?);
+        let known = |stamp| {
+            let cache = file_hashes();
+            cache.get(path).filter(|k| k.0 == stamp).map(|k| k.1)
+        };
+        if let Some(found) = stamp.and_then(known) {
+            return Ok(found);
+        }
+        let found = Self::read_file(file)?;
+        if let Some(stamp) = stamp {
+            file_hashes().insert(path.to_path_buf(), (stamp, found));
+        }
+        Ok(found)
+    }
+
+    /// Tells [`Hash::of_file`] that the file now at `path` hashes to `hash`: this process has
+    /// just put it there and hashed its bytes before writing them.
+    pub fn know_file(path: &std::path::Path, hash: Hash) {
+        let Ok(m) = std::fs::metadata(path) else {
+            return;
+        };
+        if let Some(stamp) = FileStamp::of(&m) {
+            file_hashes().insert(path.to_path_buf(), (stamp, (m.len(), hash)));
+        }
+    }
+
+    /// Forgets what [`Hash::of_file`] knows of `path`: this process is about to write it.
+    pub fn forget_file(path: &std::path::Path) {
+        file_hashes().remove(path);
+    }
+
+    fn read_file(mut file: std::fs::File) -> std::io::Result<(u64, Hash)> {
         use std::io::Read;
-        let mut file = std::fs::File::open(path)?;
         let mut hasher = blake3::Hasher::new();
         // No larger than the file (most hashed files are a few kilobytes of RON).
         let len = file.metadata().map_or(FILE_PIECE_BYTES as u64, |m| m.len());
@@ -170,6 +249,28 @@ mod tests {
         let path = dir.path().join("long.bin");
         std::fs::write(&path, &bytes).unwrap();
         assert_eq!(Hash::of_file(&path).unwrap(), (bytes.len() as u64, one));
+    }
+
+    /// A file hashed before and changed since, however it changed, is read again.
+    #[test]
+    fn a_file_changed_since_it_was_hashed_is_read_again() {
+        let dir = tempfile::tempdir().unwrap();
+        let (path, other) = (dir.path().join("a.bin"), dir.path().join("b.bin"));
+        let of_file = || Hash::of_file(&path).unwrap();
+        std::fs::write(&path, b"first").unwrap();
+        assert_eq!(of_file(), (5, Hash::of(b"first")));
+        assert_eq!(of_file(), (5, Hash::of(b"first")), "the same, known");
+        // Written in place, to another length.
+        std::fs::write(&path, b"second!").unwrap();
+        assert_eq!(of_file(), (7, Hash::of(b"second!")));
+        // Another file of the same length renamed in its place.
+        std::fs::write(&other, b"third!!").unwrap();
+        std::fs::rename(&other, &path).unwrap();
+        assert_eq!(of_file(), (7, Hash::of(b"third!!")));
+        // Written in place to the same length: its times of change tell it apart.
+        std::thread::sleep(std::time::Duration::from_millis(20));
+        std::fs::write(&path, b"fourth!").unwrap();
+        assert_eq!(of_file(), (7, Hash::of(b"fourth!")));
     }
 
     #[test]
