@@ -122,13 +122,13 @@ pub fn loop_headings_walking(
     }
     // Each piece's direction, NaN where it stands (8 bytes a piece: painting's longest loop
     // has 5.6 million, and its first touch of fresh memory was a third of the time).
-    let directions: Vec<f64> = (0..n - 1)
-        .map(|k| {
-            let (a, b) = (points[k], points[k + 1]);
-            let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
-            if walking[k] { dy.atan2(dx) } else { f64::NAN }
-        })
-        .collect();
+    // On every core for a long loop where the caller has threads (painting's longest: 0.11 s
+    // of `atan2` on one).
+    let directions: Vec<f64> = map_indices(n - 1, |k| {
+        let (a, b) = (points[k], points[k + 1]);
+        let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
+        if walking[k] { dy.atan2(dx) } else { f64::NAN }
+    });
     let Some(first_walk) = directions.iter().copied().find(|d| !d.is_nan()) else {
         return vec![PI / 2.0; n];
     };
@@ -282,49 +282,161 @@ pub fn character_headings(lib: &crate::Library, ch: &crate::Character) -> PointH
     // so that each trajectory's points can be asked for ahead of their turn: the loop goes
     // from patch to patch, each trajectory's points a miss of the cache.
     let mut legs = Vec::with_capacity(ch.trajectories as usize);
-    let (mut at, mut points) = (ch.first_trajectory, 0usize);
+    let mut at = ch.first_trajectory;
     for _ in 0..ch.trajectories {
         let tr = &lib.trajectories[at as usize];
-        legs.push((tr.first_point, tr.points, tr.patch));
-        points += tr.points as usize;
+        legs.push(Leg {
+            first: tr.first_point,
+            points: tr.points,
+            patch: tr.patch,
+        });
         at = tr.next;
     }
-    // A trajectory's first point is its predecessor's last: one key for both.
-    let keys = (points + 1).saturating_sub(legs.len());
-    let (mut times, mut places) = (Vec::with_capacity(keys), Vec::with_capacity(keys));
-    let mut walking = Vec::with_capacity(points.saturating_sub(legs.len()));
-    let mut tick = 0u64;
-    for (j, &(first, n, patch)) in legs.iter().enumerate() {
-        if let Some(&(ahead, _, _)) = legs.get(j + PREFETCH_LEGS) {
-            crate::sampler::prefetch(lib.points.as_ptr().wrapping_add(ahead as usize));
-        }
-        let patch = &lib.patches[patch as usize];
-        let pts = &lib.points[first as usize..(first + n) as usize];
-        for (i, p) in pts.iter().enumerate() {
-            if i > 0 || j == 0 {
-                times.push((tick + u64::from(p.t)) as f64 * crate::TICK_S);
-                places.push(lib.world_position(patch, *p));
-            }
-            if i > 0 {
-                walking.push(piece_walks(lib, pts[i - 1], *p));
-            }
-        }
-        // Its duration: its last point's ticks (`Library::duration_ticks`).
-        tick += u64::from(pts.last().map_or(0, |p| p.t));
-    }
-    let h = loop_headings_walking(&times, &places, &walking, rate);
+    let keys = loop_keys(lib, &legs);
+    let h = loop_headings_walking(&keys.times, &keys.places, &keys.walking, rate);
+    let points: usize = legs.iter().map(|l| l.points as usize).sum();
     let mut heading = Vec::with_capacity(points);
     let mut key = 0usize;
-    for (j, &(_, n, _)) in legs.iter().enumerate() {
+    for (j, leg) in legs.iter().enumerate() {
         // The first point's key is the last of the trajectory before.
         key -= usize::from(j > 0);
-        heading.extend_from_slice(&h[key..key + n as usize]);
-        key += n as usize;
+        heading.extend_from_slice(&h[key..key + leg.points as usize]);
+        key += leg.points as usize;
     }
     PointHeadings {
         heading,
-        walks: walking,
+        walks: keys.walking,
     }
+}
+
+/// One trajectory of a loop, as [`loop_keys`] reads it: its points and its patch.
+#[derive(Debug, Clone, Copy)]
+struct Leg {
+    first: u32,
+    points: u32,
+    patch: u32,
+}
+
+/// A loop's keys as the heading model reads them: times (seconds from the loop's start),
+/// world places, and whether each piece walks.
+struct LoopKeys {
+    times: Vec<f64>,
+    places: Vec<[f64; 2]>,
+    walking: Vec<bool>,
+}
+
+/// The keys of the loop of trajectories `legs` (a trajectory's first point is its
+/// predecessor's last: one key for both). Long loops are cut into runs of trajectories, each
+/// writing its own part of the lists, on every core where the caller has threads (painting's
+/// longest loop: 0.12 s on one).
+fn loop_keys(lib: &crate::Library, legs: &[Leg]) -> LoopKeys {
+    // Where each run of legs starts: its first leg, key, piece and tick.
+    let mut runs = Vec::new();
+    let (mut key, mut piece, mut tick) = (0usize, 0usize, 0u64);
+    for (j, leg) in legs.iter().enumerate() {
+        if j % LEGS_PER_RUN == 0 {
+            runs.push(Run {
+                leg: j,
+                key,
+                piece,
+                tick,
+            });
+        }
+        let n = leg.points as usize;
+        key += if j == 0 { n } else { n.saturating_sub(1) };
+        piece += n.saturating_sub(1);
+        // Its duration: its last point's ticks (`Library::duration_ticks`).
+        let last = (leg.first as usize + n).checked_sub(1);
+        tick += u64::from(last.filter(|_| n > 0).map_or(0, |l| lib.points[l].t));
+    }
+    let mut out = LoopKeys {
+        times: vec![0.0; key],
+        places: vec![[0.0; 2]; key],
+        walking: vec![false; piece],
+    };
+    // Each run's share of the lists, cut off in order.
+    let mut parts = Vec::with_capacity(runs.len());
+    let (mut times, mut places, mut walking) = (
+        &mut out.times[..],
+        &mut out.places[..],
+        &mut out.walking[..],
+    );
+    for (r, run) in runs.iter().enumerate() {
+        let next = runs.get(r + 1);
+        let keys = next.map_or(key, |n| n.key) - run.key;
+        let pieces = next.map_or(piece, |n| n.piece) - run.piece;
+        let (t, t_rest) = std::mem::take(&mut times).split_at_mut(keys);
+        let (p, p_rest) = std::mem::take(&mut places).split_at_mut(keys);
+        let (w, w_rest) = std::mem::take(&mut walking).split_at_mut(pieces);
+        (times, places, walking) = (t_rest, p_rest, w_rest);
+        let end = next.map_or(legs.len(), |n| n.leg);
+        parts.push((&legs[run.leg..end], run, (t, p, w)));
+    }
+    let fill = |(legs, run, (t, p, w)): (&[Leg], &Run, KeysPart)| {
+        fill_keys(lib, legs, run, (t, p, w));
+    };
+    #[cfg(feature = "rayon")]
+    if key >= PARALLEL_KEYS {
+        use rayon::prelude::*;
+        parts.into_par_iter().for_each(fill);
+        return out;
+    }
+    parts.into_iter().for_each(fill);
+    out
+}
+
+/// Where a run of a loop's legs starts (see [`loop_keys`]).
+struct Run {
+    leg: usize,
+    key: usize,
+    piece: usize,
+    tick: u64,
+}
+
+/// A run's share of [`LoopKeys`]' lists.
+type KeysPart<'a> = (&'a mut [f64], &'a mut [[f64; 2]], &'a mut [bool]);
+
+/// Writes the keys of `legs`, a run of a loop that starts at `run`, into its share.
+fn fill_keys(lib: &crate::Library, legs: &[Leg], run: &Run, (times, places, walking): KeysPart) {
+    let (mut key, mut piece, mut tick) = (0usize, 0usize, run.tick);
+    for (j, leg) in legs.iter().enumerate() {
+        if let Some(ahead) = legs.get(j + PREFETCH_LEGS) {
+            crate::sampler::prefetch(lib.points.as_ptr().wrapping_add(ahead.first as usize));
+        }
+        let patch = &lib.patches[leg.patch as usize];
+        let pts = &lib.points[leg.first as usize..(leg.first + leg.points) as usize];
+        let loop_first = run.leg + j == 0;
+        for (i, p) in pts.iter().enumerate() {
+            if i > 0 || loop_first {
+                times[key] = (tick + u64::from(p.t)) as f64 * crate::TICK_S;
+                places[key] = lib.world_position(patch, *p);
+                key += 1;
+            }
+            if i > 0 {
+                walking[piece] = piece_walks(lib, pts[i - 1], *p);
+                piece += 1;
+            }
+        }
+        tick += u64::from(pts.last().map_or(0, |p| p.t));
+    }
+}
+
+/// Trajectories in a run of [`loop_keys`].
+const LEGS_PER_RUN: usize = 1024;
+
+/// Keys from which a loop's lists are made on every core (where the `rayon` feature is on).
+#[cfg(feature = "rayon")]
+const PARALLEL_KEYS: usize = 1 << 16;
+
+/// `f` of every index below `n`, in order: on every core for a long list where the `rayon`
+/// feature is on (the same values: each is its own).
+fn map_indices<T: Send>(n: usize, f: impl Fn(usize) -> T + Sync + Send) -> Vec<T> {
+    #[cfg(feature = "rayon")]
+    if n >= PARALLEL_KEYS {
+        use rayon::prelude::*;
+        return (0..n).into_par_iter().map(f).collect();
+    }
+    (0..n).map(f).collect()
 }
 
 /// How many trajectories ahead [`character_headings`] asks for the points of.
@@ -532,6 +644,149 @@ mod tests {
         let points = [[0.0, 0.0], [2.0, 0.0], [-1.0, 0.0], [0.0, 0.0]];
         let h = loop_headings(&times, &points, 2.0);
         assert!(turn_between(h[2], h[1]).abs() < PI - 1e-4);
+    }
+
+    /// A library of one loop of `legs` trajectories of 1 to 40 points each, in shuffled
+    /// patches and places (not a valid library: only what [`character_headings`] reads).
+    fn one_long_loop(legs: usize, seed: u64) -> (crate::Library, crate::Character) {
+        use crate::{Patch, Point, Trajectory, World};
+        let mut state = seed;
+        let mut next = move |n: u64| {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 33) % n
+        };
+        let patches: Vec<Patch> = (0..50)
+            .map(|i| Patch {
+                col: i % 7,
+                row: i / 7,
+                first_trajectory: 0,
+                trajectories: 0,
+                first_stander: 0,
+                standers: 0,
+            })
+            .collect();
+        let (mut trajectories, mut points) = (Vec::new(), Vec::new());
+        // Trajectory j is stored at slot (j * 7) mod legs, and links to the next one's slot.
+        let slot = |j: usize| (j * 7) % legs;
+        let mut stored = vec![None; legs];
+        for j in 0..legs {
+            let n = 1 + next(40) as u32;
+            let first = points.len() as u32;
+            let mut t = 0;
+            for _ in 0..n {
+                points.push(Point {
+                    x: next(65536) as u16,
+                    y: next(65536) as u16,
+                    t,
+                });
+                // Now and then a pause: the same place a while.
+                t += 1 + next(3000) as u32;
+            }
+            stored[slot(j)] = Some(Trajectory {
+                patch: next(50) as u32,
+                entry: 0,
+                exit: 0,
+                next: slot((j + 1) % legs) as u32,
+                first_point: first,
+                points: n,
+                start: 0,
+            });
+        }
+        trajectories.extend(stored.into_iter().map(|t| t.expect("every slot")));
+        let lib = crate::Library {
+            world: World {
+                patch_side_m: 8.0,
+                period_ticks: 200_000,
+                radius_m: 0.3,
+                cols: 7,
+                rows: 8,
+                seed,
+                input_hash: [0; 8],
+                turn_rate_deg_s: 360.0,
+            },
+            patches,
+            standers: Vec::new(),
+            crossings: Vec::new(),
+            trajectories,
+            points,
+            characters: Vec::new(),
+        };
+        let ch = crate::Character {
+            first_trajectory: 0,
+            trajectories: legs as u32,
+            laps: 1,
+        };
+        (lib, ch)
+    }
+
+    /// A loop's keys walked in one go, a point at a time: the oracle of [`loop_keys`].
+    fn keys_in_one_go(lib: &crate::Library, ch: &crate::Character) -> LoopKeys {
+        let (mut times, mut places, mut walking) = (Vec::new(), Vec::new(), Vec::new());
+        let (mut at, mut tick) = (ch.first_trajectory as usize, 0u64);
+        for j in 0..ch.trajectories {
+            let tr = &lib.trajectories[at];
+            let pts = lib.points_of(tr);
+            for (i, p) in pts.iter().enumerate() {
+                if i > 0 || j == 0 {
+                    times.push((tick + u64::from(p.t)) as f64 * crate::TICK_S);
+                    places.push(lib.world_position(&lib.patches[tr.patch as usize], *p));
+                }
+                if i > 0 {
+                    walking.push(piece_walks(lib, pts[i - 1], *p));
+                }
+            }
+            tick += u64::from(lib.duration_ticks(tr));
+            at = tr.next as usize;
+        }
+        LoopKeys {
+            times,
+            places,
+            walking,
+        }
+    }
+
+    /// A long loop's keys made in runs of trajectories (on every core where the `rayon`
+    /// feature is on, as in the workspace's tests), and its headings, are the bits of walking
+    /// it in one go.
+    #[test]
+    fn a_long_loop_made_in_runs_is_the_loop_walked_in_one_go() {
+        for (legs, seed) in [(1, 1), (1023, 2), (1025, 3), (5000, 4)] {
+            let (lib, ch) = one_long_loop(legs, seed);
+            let legs_of: Vec<Leg> = {
+                let mut at = ch.first_trajectory as usize;
+                (0..ch.trajectories)
+                    .map(|_| {
+                        let tr = &lib.trajectories[at];
+                        at = tr.next as usize;
+                        Leg {
+                            first: tr.first_point,
+                            points: tr.points,
+                            patch: tr.patch,
+                        }
+                    })
+                    .collect()
+            };
+            let (runs, one) = (loop_keys(&lib, &legs_of), keys_in_one_go(&lib, &ch));
+            let bits = |v: &[f64]| v.iter().map(|a| a.to_bits()).collect::<Vec<u64>>();
+            assert_eq!(bits(&runs.times), bits(&one.times), "{legs} legs");
+            let flat = |v: &[[f64; 2]]| v.iter().flatten().map(|a| a.to_bits()).collect::<Vec<_>>();
+            assert_eq!(flat(&runs.places), flat(&one.places), "{legs} legs");
+            assert_eq!(runs.walking, one.walking, "{legs} legs");
+            let rate = f64::from(lib.world.turn_rate_deg_s).to_radians();
+            let h = reference_loop_headings_walking(&one.times, &one.places, &one.walking, rate);
+            let made = character_headings(&lib, &ch);
+            // Every point's heading: a trajectory's first point is the one before's last key.
+            let mut expected = Vec::new();
+            let mut key = 0usize;
+            for (j, leg) in legs_of.iter().enumerate() {
+                key -= usize::from(j > 0);
+                expected.extend_from_slice(&h[key..key + leg.points as usize]);
+                key += leg.points as usize;
+            }
+            assert_eq!(bits(&made.heading), bits(&expected), "{legs} legs");
+        }
     }
 
     proptest! {
