@@ -58,8 +58,11 @@ impl Default for CheckOptions {
 pub fn check(dir: &Path, options: &CheckOptions) -> Result<(CheckReport, StageRun, Redone)> {
     stages::expect_build_folder(dir)?;
     let ((report, memo, redone), run) = timed(|| measure(dir, options))?;
-    files::write_atomic(&dir.join(CHECK_FILE), files::to_ron(&report).as_bytes())?;
+    // The memo before `check.ron`: a check whose `check.ron` is up to date is skipped, so a
+    // check killed between the two must leave `check.ron` stale, not the memo (a killed build's
+    // next check would keep the last check's memo beside a fresh report).
     files::write_atomic(&dir.join(MEMO_FILE), &memo.to_bytes())?;
+    files::write_atomic(&dir.join(CHECK_FILE), files::to_ron(&report).as_bytes())?;
     let mut timings = read_timings(dir);
     timings.insert("check".to_string(), run);
     files::write_atomic(&dir.join(TIMINGS_FILE), files::to_ron(&timings).as_bytes())?;
