@@ -245,15 +245,24 @@ fn measure(dir: &Path, options: &CheckOptions) -> Result<(CheckReport, Memo, Red
     // The stage's files are read (versions, sizes, hashes) before anything is judged: a
     // stale folder is refused in a second, not after the products' minute on the million.
     // The last check's memo is read meanwhile (painting's 62 MB: a tenth of a second).
-    let (stage, memo) = rayon::join(
-        || StageFiles::open(dir, &graph, chosen),
+    // On a small world (see below) `library.crowd` is read and loaded meanwhile too: painting's
+    // takes 0.14 s on one core, which the library's judging, the check's longest part, waited
+    // for.
+    let small = small_world(dir, chosen);
+    let ((stage, memo), loaded) = rayon::join(
         || {
-            std::fs::read(dir.join(MEMO_FILE))
-                .ok()
-                .and_then(|b| Memo::from_bytes(&b))
-                .unwrap_or_default()
-                .recall()
+            rayon::join(
+                || StageFiles::open(dir, &graph, chosen),
+                || {
+                    std::fs::read(dir.join(MEMO_FILE))
+                        .ok()
+                        .and_then(|b| Memo::from_bytes(&b))
+                        .unwrap_or_default()
+                        .recall()
+                },
+            )
         },
+        || small.then(|| load_library(dir)),
     );
     let stage = stage?;
     let walls = crowd_check::walls(&graph);
@@ -265,9 +274,12 @@ fn measure(dir: &Path, options: &CheckOptions) -> Result<(CheckReport, Memo, Red
     // one after the other, as together they hold half as much memory again. Since the check
     // takes a strip of the world at a time, painting is small: 11.8 -> 10.8 s at once, 1.0 ->
     // 1.4 GB (it held 2.4 -> 3.5 GB when the stage file was one scene).
-    let library = || library(dir, &walls, limit, &memo);
+    let library = || {
+        let lib = loaded.unwrap_or_else(|| load_library(dir))?;
+        Ok::<_, anyhow::Error>(lib.map(|lib| library(&lib, &walls, limit, &memo)))
+    };
     let gltf = || gltf(dir, &graph, &walls, limit);
-    let (stage, (library, gltf)) = if small_world(dir, chosen) {
+    let (stage, (library, gltf)) = if small {
         rayon::join(
             || stage_figures(&graph, stage, &memo),
             || rayon::join(library, gltf),
@@ -389,13 +401,8 @@ struct LibraryJudged {
     played: (usize, usize),
 }
 
-/// The figures of `library.crowd`, when the folder holds one.
-fn library(
-    dir: &Path,
-    walls: &[crowd_check::Wall],
-    limit: f64,
-    memo: &Recalled,
-) -> Result<Option<LibraryJudged>> {
+/// `library.crowd` as the runtime loads it, when the folder holds one.
+fn load_library(dir: &Path) -> Result<Option<crowd_runtime::Library>> {
     let path = dir.join(LIBRARY_FILE);
     if !path.exists() {
         return Ok(None);
@@ -405,19 +412,29 @@ fn library(
         .with_context(|| format!("{}: the runtime refuses it", path.display()))?;
     // The library holds its own copy: the bytes are 904 MB of the million's check.
     drop(bytes);
+    Ok(Some(lib))
+}
+
+/// The figures of a library ([`load_library`]).
+fn library(
+    lib: &crowd_runtime::Library,
+    walls: &[crowd_check::Wall],
+    limit: f64,
+    memo: &Recalled,
+) -> LibraryJudged {
     let inputs = crowd_check::library::Inputs {
         walls,
         speed_limit_m_s: limit,
         sample_step_s: Some(SAMPLE_STEP_S),
     };
-    let judged = crowd_check::library::figures_memo(&lib, &inputs, memo);
+    let judged = crowd_check::library::figures_memo(lib, &inputs, memo);
     let redone = (judged.redone, lib.patches.len());
     let played = (judged.replayed, lib.walkers() as usize);
-    Ok(Some(LibraryJudged {
+    LibraryJudged {
         judged,
         redone,
         played,
-    }))
+    }
 }
 
 /// The figures of `world.glb`, when the folder holds one.
