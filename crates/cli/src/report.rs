@@ -101,9 +101,19 @@ impl Report {
         let mut outputs = BTreeMap::new();
         for entry in std::fs::read_dir(dir).with_context(|| format!("{}", dir.display()))? {
             let entry = entry.with_context(|| format!("{}", dir.display()))?;
-            let meta = entry.metadata()?;
+            let name = entry.file_name().to_string_lossy().into_owned();
+            // A file being written or removed (a replaced one keeps a temporary name until
+            // this process's own background thread removes it) is no output, and may be gone
+            // by now.
+            if files::is_temporary(&name) {
+                continue;
+            }
+            let meta = match entry.metadata() {
+                Err(e) if e.kind() == std::io::ErrorKind::NotFound => continue,
+                meta => meta.with_context(|| format!("{}", entry.path().display()))?,
+            };
             if meta.is_file() {
-                outputs.insert(entry.file_name().to_string_lossy().into_owned(), meta.len());
+                outputs.insert(name, meta.len());
             }
         }
         Ok(Report {

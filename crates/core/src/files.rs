@@ -623,7 +623,12 @@ mod tests {
 
     #[test]
     fn temporary_files_are_told_from_outputs() {
-        for name in [".graph.ron.tmp4242", ".world.glb.tmp1", ".write-probe77"] {
+        for name in [
+            ".graph.ron.tmp4242",
+            ".world.glb.tmp1",
+            ".write-probe77",
+            ".library.crowd.old.tmp42",
+        ] {
             assert!(is_temporary(name), "{name}");
         }
         for name in [
