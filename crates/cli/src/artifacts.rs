@@ -34,6 +34,8 @@ pub struct Artifacts<'p> {
     pub shard_costs: Option<Rc<Vec<u64>>>,
     /// A shard's stage 5 motion: its own patches and their neighbours, the others empty.
     pub shard_collided: Option<Vec<PatchMotion>>,
+    /// The last build's outputs of stages 4-6, read ahead (`crate::reuse::Prefetch`).
+    pub previous: crate::reuse::Prefetch,
     /// Where stage files are read from.
     dir: PathBuf,
     /// A stage's file given at another path (a subcommand's `--input`).
@@ -58,6 +60,7 @@ impl<'p> Artifacts<'p> {
             hashes: BTreeMap::new(),
             shard_costs: None,
             shard_collided: None,
+            previous: Default::default(),
             dir: dir.to_path_buf(),
             given: None,
             bytes: BTreeMap::new(),

@@ -150,6 +150,17 @@ fn run_stages(
         if !writable {
             files::ensure_writable_dir(out)?;
             writable = true;
+            // A stage runs: the later stages likely will, and stages 4-6 reuse patches of
+            // the last build's side files. Read them meanwhile (a shard reuses none).
+            if options.split == Split::Whole {
+                let reused = [
+                    &crate::stages::MATCH,
+                    &crate::stages::COLLIDE,
+                    &crate::stages::SMOOTH,
+                ];
+                artifacts.previous =
+                    crate::reuse::Prefetch::start(reused.into_iter().map(|s| out.join(s.output)));
+            }
         }
         let (ran, run) = timed(|| (stage.run)(artifacts, &path, hash, ui))?;
         if let Some(bytes) = ran.bytes_of(&path) {

@@ -389,7 +389,7 @@ fn matching(a: &mut Artifacts, out: &Path, hash: Hash, ui: &Ui) -> Result<Ran> {
         .into_par_iter()
         .map(|p| crowd_match::patch_key(&seen, p, measured[p].standers, &inputs))
         .collect();
-    let previous = reuse::Previous::load(out);
+    let previous = a.previous.take(out);
     let mut motion = reuse::reusable(previous.as_ref(), &keys, &seen.tables);
     drop(previous);
     let todo: Vec<usize> = (0..motion.len()).filter(|&p| motion[p].is_none()).collect();
@@ -425,7 +425,7 @@ fn collide(a: &mut Artifacts, out: &Path, hash: Hash, ui: &Ui) -> Result<Ran> {
             let patterns = a.patterns()?;
             let seen = Seen::new(&graph, &patterns.1);
             let keys = collide_keys(&seen, &matched.1, &s);
-            let previous = reuse::Previous::load(out);
+            let previous = a.previous.take(out);
             let reused = reuse::reusable(previous.as_ref(), &keys, &seen.tables);
             drop(previous);
             // A reused patch's report is its figures in the keys file.
@@ -575,10 +575,12 @@ fn smooth(a: &mut Artifacts, out: &Path, hash: Hash, ui: &Ui) -> Result<Ran> {
     let seen = Seen::new(&graph, &patterns.1);
     // The last build's side file is read (and its hash checked) meanwhile.
     let motion: &[PatchMotion] = &collided.1;
+    let mut ahead = std::mem::take(&mut a.previous);
     let (keys, previous) = rayon::join(
         || crowd_smooth::patch_keys(&seen, motion, &inputs),
-        || reuse::Previous::load(out),
+        || ahead.take(out),
     );
+    a.previous = ahead;
     let counted = |counts: [u64; 3]| counts.iter().flat_map(|c| c.to_le_bytes()).collect();
     let mut done = reuse::reusable(previous.as_ref(), &keys, &seen.tables);
     let todo: Vec<usize> = (0..done.len()).filter(|&p| done[p].is_none()).collect();
