@@ -136,11 +136,31 @@ fn write_durably(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
 /// The temporary file [`write_atomic`] writes `path` through: hidden, in the same folder, named
 /// with this process's id (so that [`FolderLock::acquire`] knows it for a killed build's).
 fn temporary(path: &Path) -> std::path::PathBuf {
+    hidden_beside(path, "tmp")
+}
+
+/// The second name a replaced file keeps until [`retire`] removes it: a temporary name of this
+/// process's, so that a killed build's are cleared by the next [`FolderLock::acquire`].
+fn retired_name(path: &Path) -> std::path::PathBuf {
+    hidden_beside(path, "old.tmp")
+}
+
+/// `.NAME.{kind}PID` beside `path` (NAME its file name, PID this process's id).
+fn hidden_beside(path: &Path, kind: &str) -> std::path::PathBuf {
     let name = path
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_default();
-    path.with_file_name(format!(".{name}.tmp{}", std::process::id()))
+    path.with_file_name(format!(".{name}.{kind}{}", std::process::id()))
+}
+
+/// Renames `tmp` over `path`. The file it replaces, if there was one, keeps a second name
+/// ([`retired_name`]), returned for [`retire`] to remove.
+fn replace(tmp: &Path, path: &Path) -> (Option<std::path::PathBuf>, std::io::Result<()>) {
+    let old = retired_name(path);
+    let kept = std::fs::hard_link(path, &old).is_ok().then_some(old);
+    crate::Hash::forget_file(path);
+    (kept, std::fs::rename(tmp, path))
 }
 
 /// Files written to their temporary names on a thread of their own while a build goes on, and
@@ -211,13 +231,9 @@ impl Staging {
         }
         let mut retired = Vec::new();
         for (k, (tmp, path)) in written.iter().enumerate() {
-            // The file it replaces keeps a second name until the background removes it.
-            let old = retired_name(path);
-            if std::fs::hard_link(path, &old).is_ok() {
-                retired.push(old);
-            }
-            crate::Hash::forget_file(path);
-            if let Err(e) = std::fs::rename(tmp, path) {
+            let (old, renamed) = replace(tmp, path);
+            retired.extend(old);
+            if let Err(e) = renamed {
                 remove_all(&written[k..]);
                 remove_retired(retired);
                 return Err(Error::io(path, "write", e));
@@ -255,16 +271,6 @@ impl Drop for Staging {
             remove_all(&written);
         }
     }
-}
-
-/// The second name a replaced file keeps until [`retire`] removes it: a temporary name of this
-/// process's, so that a killed build's are cleared by the next [`FolderLock::acquire`].
-fn retired_name(path: &Path) -> std::path::PathBuf {
-    let name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    path.with_file_name(format!(".{name}.old.tmp{}", std::process::id()))
 }
 
 /// The removals of replaced files still running; [`wait_for_retired`] waits for them.
@@ -317,11 +323,11 @@ fn remove_all(written: &[(std::path::PathBuf, std::path::PathBuf)]) {
 /// Writes `bytes` to `path` through a temporary file in the same folder and a rename.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     let tmp = temporary(path);
-    let old = retired_name(path);
-    let retired = std::fs::hard_link(path, &old).is_ok();
-    crate::Hash::forget_file(path);
-    let result = write_durably(&tmp, bytes).and_then(|_| std::fs::rename(&tmp, path));
-    retire(if retired { vec![old] } else { Vec::new() });
+    let result = write_durably(&tmp, bytes).and_then(|_| {
+        let (old, renamed) = replace(&tmp, path);
+        retire(old.into_iter().collect());
+        renamed
+    });
     if let Err(e) = result {
         let _ = std::fs::remove_file(&tmp);
         return Err(Error::io(path, "write", e));
