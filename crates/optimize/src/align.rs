@@ -55,34 +55,54 @@ pub fn align(state: &mut State) -> usize {
         let (b, i) = unkey(key);
         want[b][i] += d;
     }
-    let period = state.period_s;
+    // Borders are independent: each turns its crossings in order, on its own thread.
+    let st = &*state;
+    let turned_lists: Vec<Option<(Vec<Crossing>, usize)>> = want
+        .par_iter()
+        .enumerate()
+        .map(|(b, wanted)| align_border(st, b, wanted))
+        .collect();
     let mut turned = 0;
-    for (b, wanted) in want.iter().enumerate() {
-        for (i, &d) in wanted.iter().enumerate() {
-            let c = state.crossings[b][i];
-            if state.held[b] || d.length_squared() < 1e-12 {
-                continue;
-            }
-            let across = state.normal(b, c.way);
-            let tangent = across.perp();
-            let lean = if d.dot(across) > 1e-9 {
-                (d.dot(tangent) / d.dot(across)).clamp(-MAX_LEAN, MAX_LEAN)
-            } else {
-                MAX_LEAN * d.dot(tangent).signum()
-            };
-            let velocity = (across + tangent * lean).normalize() * c.velocity.length();
-            let new = Crossing { velocity, ..c };
-            let others: Vec<Crossing> = state.crossings[b]
-                .iter()
-                .enumerate()
-                .filter(|(j, _)| *j != i)
-                .map(|(_, o)| *o)
-                .collect();
-            if state.spacing.fits(&new, &others, period) {
-                state.crossings[b][i] = new;
-                turned += 1;
-            }
+    for (b, list) in turned_lists.into_iter().enumerate() {
+        if let Some((list, n)) = list {
+            state.crossings[b] = list;
+            turned += n;
         }
     }
     turned
+}
+
+/// Border `b`'s crossings, each leaned towards the lines wanted of it where the border's
+/// spacing allows, one after another, and how many turned (`None`: none).
+fn align_border(state: &State, b: usize, wanted: &[DVec2]) -> Option<(Vec<Crossing>, usize)> {
+    if state.held[b] {
+        return None;
+    }
+    let period = state.period_s;
+    let mut list = state.crossings[b].clone();
+    let mut turned = 0;
+    for (i, &d) in wanted.iter().enumerate() {
+        let c = list[i];
+        if d.length_squared() < 1e-12 {
+            continue;
+        }
+        let across = state.normal(b, c.way);
+        let tangent = across.perp();
+        let lean = if d.dot(across) > 1e-9 {
+            (d.dot(tangent) / d.dot(across)).clamp(-MAX_LEAN, MAX_LEAN)
+        } else {
+            MAX_LEAN * d.dot(tangent).signum()
+        };
+        let velocity = (across + tangent * lean).normalize() * c.velocity.length();
+        let new = Crossing { velocity, ..c };
+        let fits = list
+            .iter()
+            .enumerate()
+            .all(|(j, o)| j == i || state.spacing.compatible(&new, o, period));
+        if fits {
+            list[i] = new;
+            turned += 1;
+        }
+    }
+    (turned > 0).then_some((list, turned))
 }

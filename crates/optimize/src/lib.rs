@@ -571,22 +571,12 @@ fn step(
     for p in &state.graph.patches {
         sizes[p.component as usize] += 1;
     }
-    let budget = |group: &[usize]| {
-        sizes[state.graph.patches[group[0]].component as usize] / PATCHES_PER_PATH + 1
-    };
+    let budget = |component: u32| sizes[component as usize] / PATCHES_PER_PATH + 1;
     let choose = |mode: Mode| -> Vec<Vec<usize>> {
         let optima = search::optima(state, &errors, mode, quantum / 2.0);
-        let mut used = vec![0usize; sizes.len()];
-        search::groups(state, &optima, GROUP_RADIUS, GROUP_SIZE)
-            .into_iter()
-            .filter(|g| {
-                let c = state.graph.patches[g[0]].component as usize;
-                used[c] += 1;
-                used[c] <= budget(g)
-            })
-            .collect()
+        search::groups(state, &optima, (GROUP_RADIUS, GROUP_SIZE), budget)
     };
-    let (maxima, minima) = (choose(Mode::Remove), choose(Mode::Add));
+    let (maxima, minima) = rayon::join(|| choose(Mode::Remove), || choose(Mode::Add));
     // Paths are found in parallel on this step's snapshot, then applied in order.
     let find = |groups: &[Vec<usize>], mode: Mode| -> Vec<Option<Vec<Step>>> {
         groups

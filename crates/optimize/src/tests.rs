@@ -227,3 +227,86 @@ fn a_change_inside_a_region_moves_no_crossing_outside_it_and_reuse_is_exact() {
     );
     assert!(parity(&changed, &after.crossings).iter().all(|&b| b == 0));
 }
+
+/// A 200 m x 96 m scene of 8 m patches cut in two by a wall without a door: two components.
+fn two_rooms() -> PatchGraph {
+    let (w, h) = (200, 96);
+    let mut maps = MergedMaps::empty(w, h, 1.0);
+    maps.walkers = Grid::filled(w, h, 0.3);
+    for y in 0..h {
+        let i = (y * w + 100) as usize;
+        maps.blocked.as_mut_slice()[i] = true;
+        maps.walkers.as_mut_slice()[i] = 0.0;
+    }
+    let inputs = crowd_graph::GraphInputs::counted(2000, 8.0);
+    crowd_graph::build_graph(&maps, &inputs, Hash::of(b"t"), &()).unwrap()
+}
+
+/// The groups as first written: every later optimum of the component measured, every group
+/// made, then each component's first `budget` kept.
+fn groups_by_every_pair(
+    state: &State,
+    optima: &[usize],
+    (radius, size): (u32, usize),
+    budget: impl Fn(u32) -> usize,
+) -> Vec<Vec<usize>> {
+    let cell = |u: usize| state.graph.patches[u].cell;
+    let component = |u: usize| state.graph.patches[u].component;
+    let mut taken = vec![false; optima.len()];
+    let mut out = Vec::new();
+    for i in 0..optima.len() {
+        if taken[i] {
+            continue;
+        }
+        taken[i] = true;
+        let mut group = vec![optima[i]];
+        let mut near: Vec<(u32, usize)> = (i + 1..optima.len())
+            .filter(|&j| !taken[j] && component(optima[j]) == component(optima[i]))
+            .map(|j| {
+                let (a, b) = (cell(optima[i]), cell(optima[j]));
+                (a.col.abs_diff(b.col) + a.row.abs_diff(b.row), j)
+            })
+            .filter(|&(d, _)| d <= radius)
+            .collect();
+        near.sort();
+        for &(_, j) in near.iter().take(size - 1) {
+            taken[j] = true;
+            group.push(optima[j]);
+        }
+        out.push(group);
+    }
+    let mut used = std::collections::HashMap::new();
+    out.retain(|g| {
+        let used = used.entry(component(g[0])).or_insert(0);
+        *used += 1;
+        *used <= budget(component(g[0]))
+    });
+    out
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(64))]
+
+    /// Optima looked up by squares of cells, with each component's budget, make the groups
+    /// that measuring every later optimum and dropping the groups past the budget makes.
+    #[test]
+    fn groups_by_squares_are_the_groups_of_every_pair(
+        picks in proptest::collection::vec(0usize..10_000, 0..200),
+        radius in 0u32..7,
+        size in 1usize..5,
+        budgets in (0usize..40, 0usize..40),
+    ) {
+        let graph = two_rooms();
+        prop_assume!(graph.components.len() == 2);
+        let matching = MatchSettings::default();
+        let state = State::new(&graph, &matching, 20.0, stander_counts(&graph));
+        let mut optima: Vec<usize> = picks.iter().map(|p| p % graph.patches.len()).collect();
+        let mut seen = std::collections::HashSet::new();
+        optima.retain(|u| seen.insert(*u));
+        let budget = |c: u32| if c == 0 { budgets.0 } else { budgets.1 };
+        prop_assert_eq!(
+            search::groups(&state, &optima, (radius, size), budget),
+            groups_by_every_pair(&state, &optima, (radius, size), budget)
+        );
+    }
+}
