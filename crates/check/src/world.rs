@@ -46,6 +46,7 @@ impl Repeat {
 }
 
 /// Everything that takes up room in a world.
+#[derive(Debug)]
 pub(crate) struct Scene {
     pub radius: f64,
     pub repeat: Repeat,
@@ -307,17 +308,19 @@ impl Scene {
     /// the others' starts (sorted, as integers: a comparison of floats made the sort a tenth
     /// of the check), so a cell's pieces are not all compared with all: they are spread over
     /// the whole period. Pairs whose paths are `reach` or farther apart along an axis are left
-    /// out. A pair may come twice (a span that wraps past the period meets one both ways),
+    /// out; `visit` is told how far apart they are along the axis where they are farthest
+    /// (negative where their boxes overlap), no more than their distance. A pair may come twice (a span that wraps past the period meets one both ways),
     /// which the callers' keyed minima do not mind: sorting a dense cell's pairs to drop the
     /// few twins cost more than measuring them (a quarter of the check).
-    fn coexisting(&self, ids: &[u32], reach: f64, mut visit: impl FnMut(u32, u32)) {
+    fn coexisting(&self, ids: &[u32], reach: f64, mut visit: impl FnMut(u32, u32, f64)) {
         let (period, periodic) = self.periodicity();
         let mut cell: Vec<Span> = ids.iter().map(|&i| self.span(i)).collect();
         cell.sort_unstable_by_key(|s| (ordered_bits(s.0), s.2));
         for (x, &(start, end, i, lo, hi)) in cell.iter().enumerate() {
             let mut pair = |o: &Span| {
-                if (o.3 - hi).max(lo - o.4).max_element() < reach {
-                    visit(i, o.2);
+                let apart = (o.3 - hi).max(lo - o.4).max_element();
+                if apart < reach {
+                    visit(i, o.2, apart);
                 }
             };
             if periodic && end - start >= period {
@@ -339,6 +342,12 @@ impl Scene {
     /// closest approach of any pair (`None` when no two come within reach). Only those are
     /// kept: a painting's pairs within reach ran to gigabytes.
     fn walker_pairs(&self) -> Found<(u32, u32), Near> {
+        self.walker_pairs_with(true)
+    }
+
+    /// [`Scene::walker_pairs`], measuring every pair of pieces that come within reach when
+    /// not `prune` (the reference its tests hold it to).
+    fn walker_pairs_with(&self, prune: bool) -> Found<(u32, u32), Near> {
         let r = self.radius;
         let grid = PieceGrid::new(self.pieces.iter().map(|p| &p.seg), 4.0, 2.0 * r);
         let reach = 2.0 * r + 1.0;
@@ -349,7 +358,9 @@ impl Scene {
             .map(|(k, ids)| {
                 let mut out = Vec::new();
                 let mut nearest: Vec<(u32, Near)> = Vec::new();
-                self.coexisting(ids, reach, |i, j| {
+                // The nearest distance found so far in this cell, per owning patch.
+                let mut so_far: Vec<(u32, f64)> = Vec::new();
+                self.coexisting(ids, reach, |i, j, apart| {
                     if !grid.owns(*k, i, j) {
                         return;
                     }
@@ -361,11 +372,23 @@ impl Scene {
                     if !self.owns_pair(a, b) {
                         return;
                     }
+                    let owner = a.patch.min(b.patch);
+                    let found = so_far.iter().position(|s| s.0 == owner);
+                    // Pieces farther apart than the clearance and than the nearest pair of
+                    // their patch so far can be neither a collision nor its nearest pair
+                    // (not measuring them took 7 % off the check's time on `painting`).
+                    if prune && apart >= 2.0 * r && found.is_some_and(|f| apart > so_far[f].1) {
+                        return;
+                    }
                     if let Some((d, t, at)) = self.pair(a, b)
                         && d < reach
                     {
+                        match found {
+                            Some(f) => so_far[f].1 = so_far[f].1.min(d),
+                            None => so_far.push((owner, d)),
+                        }
                         let near = (d, t, at, a.patch != b.patch);
-                        note(&mut nearest, a.patch.min(b.patch), near);
+                        note(&mut nearest, owner, near);
                         if d - 2.0 * r < -COLLISION_M {
                             let key = (a.walker.min(b.walker), a.walker.max(b.walker));
                             out.push((key, near));
@@ -597,7 +620,52 @@ mod tests {
         }
     }
 
+    /// Walkers crossing a 12 m square in a few straight pieces each, over a 20 s clip, each
+    /// counted in one of four patches: crowded enough that many collide.
+    fn crowd() -> impl Strategy<Value = Scene> {
+        let walker = (
+            proptest::collection::vec((0.0f64..12.0, 0.0f64..12.0), 2..6),
+            0.0f64..10.0,
+            0.5f64..3.0,
+            0u32..4,
+        );
+        proptest::collection::vec(walker, 2..40).prop_map(|walkers| {
+            let mut pieces = Vec::new();
+            for (w, (points, start, step, patch)) in walkers.into_iter().enumerate() {
+                for (k, pair) in points.windows(2).enumerate() {
+                    let t0 = start + k as f64 * step;
+                    pieces.push(Piece {
+                        seg: Segment {
+                            p0: DVec2::new(pair[0].0, pair[0].1),
+                            t0,
+                            p1: DVec2::new(pair[1].0, pair[1].1),
+                            t1: t0 + step,
+                        },
+                        walker: w as u32,
+                        patch,
+                    });
+                }
+            }
+            Scene {
+                radius: 0.3,
+                repeat: Repeat::Clip(20.0),
+                pieces,
+                ends: vec![],
+                standers: vec![],
+                walls: vec![],
+                owned: Owned::Every,
+            }
+        })
+    }
+
     proptest! {
+        /// Leaving out the pieces farther apart than the clearance and than their patch's
+        /// nearest pair so far finds every collision and every patch's nearest pair, exactly.
+        #[test]
+        fn pairs_left_out_change_no_collision_and_no_nearest(scene in crowd()) {
+            prop_assert_eq!(scene.walker_pairs_with(true), scene.walker_pairs_with(false));
+        }
+
         /// The sweep's integer sort orders starts as `f64::total_cmp` does.
         #[test]
         fn ordered_bits_order_as_floats(a in any::<f64>(), b in any::<f64>()) {
@@ -615,7 +683,7 @@ mod tests {
             let s = scene(&spans, repeat);
             let ids: Vec<u32> = (0..spans.len() as u32).collect();
             let mut kept = std::collections::HashSet::new();
-            s.coexisting(&ids, f64::INFINITY, |i, j| {
+            s.coexisting(&ids, f64::INFINITY, |i, j, _| {
                 kept.insert((i.min(j), i.max(j)));
             });
             for i in 0..spans.len() {
