@@ -308,10 +308,11 @@ impl Scene {
     /// the others' starts (sorted, as integers: a comparison of floats made the sort a tenth
     /// of the check), so a cell's pieces are not all compared with all: they are spread over
     /// the whole period. Pairs whose paths are `reach` or farther apart along an axis are left
-    /// out; `visit` is told how far apart they are along the axis where they are farthest
-    /// (negative where their boxes overlap), no more than their distance. A pair may come twice (a span that wraps past the period meets one both ways),
-    /// which the callers' keyed minima do not mind: sorting a dense cell's pairs to drop the
-    /// few twins cost more than measuring them (a quarter of the check).
+    /// out; `visit` is told how far apart the two are along the axis where they are farthest
+    /// (negative where their boxes overlap: never more than their distance). A pair may come
+    /// twice (a span that wraps past the period meets one both ways), which the callers'
+    /// keyed minima do not mind: sorting a dense cell's pairs to drop the few twins cost more
+    /// than measuring them (a quarter of the check).
     fn coexisting(&self, ids: &[u32], reach: f64, mut visit: impl FnMut(u32, u32, f64)) {
         let (period, periodic) = self.periodicity();
         let mut cell: Vec<Span> = ids.iter().map(|&i| self.span(i)).collect();
