@@ -107,10 +107,7 @@ pub fn groups(
                     list[later..]
                         .iter()
                         .filter(|&&j| !taken[j] && component(optima[j]) == c)
-                        .map(|&j| {
-                            let (a, b) = (cell(u), cell(optima[j]));
-                            (a.col.abs_diff(b.col) + a.row.abs_diff(b.row), j)
-                        })
+                        .map(|&j| (cells_apart(state, u, optima[j]), j))
                         .filter(|&(d, _)| d <= radius),
                 );
             }
@@ -124,6 +121,12 @@ pub fn groups(
         out.push(group);
     }
     out
+}
+
+/// How many cells apart patches `u` and `v` are, along the grid (Manhattan).
+pub(crate) fn cells_apart(state: &State, u: usize, v: usize) -> u32 {
+    let (a, b) = (state.graph.patches[u].cell, state.graph.patches[v].cell);
+    a.col.abs_diff(b.col) + a.row.abs_diff(b.row)
 }
 
 /// The patch graph as petgraph sees it: a node per patch, an edge per way through an open

@@ -250,7 +250,6 @@ fn groups_by_every_pair(
     (radius, size): (u32, usize),
     budget: impl Fn(u32) -> usize,
 ) -> Vec<Vec<usize>> {
-    let cell = |u: usize| state.graph.patches[u].cell;
     let component = |u: usize| state.graph.patches[u].component;
     let mut taken = vec![false; optima.len()];
     let mut out = Vec::new();
@@ -262,10 +261,7 @@ fn groups_by_every_pair(
         let mut group = vec![optima[i]];
         let mut near: Vec<(u32, usize)> = (i + 1..optima.len())
             .filter(|&j| !taken[j] && component(optima[j]) == component(optima[i]))
-            .map(|j| {
-                let (a, b) = (cell(optima[i]), cell(optima[j]));
-                (a.col.abs_diff(b.col) + a.row.abs_diff(b.row), j)
-            })
+            .map(|j| (search::cells_apart(state, optima[i], optima[j]), j))
             .filter(|&(d, _)| d <= radius)
             .collect();
         near.sort();
