@@ -141,6 +141,8 @@ fn run_stages(
                 stage.name,
                 path.display()
             ));
+            // Its last output, read ahead, is not needed: not held through the build.
+            artifacts.previous.forget(&path);
             outcomes.push(StageOutcome {
                 stage: stage.name,
                 seconds: None,
@@ -151,15 +153,19 @@ fn run_stages(
             files::ensure_writable_dir(out)?;
             writable = true;
             // A stage runs: the later stages likely will, and stages 4-6 reuse patches of
-            // the last build's side files. Read them meanwhile (a shard reuses none).
+            // the last build's side files. Read those of this stage and the ones after it
+            // that this build goes to meanwhile (a shard reuses none).
             if options.split == Split::Whole {
                 let reused = [
                     &crate::stages::MATCH,
                     &crate::stages::COLLIDE,
                     &crate::stages::SMOOTH,
                 ];
+                let ahead = stage::up_to(until)
+                    .skip_while(|s| *s != stage)
+                    .filter(|s| reused.contains(s));
                 artifacts.previous =
-                    crate::reuse::Prefetch::start(reused.into_iter().map(|s| out.join(s.output)));
+                    crate::reuse::Prefetch::start(ahead.map(|s| out.join(s.output)));
             }
         }
         let (ran, run) = timed(|| (stage.run)(artifacts, &path, hash, ui))?;

@@ -80,6 +80,12 @@ impl Prefetch {
         Prefetch { loading }
     }
 
+    /// Lets go of what is read ahead for `stage_file` (its stage is up to date): the thread
+    /// finishes its read, and what it read is dropped then.
+    pub fn forget(&mut self, stage_file: &Path) {
+        self.loading.retain(|(p, _)| p != stage_file);
+    }
+
     /// The last build's output at `stage_file`: as read ahead, or read now.
     pub fn take(&mut self, stage_file: &Path) -> Option<Previous> {
         match self.loading.iter().position(|(p, _)| p == stage_file) {
