@@ -488,3 +488,79 @@ fn the_turn_rate_section_is_read_defaulted_and_checked() {
     let err = Library::from_bytes(&with_fresh_checksums(fast)).unwrap_err();
     assert!(err.to_string().contains("TURN"), "{err}");
 }
+
+/// A gathering build's export reads each patch of the final motion when it asks for it (from
+/// the file, thinned again each time) and holds only the patches whose loops its glTF region
+/// may show: it must write the bytes of the export that holds the whole world thinned.
+#[test]
+fn export_made_patch_by_patch_writes_what_export_of_the_held_motion_writes() {
+    use crowd_export::motion::{Made, Summaries};
+    for name in ["city", "ring"] {
+        let out = scene(name);
+        let graph = crowd_core::PatchGraph::load(&out.join("graph.ron")).unwrap();
+        let (_, crossings) =
+            crowd_core::patterns::Patterns::load(&out.join("patterns.ron")).unwrap();
+        let (stage, version) = (crowd_smooth::STAGE, crowd_smooth::VERSION);
+        let patches = graph.patches.len();
+        let (_, lazy) =
+            TrajectoriesFile::open_for(&out.join("smoothed.ron"), stage, version, patches).unwrap();
+        let size = graph.world.size_m;
+        // The whole world, and a quarter of it.
+        for region in [None, Some((0.0, 0.0, size.x / 2.0, size.y / 2.0))] {
+            let inputs = crowd_export::Inputs {
+                period_s: 20.0,
+                seed: 7,
+                settings: crowd_core::config::ExportSettings {
+                    gltf_region: region,
+                    simplify_mm: 0.75,
+                    turn_rate_deg_s: 360.0,
+                },
+            };
+            let tolerance = crowd_export::tolerance_m(&inputs);
+            let hash = crowd_core::Hash::of(name.as_bytes());
+            let held = crowd_export::simplify::motion(smoothed(out), tolerance);
+            let whole = crowd_export::export(&graph, &crossings, &held, &inputs, hash).unwrap();
+            let made = Made::new(lazy.patches(), |p| {
+                Ok(crowd_export::simplify::patch(lazy.patch(p)?, tolerance))
+            });
+            let part = crowd_export::export(&graph, &crossings, &made, &inputs, hash).unwrap();
+            assert_eq!(whole.file, part.file, "{name} {region:?}");
+            assert!(
+                whole.library == part.library,
+                "{name} {region:?}: library.crowd differs"
+            );
+            assert!(
+                whole.glb == part.glb,
+                "{name} {region:?}: world.glb differs"
+            );
+            // With a region, city's patches far from it are never read for the glTF (ring's
+            // loops go round the ring, each near the region once a lap).
+            let summaries = Summaries::of(&graph, &made).unwrap();
+            let links = crowd_export::characters::link(&held, crossings.len()).unwrap();
+            let (library, _) = crowd_export::library::build(
+                &graph, &crossings, &held, &summaries, &links, 20.0, 7, [0; 8],
+            )
+            .unwrap();
+            let world = crowd_export::glb::World {
+                graph: &graph,
+                summaries: &summaries,
+                motion: &made,
+                links: &links,
+                period_s: 20.0,
+                seed: 7,
+                input_hash: String::new(),
+                region,
+                library: &library,
+            };
+            let read = crowd_export::glb::patches_read(&world)
+                .iter()
+                .filter(|&&r| r)
+                .count();
+            let walked = held.iter().filter(|m| !m.trajectories.is_empty()).count();
+            match region {
+                None => assert_eq!(read, walked, "{name}"),
+                Some(_) => assert!(read < walked, "{name}: {read} of {walked} patches read"),
+            }
+        }
+    }
+}

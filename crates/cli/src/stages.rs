@@ -14,7 +14,7 @@ use crowd_core::files::{self, Header};
 use crowd_core::maps::MergeFile;
 use crowd_core::patch_keys::Seen;
 use crowd_core::patterns::Patterns;
-use crowd_core::trajectories::{PatchMotion, TrajectoriesFile};
+use crowd_core::trajectories::{LazyMotion, PatchMotion, TrajectoriesFile};
 use crowd_core::{Hash, PatchGraph};
 use rayon::prelude::*;
 use std::path::Path;
@@ -724,13 +724,25 @@ fn export(a: &mut Artifacts, out: &Path, hash: Hash, _: &Ui) -> Result<Ran> {
     a.pipeline
         .check_region((graph.world.size_m.x, graph.world.size_m.y))?;
     let inputs = crowd_export::inputs(a.pipeline);
-    let kept = thinned(
-        a,
-        final_motion(a.pipeline),
-        crowd_export::tolerance_m(&inputs),
-    )?;
-    let export = crowd_export::export(&graph, &patterns.1, kept, &inputs, hash)
-        .map_err(|e| anyhow!("{}: cannot export: {e}", out.display()))?;
+    let tolerance_m = crowd_export::tolerance_m(&inputs);
+    let stage = final_motion(a.pipeline);
+    let failed = |e| anyhow!("{}: cannot export: {e}", out.display());
+    let export = if a.holds_motion(stage) {
+        // Each patch's dense keyframes are freed as it is thinned.
+        let held = a.take_motion(stage)?;
+        let motion = std::rc::Rc::try_unwrap(held).map_or_else(|shared| shared.1.clone(), |m| m.1);
+        let kept = crowd_export::simplify::motion(motion, tolerance_m);
+        crowd_export::export(&graph, &patterns.1, &kept, &inputs, hash).map_err(failed)?
+    } else {
+        // A gathering build: each patch read from the stage's files and thinned when export
+        // asks, so neither the world's dense motion nor its thinned copy is held.
+        let lazy = lazy_motion(a, stage)?;
+        let motion = &lazy.1;
+        let made = crowd_export::motion::Made::new(motion.patches(), |p| {
+            Ok(crowd_export::simplify::patch(motion.patch(p)?, tolerance_m))
+        });
+        crowd_export::export(&graph, &patterns.1, &made, &inputs, hash).map_err(failed)?
+    };
     let f = &export.file;
     let library = (out.with_file_name(&f.library), f.library_hash);
     let gltf = (out.with_file_name(&f.gltf), f.gltf_hash);
@@ -739,31 +751,19 @@ fn export(a: &mut Artifacts, out: &Path, hash: Hash, _: &Ui) -> Result<Ran> {
         .knowing(gltf.0, gltf.1))
 }
 
-/// `stage`'s motion thinned out for export (`crowd_export::simplify`): from the motion this
-/// build holds, taken (each patch's dense keyframes freed as it is done), or else read from
-/// the stage's file a patch at a time, so that the dense motion of the world is never held
-/// (the million's gather: 4.2 GB of side file, more decoded).
-fn thinned(a: &mut Artifacts, stage: &'static Stage, tolerance_m: f64) -> Result<Vec<PatchMotion>> {
-    if a.holds_motion(stage) {
-        let held = a.take_motion(stage)?;
-        let motion = std::rc::Rc::try_unwrap(held).map_or_else(|shared| shared.1.clone(), |m| m.1);
-        return Ok(crowd_export::simplify::motion(motion, tolerance_m));
+/// `stage`'s motion left in its files, each patch read when asked: the read-ahead's, or
+/// opened now.
+fn lazy_motion(
+    a: &mut Artifacts,
+    stage: &'static Stage,
+) -> Result<std::rc::Rc<(TrajectoriesFile, LazyMotion)>> {
+    if let Some(made) = a.lazy_motion(stage) {
+        return Ok(made);
     }
-    let lazy = match a.lazy_motion(stage) {
-        Some(made) => made,
-        None => {
-            let path = a.path(stage.output);
-            let patches = a.graph()?.patches.len();
-            let opened = TrajectoriesFile::open_for(&path, stage.kind, stage.version, patches)?;
-            std::rc::Rc::new(opened)
-        }
-    };
-    let motion = &lazy.1;
-    let kept: Vec<crowd_core::Result<PatchMotion>> = (0..motion.patches())
-        .into_par_iter()
-        .map(|p| Ok(crowd_export::simplify::patch(motion.patch(p)?, tolerance_m)))
-        .collect();
-    Ok(kept.into_iter().collect::<crowd_core::Result<_>>()?)
+    let path = a.path(stage.output);
+    let patches = a.graph()?.patches.len();
+    let opened = TrajectoriesFile::open_for(&path, stage.kind, stage.version, patches)?;
+    Ok(std::rc::Rc::new(opened))
 }
 
 /// Refuses a folder that holds no stage file, for the commands that read a build folder

@@ -64,37 +64,48 @@ impl std::error::Error for LinkError {}
 
 /// Links the trajectories of `motion` through `crossings` crossings.
 pub fn link(motion: &[PatchMotion], crossings: usize) -> Result<Links, LinkError> {
+    let ends = motion.iter().enumerate().flat_map(|(patch, m)| {
+        (m.trajectories.iter().enumerate())
+            .map(move |(index, tr)| (TrajectoryRef { patch, index }, tr.entry, tr.exit))
+    });
+    link_ends(ends, crossings)
+}
+
+/// Links trajectories given as (where, entry, exit), numbered in the order given, through
+/// `crossings` crossings.
+pub fn link_ends(
+    ends: impl Iterator<Item = (TrajectoryRef, u32, u32)>,
+    crossings: usize,
+) -> Result<Links, LinkError> {
     let mut refs = Vec::new();
+    let mut exit_of = Vec::new();
     let mut entered_by: Vec<Option<usize>> = vec![None; crossings];
     let mut counts = vec![0usize; crossings];
     let mut exits = vec![0usize; crossings];
-    for (patch, m) in motion.iter().enumerate() {
-        for (index, tr) in m.trajectories.iter().enumerate() {
-            for c in [tr.entry, tr.exit] {
-                if c as usize >= crossings {
-                    return Err(LinkError::UnknownCrossing {
-                        patch,
-                        trajectory: index,
-                        crossing: c,
-                    });
-                }
-            }
-            exits[tr.exit as usize] += 1;
-            if exits[tr.exit as usize] > 1 {
-                return Err(LinkError::Exits {
-                    crossing: tr.exit,
-                    count: exits[tr.exit as usize],
+    for (r, entry, exit) in ends {
+        for c in [entry, exit] {
+            if c as usize >= crossings {
+                return Err(LinkError::UnknownCrossing {
+                    patch: r.patch,
+                    trajectory: r.index,
+                    crossing: c,
                 });
             }
-            entered_by[tr.entry as usize] = Some(refs.len());
-            counts[tr.entry as usize] += 1;
-            refs.push(TrajectoryRef { patch, index });
         }
+        exits[exit as usize] += 1;
+        if exits[exit as usize] > 1 {
+            return Err(LinkError::Exits {
+                crossing: exit,
+                count: exits[exit as usize],
+            });
+        }
+        entered_by[entry as usize] = Some(refs.len());
+        counts[entry as usize] += 1;
+        refs.push(r);
+        exit_of.push(exit);
     }
-    let traj = |r: &TrajectoryRef| &motion[r.patch].trajectories[r.index];
     let mut next = Vec::with_capacity(refs.len());
-    for r in &refs {
-        let exit = traj(r).exit;
+    for &exit in &exit_of {
         match (counts[exit as usize], entered_by[exit as usize]) {
             (1, Some(n)) => next.push(n),
             (count, _) => {
@@ -105,6 +116,7 @@ pub fn link(motion: &[PatchMotion], crossings: usize) -> Result<Links, LinkError
             }
         }
     }
+    drop(exit_of);
     let mut seen = vec![false; refs.len()];
     let mut loops = Vec::new();
     for start in 0..refs.len() {

@@ -7,10 +7,12 @@
 //! - [`characters`]: those links as loops, the one notion of "a character" both outputs share.
 //! - [`simplify`]: both are made from the keyframes an engine needs, within `simplify_mm` of
 //!   stage 6's.
+//! - [`motion`]: those keyframes a patch at a time, held or read when asked.
 
 pub mod characters;
 pub mod glb;
 pub mod library;
+pub mod motion;
 pub mod simplify;
 
 use crowd_core::{Hash, Hasher};
@@ -116,37 +118,70 @@ pub struct Export {
 }
 
 /// Why stage 8 cannot export a build.
-pub type ExportError = library::LibraryError;
+#[derive(Debug)]
+pub enum ExportError {
+    Library(library::LibraryError),
+    /// A patch of the final motion could not be read.
+    Motion(crowd_core::Error),
+}
+
+impl std::fmt::Display for ExportError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            ExportError::Library(e) => e.fmt(f),
+            ExportError::Motion(e) => e.fmt(f),
+        }
+    }
+}
+
+impl std::error::Error for ExportError {}
+
+impl From<library::LibraryError> for ExportError {
+    fn from(e: library::LibraryError) -> Self {
+        ExportError::Library(e)
+    }
+}
+
+impl From<crowd_core::Error> for ExportError {
+    fn from(e: crowd_core::Error) -> Self {
+        ExportError::Motion(e)
+    }
+}
 
 /// How far [`simplify::motion`] may move a keyframe for `inputs`, metres.
 pub fn tolerance_m(inputs: &Inputs) -> f64 {
     inputs.settings.simplify_mm * 1e-3
 }
 
-/// Stage 8's pure core: the library of the final trajectories, and its manifest. `kept` is the
-/// final motion thinned out by [`simplify::motion`] (or [`simplify::patch`] patch by patch)
-/// with [`tolerance_m`].
-pub fn export(
+/// Stage 8's pure core: the library of the final trajectories, and its manifest. `motion` is
+/// the final motion thinned out by [`simplify::motion`] (or [`simplify::patch`] patch by patch)
+/// with [`tolerance_m`], held or made a patch at a time when asked ([`motion::Made`]).
+pub fn export<M: motion::Motion>(
     graph: &crowd_core::PatchGraph,
     crossings: &[crowd_core::patterns::Crossing],
-    kept: Vec<crowd_core::trajectories::PatchMotion>,
+    motion: &M,
     inputs: &Inputs,
     hash: Hash,
 ) -> Result<Export, ExportError> {
     let tolerance_m = tolerance_m(inputs);
-    let motion = &kept[..];
-    let links = characters::link(motion, crossings.len()).map_err(library::LibraryError::Links)?;
+    let summaries = motion::Summaries::of(graph, motion)?;
+    let ends =
+        (summaries.refs.iter().zip(&summaries.trajectories)).map(|(&r, s)| (r, s.entry, s.exit));
+    let links =
+        characters::link_ends(ends, crossings.len()).map_err(library::LibraryError::Links)?;
     let mut short = [0u8; 8];
     short.copy_from_slice(&hash.as_bytes()[..8]);
     let (mut lib, eased_m) = library::build(
         graph,
         crossings,
         motion,
+        &summaries,
         &links,
         inputs.period_s,
         inputs.seed,
         short,
     )?;
+    let region = inputs.settings.gltf_region;
     lib.world.turn_rate_deg_s = inputs.settings.turn_rate_deg_s as f32;
     // The library's bytes beside `world.glb`: the glTF's longest loop keeps one thread busy
     // long after the others are done (painting's stroke: 0.2 s).
@@ -155,16 +190,18 @@ pub fn export(
         || {
             glb::world_glb(&glb::World {
                 graph,
+                summaries: &summaries,
                 motion,
                 links: &links,
                 period_s: inputs.period_s,
                 seed: inputs.seed,
                 input_hash: hash.to_string(),
-                region: inputs.settings.gltf_region,
+                region,
                 library: &lib,
             })
         },
     );
+    let glb = glb?;
     let file = ExportFile {
         header: crowd_core::files::Header::new(STAGE, VERSION, hash),
         library: LIBRARY_FILE.to_string(),

@@ -6,7 +6,9 @@
 //! start of the one that continues it, a whole number of periods on, so that every loop lasts
 //! exactly its laps x the period and the runtime's links are exact.
 
+use crate::ExportError;
 use crate::characters::{LinkError, Links};
+use crate::motion::{Motion, Summaries};
 use crowd_core::PatchGraph;
 use crowd_core::patterns::Crossing;
 use crowd_core::trajectories::PatchMotion;
@@ -42,19 +44,25 @@ impl std::fmt::Display for LibraryError {
 
 impl std::error::Error for LibraryError {}
 
-/// The library of a build.
-pub fn build(
+/// Patches quantised at once: a run's records are made in parallel and then appended, so that
+/// a gathering build holds a run's records twice, not the world's.
+const PATCHES_PER_RUN: usize = 1024;
+
+/// The library of a build: `motion` (the final motion, thinned), its `summaries` and `links`.
+#[allow(clippy::too_many_arguments)]
+pub fn build<M: Motion + ?Sized>(
     graph: &PatchGraph,
     crossings: &[Crossing],
-    motion: &[PatchMotion],
+    motion: &M,
+    summaries: &Summaries,
     links: &Links,
     period_s: f64,
     seed: u64,
     input_hash: [u8; 8],
-) -> Result<(Library, f64), LibraryError> {
+) -> Result<(Library, f64), ExportError> {
     let period_ticks = (period_s / TICK_S).round();
     if (period_ticks * TICK_S - period_s).abs() > 1e-9 || period_ticks < 1.0 {
-        return Err(LibraryError::Period(period_s));
+        return Err(LibraryError::Period(period_s).into());
     }
     let period_ticks = period_ticks as u64;
     let count = |n: usize, what| u32::try_from(n).map_err(|_| LibraryError::TooMany(what));
@@ -73,56 +81,48 @@ pub fn build(
         turn_rate_deg_s: crowd_runtime::turn::DEFAULT_TURN_RATE_DEG_S as f32,
     };
     // Starts first: a trajectory's end is snapped to its successor's start.
-    let start_of = |i: usize| {
-        let r = links.refs[i];
-        ticks(motion[r.patch].trajectories[r.index].points[0].t).rem_euclid(pt)
-    };
+    let start_of = |i: usize| ticks(summaries.trajectories[i].start_s).rem_euclid(pt);
     let quantised = Quantised {
         side,
         period_ticks: pt,
         start_of: &start_of,
     };
     // Patches are quantised in parallel (painting's 9 million points were most of a brush
-    // stroke's library on one core), then laid end to end in patch order.
-    let firsts: Vec<usize> = motion
-        .iter()
-        .scan(0usize, |n, m| {
-            let first = *n;
-            *n += m.trajectories.len();
-            Some(first)
-        })
-        .collect();
-    let parts: Vec<Result<PatchPart, LibraryError>> = (motion.par_iter().zip(&firsts))
-        .enumerate()
-        .map(|(p, (m, &first))| quantised.patch(p, m, first, links))
-        .collect();
-    let mut patches = Vec::with_capacity(motion.len());
+    // stroke's library on one core), a run at a time, then laid end to end in patch order.
+    let mut patches = Vec::with_capacity(motion.patches());
     let mut standers = Vec::new();
     let mut trajectories = Vec::with_capacity(links.refs.len());
     let mut points = Vec::new();
     let mut eased_m = 0.0f64;
-    for (p, part) in parts.into_iter().enumerate() {
-        let part = part?;
-        let cell = graph.patches[p].cell;
-        patches.push(crowd_runtime::Patch {
-            col: cell.col,
-            row: cell.row,
-            first_trajectory: count(trajectories.len(), "trajectories")?,
-            trajectories: count(part.trajectories.len(), "trajectories")?,
-            first_stander: count(standers.len(), "standers")?,
-            standers: count(part.standers.len(), "standers")?,
-        });
-        standers.extend(part.standers);
-        let offset = count(points.len(), "points")?;
-        for mut t in part.trajectories {
-            t.first_point = offset
-                .checked_add(t.first_point)
-                .ok_or(LibraryError::TooMany("points"))?;
-            trajectories.push(t);
+    for run in (0..motion.patches()).step_by(PATCHES_PER_RUN) {
+        let end = (run + PATCHES_PER_RUN).min(motion.patches());
+        let parts: Vec<Result<PatchPart, ExportError>> = (run..end)
+            .into_par_iter()
+            .map(|p| quantised.patch(p, &*motion.patch(p)?, summaries.firsts[p], links))
+            .collect();
+        for (p, part) in (run..end).zip(parts) {
+            let part = part?;
+            let cell = graph.patches[p].cell;
+            patches.push(crowd_runtime::Patch {
+                col: cell.col,
+                row: cell.row,
+                first_trajectory: count(trajectories.len(), "trajectories")?,
+                trajectories: count(part.trajectories.len(), "trajectories")?,
+                first_stander: count(standers.len(), "standers")?,
+                standers: count(part.standers.len(), "standers")?,
+            });
+            standers.extend(part.standers);
+            let offset = count(points.len(), "points")?;
+            for mut t in part.trajectories {
+                t.first_point = offset
+                    .checked_add(t.first_point)
+                    .ok_or(LibraryError::TooMany("points"))?;
+                trajectories.push(t);
+            }
+            points.extend(part.points);
+            count(points.len(), "points")?;
+            eased_m = eased_m.max(part.eased_m);
         }
-        points.extend(part.points);
-        count(points.len(), "points")?;
-        eased_m = eased_m.max(part.eased_m);
     }
     let characters = links
         .loops
@@ -200,7 +200,7 @@ impl<F: Fn(usize) -> i64> Quantised<'_, F> {
         m: &PatchMotion,
         first: usize,
         links: &Links,
-    ) -> Result<PatchPart, LibraryError> {
+    ) -> Result<PatchPart, ExportError> {
         let count = |n: usize, what| u32::try_from(n).map_err(|_| LibraryError::TooMany(what));
         let ticks = |t: f64| (t / TICK_S).round() as i64;
         let pt = self.period_ticks;
@@ -232,7 +232,7 @@ impl<F: Fn(usize) -> i64> Quantised<'_, F> {
                 end += pt;
             }
             if end > i64::from(crowd_runtime::MAX_PERIODS_PER_TRAJECTORY) * pt {
-                return Err(LibraryError::TooMany("periods in one trajectory (64)"));
+                return Err(LibraryError::TooMany("periods in one trajectory (64)").into());
             }
             let mut last = 0i64;
             for (k, cp) in tr.points.iter().enumerate() {

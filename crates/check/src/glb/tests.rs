@@ -5,6 +5,7 @@ use crowd_core::patterns::{Crossing, Way};
 use crowd_core::trajectories::{ControlPoint, PatchMotion, PointKind, Trajectory};
 use crowd_export::characters::link;
 use crowd_export::glb::{World, world_glb};
+use crowd_export::motion::Summaries;
 
 /// `world.glb` of loops in patch 0 of two 8 m patches (20 s clip), each its own successor
 /// through its crossing `i` (points: patch-local metres, seconds), with standers, and the
@@ -50,10 +51,21 @@ fn figures_of(
             velocity: DVec2::X,
         })
         .collect();
-    let (library, _) =
-        crowd_export::library::build(&graph, &crossings, &motion, &links, 20.0, 1, [0; 8]).unwrap();
+    let summaries = Summaries::of(&graph, &motion[..]).unwrap();
+    let (library, _) = crowd_export::library::build(
+        &graph,
+        &crossings,
+        &motion[..],
+        &summaries,
+        &links,
+        20.0,
+        1,
+        [0; 8],
+    )
+    .unwrap();
     let world = World {
         graph: &graph,
+        summaries: &summaries,
         motion: &motion,
         links: &links,
         period_s: 20.0,
@@ -68,7 +80,7 @@ fn figures_of(
         speed_limit_m_s: 1.89,
         world_m: graph.world.covered_m(),
     };
-    figures(&world_glb(&world), &inputs).unwrap()
+    figures(&world_glb(&world).unwrap(), &inputs).unwrap()
 }
 
 /// A square walked from the middle of a side: 24 m, at 1.2 m/s when `last` is 17.5 s.

@@ -8,6 +8,8 @@
 //! so the last piece of a slot and the first of its successor are two pieces of one walk.
 
 use crate::glb::World;
+use crate::glb::plan::Plan;
+use crate::motion::{Held, Summaries};
 use crowd_runtime::TICK_S;
 use crowd_runtime::turn::{self, Piece};
 use glam::DVec2;
@@ -18,28 +20,26 @@ const SNAP_S: f64 = 1e-7;
 /// Loop points closer than this (seconds) to a clip's ends make no key of their own.
 const EDGE_S: f64 = 1e-6;
 
-/// A walker's loop as positions at loop times (seconds from the loop's start).
+/// A walker's loop as positions at loop times (seconds from the loop's start): the stretches
+/// of it that its shown slots read (the whole loop without a region).
 pub(super) struct LoopPath {
-    pub(super) times: Vec<f64>,
-    pub(super) points: Vec<DVec2>,
-    /// The heading at each point (`crowd_runtime::turn`: periodic, turning at `rate`), and
-    /// whether each piece walks: the library's, so that `world.glb` and the runtime face the
-    /// same way.
-    headings: Vec<f64>,
-    walking: Vec<bool>,
-    /// Each point's loop time in the library's ticks: the heading model's clock (within
-    /// 0.1 ms of `times`).
-    turn_times: Vec<f64>,
-    /// Turning speed, rad/s (`export.turn_rate_deg_s`).
-    rate: f64,
+    /// Runs of the loop's keys, in loop order, apart; each reaches past the clip windows it
+    /// serves by a millisecond (`plan.rs`), or to the loop's end.
+    stretches: Vec<Stretch>,
+    pub(super) clock: Clock,
+}
+
+/// When a loop's slots start: the loop's start in world time, its laps and the period.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Clock {
     /// World time at which the loop's first trajectory starts.
     pub(super) start: f64,
     pub(super) laps: u32,
-    period: f64,
+    pub(super) period: f64,
 }
 
-impl LoopPath {
-    fn length(&self) -> f64 {
+impl Clock {
+    pub(super) fn length(&self) -> f64 {
         f64::from(self.laps) * self.period
     }
 
@@ -52,7 +52,70 @@ impl LoopPath {
     pub(super) fn next_lap(&self, lap: u32) -> u32 {
         (lap + self.laps - 1) % self.laps
     }
+}
 
+impl LoopPath {
+    fn length(&self) -> f64 {
+        self.clock.length()
+    }
+
+    pub(super) fn tau(&self, lap: u32) -> f64 {
+        self.clock.tau(lap)
+    }
+
+    pub(super) fn next_lap(&self, lap: u32) -> u32 {
+        self.clock.next_lap(lap)
+    }
+
+    /// The stretch that holds loop time `tau` (the first for a time before the loop's start).
+    fn stretch(&self, tau: f64) -> &Stretch {
+        let i = (self.stretches.partition_point(|s| s.times[0] <= tau)).saturating_sub(1);
+        let s = &self.stretches[i];
+        assert!(
+            s.times[0] <= tau.max(0.0) && tau <= s.times[s.times.len() - 1],
+            "world.glb reads loop time {tau} outside the keys it holds"
+        );
+        s
+    }
+
+    pub(super) fn at(&self, tau: f64) -> DVec2 {
+        self.stretch(tau).at(tau)
+    }
+
+    /// The heading at loop time `tau`, radians (world axes).
+    pub(super) fn heading(&self, tau: f64) -> f64 {
+        self.stretch(tau).heading(tau)
+    }
+
+    /// Loop times in `[from, to)` where a turn starts or ends.
+    fn turn_breaks(&self, from: f64, to: f64) -> Vec<f64> {
+        self.stretch(from).turn_breaks(from, to)
+    }
+
+    /// The loop's keys from the stretch that holds `from` (times, places).
+    fn keys_from(&self, from: f64) -> (&[f64], &[DVec2]) {
+        let s = self.stretch(from);
+        (&s.times, &s.points)
+    }
+}
+
+/// A run of a loop's consecutive keys.
+struct Stretch {
+    times: Vec<f64>,
+    points: Vec<DVec2>,
+    /// The heading at each point (`crowd_runtime::turn`: periodic, turning at `rate`), and
+    /// whether each piece walks: the library's, so that `world.glb` and the runtime face the
+    /// same way.
+    headings: Vec<f64>,
+    walking: Vec<bool>,
+    /// Each point's loop time in the library's ticks: the heading model's clock (within
+    /// 0.1 ms of `times`).
+    turn_times: Vec<f64>,
+    /// Turning speed, rad/s (`export.turn_rate_deg_s`).
+    rate: f64,
+}
+
+impl Stretch {
     /// The loop point that starts the piece holding loop time `tau`.
     fn piece(&self, tau: f64) -> usize {
         self.times
@@ -61,7 +124,7 @@ impl LoopPath {
             - 1
     }
 
-    pub(super) fn at(&self, tau: f64) -> DVec2 {
+    fn at(&self, tau: f64) -> DVec2 {
         let k = self.piece(tau);
         if (self.times[k] - tau).abs() <= SNAP_S || k + 1 == self.times.len() {
             return self.points[k];
@@ -82,8 +145,7 @@ impl LoopPath {
         }
     }
 
-    /// The heading at loop time `tau`, radians (world axes).
-    pub(super) fn heading(&self, tau: f64) -> f64 {
+    fn heading(&self, tau: f64) -> f64 {
         if self.times.len() < 2 {
             return self.headings.first().copied().unwrap_or(0.0);
         }
@@ -95,7 +157,6 @@ impl LoopPath {
         self.turn_piece(k).at(tau, self.rate)
     }
 
-    /// Loop times in `[from, to)` where a turn starts or ends.
     fn turn_breaks(&self, from: f64, to: f64) -> Vec<f64> {
         let n = self.turn_times.len();
         let first = self
@@ -118,99 +179,136 @@ impl LoopPath {
     }
 }
 
-/// Loop `lp` (in the library's CHAR order): stage 6's kept points at their times (what the
-/// translation keys show), and the headings of `crowd_runtime::turn::character_headings`
-/// with the library's own ticks for their turns, so that `world.glb` and `crowd-runtime`
-/// face the same way.
-pub(super) fn loop_path(w: &World, lp: usize) -> LoopPath {
+/// The stretches of loop `plan.lp` (in the library's CHAR order) that its planned slots read:
+/// stage 6's kept points at their times (what the translation keys show), and the headings of
+/// `crowd_runtime::turn::character_headings` with the library's own ticks for their turns, so
+/// that `world.glb` and `crowd-runtime` face the same way.
+pub(super) fn loop_path(w: &World, held: &Held, plan: &Plan) -> LoopPath {
     let lib = w.library;
-    // The headings walk the whole loop in order. Made beside the path (`rayon::join`) they
-    // took 0.4 s off painting's export, but a thread waiting there took up other loops, and
-    // the million's export held 11.5 GB against 10.0: one after the other.
-    let table = turn::character_headings(lib, &lib.characters[lp]);
-    let (times, points, turn_times) = loop_keys(w, lp);
-    // A trajectory's first point is the one before's last (the same instant and place): its
-    // heading is left out but for the loop's first.
-    let members = &w.links.loops[lp];
-    let mut headings = Vec::with_capacity(times.len());
-    let mut at = 0;
-    for (j, &i) in members.iter().enumerate() {
-        let r = w.links.refs[i];
-        let count = w.motion[r.patch].trajectories[r.index].points.len();
-        let skip = usize::from(j > 0);
-        headings.extend_from_slice(&table.heading[at + skip..at + count]);
-        at += count;
-    }
+    // The headings walk the whole loop in order, from the library (which is held), and are
+    // cut to the stretches after. Made beside the path (`rayon::join`) they took 0.4 s off
+    // painting's export, but a thread waiting there took up other loops, and the million's
+    // export held 11.5 GB against 10.0: one after the other.
+    let turn::PointHeadings { heading, walks } =
+        turn::character_headings(lib, &lib.characters[plan.lp]);
+    let mut walks = Some(walks);
+    let members = &w.links.loops[plan.lp];
+    let starts = Starts::of(w, members);
+    let whole = plan.runs == [(0, members.len() - 1)];
+    let stretches = (plan.runs.iter())
+        .map(|&(a, b)| {
+            let (times, points, turn_times) = stretch_keys(w, held, plan, &starts, (a, b));
+            // A trajectory's first point is the one before's last (the same instant and
+            // place): its heading is left out but for the loop's first.
+            let mut headings = Vec::with_capacity(times.len());
+            for j in a..=b {
+                let (at, count) = (starts.point[j], starts.point[j + 1] - starts.point[j]);
+                headings.extend_from_slice(&heading[at + usize::from(j > 0)..at + count]);
+            }
+            let (first, last) = (starts.key[a], starts.key[b + 1]);
+            let walking = match (whole, walks.as_ref()) {
+                (false, Some(all)) => all[first..last - 1].to_vec(),
+                _ => walks.take().expect("one stretch takes the whole loop's"),
+            };
+            Stretch {
+                times,
+                points,
+                headings,
+                walking,
+                turn_times,
+                rate: f64::from(lib.world.turn_rate_deg_s).to_radians(),
+            }
+        })
+        .collect();
     LoopPath {
-        headings,
-        walking: table.walks,
-        turn_times,
-        rate: f64::from(lib.world.turn_rate_deg_s).to_radians(),
-        times,
-        points,
-        start: loop_start(w, members),
-        laps: loop_laps(w, members),
-        period: w.period_s,
+        stretches,
+        clock: plan.clock,
     }
 }
 
-/// Loop `lp`'s points at their loop times (seconds and the library's ticks) in world metres,
-/// each trajectory's first point left out but for the loop's first.
-///
-/// A long loop is made in runs of trajectories, each writing its own part of the lists, on
-/// every core (painting's longest, 5.5 million keys: 0.13 s on one). A run starts from the
-/// sums of the durations before it, added in the loop's order, so every time is the same bits.
-fn loop_keys(w: &World, lp: usize) -> (Vec<f64>, Vec<DVec2>, Vec<f64>) {
-    let lib = w.library;
-    let members = &w.links.loops[lp];
-    // Where each run starts: its first member, its first key, and the loop time and ticks
-    // before it. (A trajectory's first point is left out but for the loop's first.)
-    let mut runs = Vec::new();
-    let (mut keys, mut offset, mut tick) = (0usize, 0.0, 0u64);
-    for (j, &i) in members.iter().enumerate() {
-        if j % MEMBERS_PER_RUN == 0 {
-            runs.push((j, keys, offset, tick));
+/// Where each of a loop's trajectories starts, and where the last ends (members + 1): its first
+/// key in the loop's keys (each trajectory's first point left out but for the loop's first),
+/// its first point in the heading table (every point), and the library's ticks before it.
+struct Starts {
+    key: Vec<usize>,
+    point: Vec<usize>,
+    tick: Vec<u64>,
+}
+
+impl Starts {
+    fn of(w: &World, members: &[usize]) -> Starts {
+        let lib = w.library;
+        let mut starts = Starts {
+            key: Vec::with_capacity(members.len() + 1),
+            point: Vec::with_capacity(members.len() + 1),
+            tick: Vec::with_capacity(members.len() + 1),
+        };
+        let (mut key, mut point, mut tick) = (0usize, 0usize, 0u64);
+        for (j, &i) in members.iter().enumerate() {
+            starts.key.push(key);
+            starts.point.push(point);
+            starts.tick.push(tick);
+            let n = w.summaries.trajectories[i].points;
+            key += if j == 0 { n } else { n.saturating_sub(1) };
+            point += n;
+            tick += u64::from(lib.duration_ticks(&lib.trajectories[i]));
         }
-        let r = w.links.refs[i];
-        let tr = &w.motion[r.patch].trajectories[r.index];
-        let n = tr.points.len();
-        keys += if j == 0 { n } else { n.saturating_sub(1) };
-        offset += tr.duration();
-        tick += u64::from(lib.duration_ticks(&lib.trajectories[i]));
+        starts.key.push(key);
+        starts.point.push(point);
+        starts.tick.push(tick);
+        starts
     }
+}
+
+/// The points of trajectories `a..=b` of a loop at their loop times (seconds and the library's
+/// ticks) in world metres, each trajectory's first point left out but for the loop's first.
+///
+/// A long stretch is made in runs of trajectories, each writing its own part of the lists, on
+/// every core (painting's longest loop, 5.5 million keys: 0.13 s on one). Each trajectory
+/// starts from the sum of the durations before it, added in the loop's order
+/// ([`Plan::offsets`]), so every time is the same bits whatever the stretch.
+fn stretch_keys(
+    w: &World,
+    held: &Held,
+    plan: &Plan,
+    starts: &Starts,
+    (a, b): (usize, usize),
+) -> (Vec<f64>, Vec<DVec2>, Vec<f64>) {
+    let lib = w.library;
+    let members = &w.links.loops[plan.lp];
+    let key0 = starts.key[a];
+    let keys = starts.key[b + 1] - key0;
     let (mut times, mut points, mut turn_times) =
         (vec![0.0; keys], vec![DVec2::ZERO; keys], vec![0.0; keys]);
-    let mut parts = Vec::with_capacity(runs.len());
+    let mut parts = Vec::new();
     let (mut t_rest, mut p_rest, mut q_rest) =
         (&mut times[..], &mut points[..], &mut turn_times[..]);
-    for (r, &(j, key, offset, tick)) in runs.iter().enumerate() {
-        let (end, next_key) = runs
-            .get(r + 1)
-            .map_or((members.len(), keys), |n| (n.0, n.1));
-        let (t, t_tail) = std::mem::take(&mut t_rest).split_at_mut(next_key - key);
-        let (p, p_tail) = std::mem::take(&mut p_rest).split_at_mut(next_key - key);
-        let (q, q_tail) = std::mem::take(&mut q_rest).split_at_mut(next_key - key);
+    for first in (a..=b).step_by(MEMBERS_PER_RUN) {
+        let end = (first + MEMBERS_PER_RUN).min(b + 1);
+        let n = starts.key[end] - starts.key[first];
+        let (t, t_tail) = std::mem::take(&mut t_rest).split_at_mut(n);
+        let (p, p_tail) = std::mem::take(&mut p_rest).split_at_mut(n);
+        let (q, q_tail) = std::mem::take(&mut q_rest).split_at_mut(n);
         (t_rest, p_rest, q_rest) = (t_tail, p_tail, q_tail);
-        parts.push(((j, end, offset, tick), (t, p, q)));
+        parts.push(((first, end), (t, p, q)));
     }
-    let fill = |((first, end, mut offset, mut tick), (t, p, q)): (KeysRun, KeysPart)| {
+    let fill = |((first, end), (t, p, q)): ((usize, usize), KeysPart)| {
         let mut key = 0;
         for (j, &i) in members.iter().enumerate().take(end).skip(first) {
             let r = w.links.refs[i];
-            let tr = &w.motion[r.patch].trajectories[r.index];
+            let tr = held.trajectory(r);
             let origin = w.graph.world_from_patch(w.graph.patches[r.patch].cell);
+            let (offset, tick) = (plan.offsets[j], starts.tick[j]);
             let t0 = tr.points[0].t;
             // The library's trajectory `i` holds the same points, quantised.
-            let held = lib.points_of(&lib.trajectories[i]);
+            let quantised = lib.points_of(&lib.trajectories[i]);
             let skip = usize::from(j > 0);
             for (k, cp) in tr.points.iter().enumerate().skip(skip) {
                 t[key] = offset + cp.t - t0;
                 p[key] = origin + cp.pos;
-                q[key] = (tick + u64::from(held[k].t)) as f64 * TICK_S;
+                q[key] = (tick + u64::from(quantised[k].t)) as f64 * TICK_S;
                 key += 1;
             }
-            offset += tr.duration();
-            tick += u64::from(lib.duration_ticks(&lib.trajectories[i]));
         }
     };
     if keys >= PARALLEL_KEYS {
@@ -222,53 +320,38 @@ fn loop_keys(w: &World, lp: usize) -> (Vec<f64>, Vec<DVec2>, Vec<f64>) {
     (times, points, turn_times)
 }
 
-/// Where a run of [`loop_keys`] starts and ends (members), and its loop time and ticks
-/// before it.
-type KeysRun = (usize, usize, f64, u64);
-/// A run's share of [`loop_keys`]' lists.
+/// A run's share of [`stretch_keys`]' lists.
 type KeysPart<'a> = (&'a mut [f64], &'a mut [DVec2], &'a mut [f64]);
 
-/// Trajectories in a run of [`loop_keys`].
+/// Trajectories in a run of [`stretch_keys`].
 const MEMBERS_PER_RUN: usize = 1024;
-/// Keys from which [`loop_keys`] and [`loop_box`] use every core.
+/// Keys from which [`stretch_keys`] uses every core.
 const PARALLEL_KEYS: usize = 1 << 16;
 
-/// World time at which loop `lp`'s first trajectory starts.
-fn loop_start(w: &World, lp: &[usize]) -> f64 {
-    let first = w.links.refs[lp[0]];
-    w.motion[first.patch].trajectories[first.index].points[0].t
+/// When loop `lp`'s slots start: its first trajectory's start, its laps, the period.
+pub(super) fn clock(w: &World, lp: &[usize]) -> Clock {
+    Clock {
+        start: w.summaries.trajectories[lp[0]].start_s,
+        laps: loop_laps(w, lp),
+        period: w.period_s,
+    }
 }
 
 /// How many periods a loop lasts (its trajectories' durations, rounded; at least one).
 pub(super) fn loop_laps(w: &World, lp: &[usize]) -> u32 {
-    let length: f64 = lp
-        .iter()
-        .map(|&i| {
-            let r = w.links.refs[i];
-            w.motion[r.patch].trajectories[r.index].duration()
-        })
+    let length: f64 = (lp.iter())
+        .map(|&i| w.summaries.trajectories[i].duration_s)
         .sum();
     (length / w.period_s).round().max(1.0) as u32
 }
 
 /// The box (world metres) that holds every point of a loop, so every key of its slots.
-///
-/// A long loop's members are boxed on every core (the smallest and largest are the same in
-/// any order).
-pub(super) fn loop_box(w: &World, lp: &[usize]) -> (DVec2, DVec2) {
-    let empty = || (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY));
-    let join = |a: (DVec2, DVec2), b: (DVec2, DVec2)| (a.0.min(b.0), a.1.max(b.1));
-    let member = |&i: &usize| {
-        let r = w.links.refs[i];
-        let origin = w.graph.world_from_patch(w.graph.patches[r.patch].cell);
-        let points = &w.motion[r.patch].trajectories[r.index].points;
-        (points.iter()).fold(empty(), |b, cp| join(b, (origin + cp.pos, origin + cp.pos)))
-    };
-    if lp.len() >= MEMBERS_PER_RUN {
-        use rayon::prelude::*;
-        return lp.par_iter().map(member).reduce(empty, join);
-    }
-    lp.iter().map(member).fold(empty(), join)
+pub(super) fn loop_box(summaries: &Summaries, lp: &[usize]) -> (DVec2, DVec2) {
+    let empty = (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY));
+    (lp.iter()).fold(empty, |(lo, hi), &i| {
+        let s = &summaries.trajectories[i];
+        (lo.min(s.lo), hi.max(s.hi))
+    })
 }
 
 /// glTF's frame of a world point on the ground.
@@ -354,7 +437,7 @@ fn simplify_turns(keys: &[(f64, f64)]) -> Vec<(f64, f64)> {
 /// at every start and end of a turn inside, and at the period, each a sample of the loop's
 /// heading (so the last is the successor's first, bit for bit).
 fn turn_keys(path: &LoopPath, tau0: f64, tau_end: f64) -> (Vec<f64>, Vec<[f32; 4]>) {
-    let (period, length) = (path.period, path.length());
+    let (period, length) = (path.clock.period, path.length());
     let end_tau = tau0 + period;
     let mut breaks: Vec<f64> = if end_tau <= length {
         path.turn_breaks(tau0, end_tau)
@@ -414,8 +497,8 @@ pub(super) fn window_box(path: &LoopPath, lap: u32) -> (DVec2, DVec2) {
     let (tau0, tau_end) = (path.tau(lap), path.tau(path.next_lap(lap)));
     let (start, end) = (path.at(tau0), path.at(tau_end));
     let mut bounds = (start.min(end), start.max(end));
-    let (times, points) = (&path.times, &path.points);
     let mut run = |from: f64, to: f64| {
+        let (times, points) = path.keys_from(from);
         let (a, b) = (
             times.partition_point(|&t| t < from),
             times.partition_point(|&t| t <= to),
@@ -424,7 +507,7 @@ pub(super) fn window_box(path: &LoopPath, lap: u32) -> (DVec2, DVec2) {
             bounds = (bounds.0.min(*p), bounds.1.max(*p));
         }
     };
-    let end_tau = tau0 + path.period;
+    let end_tau = tau0 + path.clock.period;
     if end_tau <= path.length() {
         run(tau0, end_tau);
     } else {
@@ -436,7 +519,7 @@ pub(super) fn window_box(path: &LoopPath, lap: u32) -> (DVec2, DVec2) {
 
 /// The keys of slot `lap` of `path` (at loop time `path.tau(lap)` at clip time 0).
 pub(super) fn slot_keys(path: &LoopPath, lap: u32) -> Keys {
-    let period = path.period;
+    let period = path.clock.period;
     let length = path.length();
     let tau0 = path.tau(lap);
     // Its end is its successor's start, the same loop time.
@@ -445,8 +528,8 @@ pub(super) fn slot_keys(path: &LoopPath, lap: u32) -> Keys {
     let mut keys: Vec<(f64, f64, DVec2)> = vec![(0.0, tau0, path.at(tau0))];
     // The loop's points inside the clip's window [tau0, tau0 + period) of loop time,
     // which may wrap past the loop's end: one or two binary-searched runs.
-    let (loop_times, loop_points) = (&path.times, &path.points);
     let run = |from: f64, to: f64, shift: f64| {
+        let (loop_times, loop_points) = path.keys_from(from);
         let (a, b) = (
             loop_times.partition_point(|&t| t <= from),
             loop_times.partition_point(|&t| t < to),
@@ -489,7 +572,7 @@ mod tests {
 
     fn path(times: Vec<f64>, points: Vec<DVec2>, start: f64, laps: u32, period: f64) -> LoopPath {
         let xy: Vec<[f64; 2]> = points.iter().map(|p| [p.x, p.y]).collect();
-        LoopPath {
+        let whole = Stretch {
             headings: turn::loop_headings(&times, &xy, RATE),
             walking: (1..times.len())
                 .map(|k| turn::walks(points[k].distance(points[k - 1]), times[k] - times[k - 1]))
@@ -498,9 +581,14 @@ mod tests {
             rate: RATE,
             times,
             points,
-            start,
-            laps,
-            period,
+        };
+        LoopPath {
+            stretches: vec![whole],
+            clock: Clock {
+                start,
+                laps,
+                period,
+            },
         }
     }
 
@@ -532,7 +620,7 @@ mod tests {
     #[test]
     fn a_slot_ends_where_and_facing_as_its_successor_starts() {
         let path = square();
-        for lap in 0..path.laps {
+        for lap in 0..path.clock.laps {
             let (a, b) = (slot_keys(&path, lap), slot_keys(&path, path.next_lap(lap)));
             let n = a.times.len();
             assert_eq!(a.points[n - 1], b.points[0]);
@@ -552,7 +640,7 @@ mod tests {
     #[test]
     fn corners_turn_at_the_rate_over_a_quarter_second() {
         let path = square();
-        for lap in 0..path.laps {
+        for lap in 0..path.clock.laps {
             let k = slot_keys(&path, lap);
             for i in 1..k.turns.len() {
                 let dt = k.turn_times[i] - k.turn_times[i - 1];

@@ -22,24 +22,28 @@
 mod buffers;
 mod keys;
 mod mesh;
+mod plan;
 mod region;
 
 use crate::characters::Links;
+use crate::motion::{Held, Motion, Summaries};
 use buffers::{accessor, bytes_of, bytes_of_3, bytes_of_4, view};
 use crowd_core::PatchGraph;
-use crowd_core::trajectories::PatchMotion;
 use glam::DVec2;
 use gltf_json as json;
 use json::validation::Checked::Valid;
 use json::validation::USize64;
-use keys::{Keys, gltf_point, loop_path, slot_keys};
+use keys::{Keys, gltf_point, slot_keys};
 use mesh::capsule;
 use rayon::prelude::*;
 
 /// What `world.glb` is made from.
 pub struct World<'a> {
     pub graph: &'a PatchGraph,
-    pub motion: &'a [PatchMotion],
+    /// Every trajectory's summary, and the final motion, whose patches are read only where
+    /// the slots shown walk (`plan.rs`).
+    pub summaries: &'a Summaries,
+    pub motion: &'a dyn Motion,
     pub links: &'a Links,
     pub period_s: f64,
     pub seed: u64,
@@ -51,8 +55,37 @@ pub struct World<'a> {
     pub library: &'a crowd_runtime::Library,
 }
 
-/// The bytes of `world.glb`.
-pub fn world_glb(w: &World) -> Vec<u8> {
+/// The patches whose keyframes [`world_glb`] reads: those its shown slots walk through (all that
+/// hold a trajectory, without a region).
+pub fn patches_read(w: &World) -> Vec<bool> {
+    plan::patches(&plans(w), w.links, w.graph.patches.len())
+}
+
+/// Every loop's [`plan::Plan`] (in loop order), but those of loops no slot of which may show.
+fn plans(w: &World) -> Vec<plan::Plan> {
+    // With a region, a loop whose box misses it shows nothing (most of painting's, for its
+    // 160 m region).
+    (0..w.links.loops.len())
+        .into_par_iter()
+        .filter_map(|lp| {
+            let members = &w.links.loops[lp];
+            if w.region
+                .is_some_and(|r| !region::may_show(keys::loop_box(w.summaries, members), r))
+            {
+                return None;
+            }
+            plan::plan(w.summaries, w.links, lp, keys::clock(w, members), w.region)
+        })
+        .collect()
+}
+
+/// Keys of loops from this long are made one loop at a time (each on every core): a loop's
+/// keys and headings are made whole before its slots are cut from them, 80 bytes a key, and
+/// the million's four longest, 8 to 36 million keys, made at once held gigabytes.
+const LONG_LOOP_KEYS: usize = 1 << 23;
+
+/// The bytes of `world.glb`: of the final motion, the patches its slots walk are read.
+pub fn world_glb(w: &World) -> crowd_core::Result<Vec<u8>> {
     let mut root = json::Root {
         asset: json::Asset {
             version: "2.0".to_string(),
@@ -96,9 +129,6 @@ pub fn world_glb(w: &World) -> Vec<u8> {
         keys: Keys,
         shown: Vec<(f64, f64)>,
     }
-    // Each loop's slots. With a region, a loop whose box misses it, and a slot whose keys'
-    // box does, shows nothing: their keys are never made (most of painting's, for its 160 m
-    // region).
     let hidden = |b: (DVec2, DVec2)| w.region.is_some_and(|r| !region::may_show(b, r));
     let laps: Vec<u32> = (w.links.loops.iter())
         .map(|members| keys::loop_laps(w, members))
@@ -111,39 +141,52 @@ pub fn world_glb(w: &World) -> Vec<u8> {
             Some(first)
         })
         .collect();
+    let plans = plans(w);
+    let held = Held::load(
+        w.motion,
+        &plan::patches(&plans, w.links, w.graph.patches.len()),
+    )?;
+    // A planned slot whose keys' box misses the region shows nothing: its keys are never made.
+    let loop_slots = |plan: &plan::Plan| -> Vec<Slot> {
+        let path = keys::loop_path(w, &held, plan);
+        let first = firsts[plan.lp];
+        // A loop of 60,000 laps (painting's longest) has its slots made in parallel too.
+        (plan.laps.par_iter())
+            .filter(|&&lap| !hidden(keys::window_box(&path, lap)))
+            .map(|&lap| {
+                let keys = slot_keys(&path, lap);
+                let shown = match w.region {
+                    Some(r) => region::shown(&keys.times, &keys.points, r),
+                    None => vec![(0.0, period)],
+                };
+                Slot {
+                    id: first + lap,
+                    next: first + path.next_lap(lap),
+                    lp: plan.lp as u32,
+                    lap,
+                    keys,
+                    shown,
+                }
+            })
+            .collect()
+    };
     // Loops are independent: their keys are made in parallel and kept in loop order
-    // (painting's 428 loops were two seconds of the export on one core).
-    let slots: Vec<Slot> = (0..w.links.loops.len())
-        .into_par_iter()
-        .map(|lp| {
-            if hidden(keys::loop_box(w, &w.links.loops[lp])) {
-                return Vec::new();
-            }
-            let path = loop_path(w, lp);
-            let first = firsts[lp];
-            // A loop of 60,000 laps (painting's longest) has its slots made in parallel too.
-            (0..laps[lp])
-                .into_par_iter()
-                .filter(|&lap| !hidden(keys::window_box(&path, lap)))
-                .map(|lap| {
-                    let keys = slot_keys(&path, lap);
-                    let shown = match w.region {
-                        Some(r) => region::shown(&keys.times, &keys.points, r),
-                        None => vec![(0.0, period)],
-                    };
-                    Slot {
-                        id: first + lap,
-                        next: first + path.next_lap(lap),
-                        lp: lp as u32,
-                        lap,
-                        keys,
-                        shown,
-                    }
-                })
-                .collect::<Vec<Slot>>()
-        })
-        .flatten()
+    // (painting's 428 loops were two seconds of the export on one core), but for the longest.
+    let keys_of = |plan: &plan::Plan| -> usize {
+        (w.links.loops[plan.lp].iter())
+            .map(|&i| w.summaries.trajectories[i].points)
+            .sum()
+    };
+    let mut per_loop: Vec<Option<Vec<Slot>>> = (plans.par_iter())
+        .map(|plan| (keys_of(plan) < LONG_LOOP_KEYS).then(|| loop_slots(plan)))
         .collect();
+    for (made, plan) in per_loop.iter_mut().zip(&plans) {
+        if made.is_none() {
+            *made = Some(loop_slots(plan));
+        }
+    }
+    drop(held);
+    let slots: Vec<Slot> = per_loop.into_iter().flatten().flatten().collect();
     let named: std::collections::HashSet<u32> = slots
         .iter()
         .filter(|s| !s.shown.is_empty())
@@ -200,9 +243,9 @@ pub fn world_glb(w: &World) -> Vec<u8> {
         }
     }
     let mut stander = 0;
-    for (p, m) in w.motion.iter().enumerate() {
+    for (p, standers) in w.summaries.standers.iter().enumerate() {
         let origin = w.graph.world_from_patch(w.graph.patches[p].cell);
-        for s in &m.standers {
+        for s in standers {
             let at = origin + *s;
             if inside(at) {
                 nodes.push(root.push(json::Node {
@@ -340,5 +383,5 @@ pub fn world_glb(w: &World) -> Vec<u8> {
         json: std::borrow::Cow::Owned(json_bytes),
         bin: Some(std::borrow::Cow::Owned(bin)),
     };
-    glb.to_vec().expect("a GLB in memory")
+    Ok(glb.to_vec().expect("a GLB in memory"))
 }
