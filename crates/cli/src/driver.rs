@@ -172,6 +172,9 @@ fn run_stages(
         if let Some(bytes) = ran.bytes_of(&path) {
             artifacts.keep_bytes(stage, bytes.to_vec());
         }
+        for file in ran.streamed {
+            pending.stage_streamed(file);
+        }
         pending.stage(ran.writes);
         for (path, hash) in ran.hashes {
             pending.know(path, hash);

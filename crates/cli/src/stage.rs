@@ -45,6 +45,9 @@ pub struct Stage {
 
 /// What a stage run gives back.
 pub struct Ran {
+    /// Files written already to their temporary names, too large to hold (a gathering build's
+    /// side file), put in place before `writes`.
+    pub streamed: Vec<crowd_core::files::StreamedFile>,
     /// The files to write, side files before the file that names them.
     pub writes: Writes,
     /// A figure worth printing after the stage (stage 3's E).
@@ -61,6 +64,7 @@ pub struct Ran {
 impl Ran {
     pub fn files(writes: Writes) -> Ran {
         Ran {
+            streamed: Vec::new(),
             writes,
             note: None,
             parts: Vec::new(),

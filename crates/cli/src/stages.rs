@@ -620,9 +620,9 @@ fn smooth(a: &mut Artifacts, out: &Path, hash: Hash, ui: &Ui) -> Result<Ran> {
 }
 
 /// Stage 6 put together from the shards' parts: their patch bytes one after another make the
-/// side file one process would write, read part by part and never decoded into one world (the
-/// million's gather held its motion decoded and encoded at once: 11 GB). Export then reads
-/// the patches from the file ([`thinned`]).
+/// side file one process would write, streamed to disk part by part and never held whole, nor
+/// decoded into one world (the million's gather held its motion decoded and encoded at once:
+/// 11 GB; then its 4.2 GB side file). Export then reads the patches from the parts.
 fn smooth_gathered(
     a: &mut Artifacts,
     out: &Path,
@@ -634,9 +634,15 @@ fn smooth_gathered(
     let made_from =
         crowd_smooth::shard::part_hash(a.hashes[COLLIDE.name], &a.bytes(&OPTIMIZE)?, inputs);
     let mut summing = crowd_core::trajectories::Summing::new(inputs.period_s);
-    let gathered =
-        crowd_smooth::shard::gather_bytes(dir, made_from, &a.shard_costs()?, |m| summing.add(m))?;
-    let (bytes, counts) = (gathered.bytes, gathered.reports);
+    let side_path = out.with_extension("bin");
+    let gathered = crowd_smooth::shard::gather_bytes(
+        dir,
+        made_from,
+        &a.shard_costs()?,
+        |m| summing.add(m),
+        &side_path,
+    )?;
+    let counts = gathered.reports;
     let (graph, patterns) = (a.graph()?, a.patterns()?);
     let collided = a.take_motion(&COLLIDE)?;
     let seen = Seen::new(&graph, &patterns.1);
@@ -646,21 +652,25 @@ fn smooth_gathered(
     let extra = (counts.iter())
         .map(|c| c.iter().flat_map(|c| c.to_le_bytes()).collect())
         .collect();
-    let encoded = crowd_core::trajectories::Encoded {
-        bytes,
-        summary: summing.finish(),
-    };
     let summary = crowd_smooth::summary_of(counts.iter().copied());
-    let (file, writes) =
-        crowd_smooth::encode_gathered(out, encoded, summary, &collided_file, inputs, hash);
+    let side = gathered.side;
+    let (file, writes) = crowd_smooth::encode_streamed(
+        out,
+        (&side, summing.finish()),
+        summary,
+        &collided_file,
+        inputs,
+        hash,
+    );
     let writes = with_keys(out, writes, file.motion.hash, keys, &seen.tables, extra);
-    let side = side_file(out, &file);
+    let known = (side.path.clone(), side.hash);
     a.made_lazy_motion(&SMOOTH, (file, gathered.motion));
     Ok(Ran {
         note: Some(reuse::note(counts.len(), counts.len())),
+        streamed: vec![side],
         ..Ran::files(writes)
     }
-    .knowing(side.0, side.1))
+    .knowing(known.0, known.1))
 }
 
 /// A stage's writes with its keys file put before its stage file (which comes last).

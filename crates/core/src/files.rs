@@ -169,7 +169,7 @@ fn replace(tmp: &Path, path: &Path) -> (Option<std::path::PathBuf>, std::io::Res
 /// 600 MB, two seconds of copying) runs beside the stages after the one that made them.
 /// Dropped without a commit, it removes what it wrote.
 pub struct Staging {
-    sender: Option<std::sync::mpsc::Sender<(std::path::PathBuf, Vec<u8>)>>,
+    sender: Option<std::sync::mpsc::Sender<Staged>>,
     writer: Option<std::thread::JoinHandle<Written>>,
     /// Hashes known of files staged ([`Staging::know`]).
     known: Vec<(std::path::PathBuf, crate::Hash)>,
@@ -178,13 +178,31 @@ pub struct Staging {
 /// What a [`Staging`] writer wrote: (temporary, final) paths in order, and the first failure.
 type Written = (Vec<(std::path::PathBuf, std::path::PathBuf)>, Option<Error>);
 
+/// What a [`Staging`] writer is given, in order: bytes to write to a file, or a file
+/// [`Streamed`] to its temporary name already (temporary, final).
+enum Staged {
+    Bytes(std::path::PathBuf, Vec<u8>),
+    Streamed(std::path::PathBuf, std::path::PathBuf),
+}
+
 impl Staging {
     pub fn new() -> Staging {
-        let (sender, receiver) = std::sync::mpsc::channel::<(std::path::PathBuf, Vec<u8>)>();
+        let (sender, receiver) = std::sync::mpsc::channel::<Staged>();
         let writer = std::thread::spawn(move || {
             let mut written = Vec::new();
             let mut failed = None;
-            for (path, bytes) in receiver {
+            for staged in receiver {
+                let (path, bytes) = match staged {
+                    Staged::Streamed(tmp, path) if failed.is_none() => {
+                        written.push((tmp, path));
+                        continue;
+                    }
+                    Staged::Streamed(tmp, _) => {
+                        let _ = std::fs::remove_file(tmp);
+                        continue;
+                    }
+                    Staged::Bytes(path, bytes) => (path, bytes),
+                };
                 if failed.is_some() {
                     continue; // the build fails at its commit; nothing more is written
                 }
@@ -209,10 +227,18 @@ impl Staging {
     /// Queues `writes` (in order) to be written now and put in place at the commit.
     pub fn stage(&mut self, writes: Writes) {
         let sender = self.sender.as_ref().expect("staging before its commit");
-        for w in writes {
+        for (path, bytes) in writes {
             // The writer ends only when the sender is dropped: it is there to receive.
-            let _ = sender.send(w);
+            let _ = sender.send(Staged::Bytes(path, bytes));
         }
+    }
+
+    /// Queues a file written already to its temporary name, to be put in place at the commit
+    /// (after the files queued before it).
+    pub fn stage_streamed(&mut self, mut file: StreamedFile) {
+        let sender = self.sender.as_ref().expect("staging before its commit");
+        let tmp = file.tmp.take().expect("a streamed file is staged once");
+        let _ = sender.send(Staged::Streamed(tmp, file.path.clone()));
     }
 
     /// Says that the file staged for `path` hashes to `hash`: once it is in place,
@@ -317,6 +343,86 @@ pub fn wait_for_retired() {
 fn remove_all(written: &[(std::path::PathBuf, std::path::PathBuf)]) {
     for (tmp, _) in written {
         let _ = std::fs::remove_file(tmp);
+    }
+}
+
+/// A file written a piece at a time to its temporary name, hashed as it goes, for a file too
+/// large to hold (a gathering build's side file: the million's is 4.2 GB), then put in place
+/// by a [`Staging`] commit like any staged file. Dropped unfinished, it removes what it wrote.
+pub struct Streamed {
+    path: std::path::PathBuf,
+    tmp: std::path::PathBuf,
+    file: Option<std::io::BufWriter<std::fs::File>>,
+    hash: crate::hash::Pieces,
+}
+
+impl Streamed {
+    /// Starts the file that will be `path`.
+    pub fn create(path: &Path) -> Result<Streamed> {
+        let tmp = temporary(path);
+        crate::Hash::forget_file(path);
+        let file = std::fs::File::create(&tmp).map_err(|e| Error::io(path, "write", e))?;
+        Ok(Streamed {
+            path: path.to_path_buf(),
+            tmp,
+            file: Some(std::io::BufWriter::with_capacity(1 << 20, file)),
+            hash: crate::Hash::pieces(),
+        })
+    }
+
+    pub fn write(&mut self, bytes: &[u8]) -> Result<()> {
+        use std::io::Write;
+        self.hash.update(bytes);
+        let file = self.file.as_mut().expect("writing before finishing");
+        file.write_all(bytes)
+            .map_err(|e| Error::io(&self.path, "write", e))
+    }
+
+    /// The file written and on disk, as a file must be before it is renamed over another.
+    pub fn finish(mut self) -> Result<StreamedFile> {
+        let file = self.file.take().expect("finished once");
+        let (bytes, hash) = self.hash.finish();
+        let synced = file
+            .into_inner()
+            .map_err(|e| e.into_error())
+            .and_then(|f| f.sync_data());
+        let tmp = std::mem::take(&mut self.tmp);
+        if let Err(e) = synced {
+            let _ = std::fs::remove_file(&tmp);
+            return Err(Error::io(&self.path, "write", e));
+        }
+        Ok(StreamedFile {
+            path: std::mem::take(&mut self.path),
+            tmp: Some(tmp),
+            bytes,
+            hash,
+        })
+    }
+}
+
+impl Drop for Streamed {
+    fn drop(&mut self) {
+        if self.file.is_some() {
+            self.file = None;
+            let _ = std::fs::remove_file(&self.tmp);
+        }
+    }
+}
+
+/// A [`Streamed`] file, finished: its size and hash. Dropped before it is staged
+/// ([`Staging::stage_streamed`]), it removes its temporary file.
+pub struct StreamedFile {
+    pub path: std::path::PathBuf,
+    tmp: Option<std::path::PathBuf>,
+    pub bytes: u64,
+    pub hash: crate::Hash,
+}
+
+impl Drop for StreamedFile {
+    fn drop(&mut self) {
+        if let Some(tmp) = self.tmp.take() {
+            let _ = std::fs::remove_file(tmp);
+        }
     }
 }
 
@@ -604,6 +710,55 @@ mod tests {
         assert!(err.contains("b.ron"), "{err}");
         assert!(!a.exists());
         assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
+    }
+
+    /// A file streamed piece by piece is the bytes of its pieces, hashed as one, and is put in
+    /// place in its order among the staged files; unfinished or unstaged, it leaves nothing.
+    #[test]
+    fn a_streamed_file_is_its_pieces_in_place_at_the_commit_and_nothing_without_it() {
+        let dir = tempfile::tempdir().unwrap();
+        let (side, ron) = (dir.path().join("s.bin"), dir.path().join("s.ron"));
+        let count = || std::fs::read_dir(dir.path()).unwrap().count();
+        let mut cut = Streamed::create(&side).unwrap();
+        cut.write(b"half").unwrap();
+        drop(cut);
+        assert_eq!(count(), 0, "an unfinished file is removed");
+        let mut unstaged = Streamed::create(&side).unwrap();
+        unstaged.write(b"all").unwrap();
+        drop(unstaged.finish().unwrap());
+        assert_eq!(count(), 0, "a file finished but never staged is removed");
+
+        let big = vec![7u8; 3 << 20];
+        let mut streamed = Streamed::create(&side).unwrap();
+        for piece in [&b"head"[..], &big, b"tail"] {
+            streamed.write(piece).unwrap();
+        }
+        let file = streamed.finish().unwrap();
+        let whole = [&b"head"[..], &big, b"tail"].concat();
+        assert_eq!(
+            (file.bytes, file.hash),
+            (whole.len() as u64, Hash::of(&whole))
+        );
+        let mut staging = Staging::new();
+        staging.stage_streamed(file);
+        staging.stage(vec![(ron.clone(), b"names s.bin".to_vec())]);
+        assert!(!side.exists(), "not before the commit");
+        staging.commit().unwrap();
+        assert_eq!(std::fs::read(&side).unwrap(), whole);
+        assert_eq!(std::fs::read(&ron).unwrap(), b"names s.bin");
+        assert_eq!(count(), 2);
+
+        let mut again = Streamed::create(&side).unwrap();
+        again.write(b"new").unwrap();
+        let mut staging = Staging::new();
+        staging.stage_streamed(again.finish().unwrap());
+        drop(staging);
+        assert_eq!(
+            std::fs::read(&side).unwrap(),
+            whole,
+            "a staging dropped changes nothing"
+        );
+        assert_eq!(count(), 2, "and leaves nothing behind");
     }
 
     #[derive(Debug, PartialEq, Serialize, Deserialize)]

@@ -3,6 +3,24 @@
 use serde::{Deserialize, Serialize};
 use std::fmt;
 
+/// [`Hash::pieces`]: bytes hashed as they come, for a file too large to hold.
+pub struct Pieces(blake3::Hasher);
+
+impl Pieces {
+    pub fn update(&mut self, bytes: &[u8]) {
+        if bytes.len() < PARALLEL_BYTES {
+            self.0.update(bytes);
+        } else {
+            self.0.update_rayon(bytes);
+        }
+    }
+
+    /// The bytes hashed so far, and their hash.
+    pub fn finish(&self) -> (u64, Hash) {
+        (self.0.count(), Hash(*self.0.finalize().as_bytes()))
+    }
+}
+
 /// Bytes from which [`Hash::of`] hashes on every core (blake3's `update_rayon` pays from
 /// about 128 KiB).
 const PARALLEL_BYTES: usize = 1 << 20;
@@ -127,6 +145,11 @@ impl Hash {
             }
         }
         Ok((hasher.count(), Hash(*hasher.finalize().as_bytes())))
+    }
+
+    /// A hash made a piece at a time: [`Hash::of`] of the pieces one after another.
+    pub fn pieces() -> Pieces {
+        Pieces(blake3::Hasher::new())
     }
 
     /// The 32 bytes.

@@ -750,6 +750,36 @@ pub fn encode_file_of(
     (file, vec![(side, encoded.bytes), (out.to_path_buf(), ron)])
 }
 
+/// [`encode_file_of`] of a side file streamed to its temporary name already
+/// ([`crate::files::Streamed`], at `out`'s side file path): the file, and its RON to write.
+pub fn file_of_streamed(
+    out: &Path,
+    header: Header,
+    (period_s, radius_m): (f64, f64),
+    (side, summary): (&crate::files::StreamedFile, MotionSummary),
+    collisions: Option<CollisionSummary>,
+    smoothing: Option<SmoothingSummary>,
+) -> (TrajectoriesFile, crate::files::Writes) {
+    let (path, mut record) = SideFile::beside(out, &[]);
+    debug_assert_eq!(
+        path, side.path,
+        "a side file streamed where its owner names it"
+    );
+    (record.bytes, record.hash) = (side.bytes, side.hash);
+    let file = TrajectoriesFile {
+        header,
+        period_s,
+        radius_m,
+        summary,
+        collisions,
+        smoothing,
+        edits: None,
+        motion: record,
+    };
+    let ron = crate::files::to_stage_ron(&file).into_bytes();
+    (file, vec![(out.to_path_buf(), ron)])
+}
+
 /// `trajectories.ron` (stage 4's file, and the shape of stages 5 and 6's).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]

@@ -401,3 +401,30 @@ pub fn encode_gathered(
         Some(summary),
     )
 }
+
+/// [`encode`] of motion gathered from shards into a side file streamed to disk already
+/// (`side`, whose motion `motion` sums): the file, and its RON to write.
+pub fn encode_streamed(
+    out: &std::path::Path,
+    (side, motion): (
+        &crowd_core::files::StreamedFile,
+        crowd_core::trajectories::MotionSummary,
+    ),
+    summary: SmoothingSummary,
+    collided: &crowd_core::trajectories::TrajectoriesFile,
+    inputs: &Inputs,
+    hash: Hash,
+) -> (
+    crowd_core::trajectories::TrajectoriesFile,
+    crowd_core::files::Writes,
+) {
+    let header = crowd_core::files::Header::new(STAGE, VERSION, hash);
+    crowd_core::trajectories::file_of_streamed(
+        out,
+        header,
+        (inputs.period_s, collided.radius_m),
+        (side, motion),
+        collided.collisions.clone(),
+        Some(summary),
+    )
+}

@@ -45,14 +45,16 @@ pub fn gather(dir: &Path, hash: Hash, costs: &[u64]) -> Result<Vec<(PatchMotion,
     gather_parts(dir, &header, costs)
 }
 
-/// [`gather`] left encoded (`crowd_core::shard::gather_encoded`): the side file's bytes and
-/// each patch's counts; `each` sees every patch's motion in patch order.
+/// [`gather`] left encoded (`crowd_core::shard::gather_encoded`): the side file streamed to
+/// `side`'s temporary name, and each patch's counts; `each` sees every patch's motion in
+/// patch order.
 pub fn gather_bytes(
     dir: &Path,
     hash: Hash,
     costs: &[u64],
     each: impl FnMut(&PatchMotion),
+    side: &Path,
 ) -> Result<crowd_core::shard::Gathered<[u64; 3]>> {
     let header = Header::new(crate::STAGE, crate::VERSION, hash);
-    gather_encoded(dir, &header, costs, each)
+    gather_encoded(dir, &header, costs, each, side)
 }
