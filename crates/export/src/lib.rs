@@ -153,6 +153,10 @@ pub fn tolerance_m(inputs: &Inputs) -> f64 {
     inputs.settings.simplify_mm * 1e-3
 }
 
+/// Libraries of fewer points than this are made into bytes beside `world.glb` (painting's has
+/// 9.3 million; the million's 96.5 million are made after it).
+const POINTS_BYTES_BESIDE_GLB: usize = 32 << 20;
+
 /// Stage 8's pure core: the library of the final trajectories, and its manifest. `motion` is
 /// the final motion thinned out by [`simplify::motion`] (or [`simplify::patch`] patch by patch)
 /// with [`tolerance_m`], held or made a patch at a time when asked ([`motion::Made`]).
@@ -183,24 +187,29 @@ pub fn export<M: motion::Motion>(
     )?;
     let region = inputs.settings.gltf_region;
     lib.world.turn_rate_deg_s = inputs.settings.turn_rate_deg_s as f32;
+    let glb = || {
+        glb::world_glb(&glb::World {
+            graph,
+            summaries: &summaries,
+            motion,
+            links: &links,
+            period_s: inputs.period_s,
+            seed: inputs.seed,
+            input_hash: hash.to_string(),
+            region,
+            library: &lib,
+        })
+    };
     // The library's bytes beside `world.glb`: the glTF's longest loop keeps one thread busy
-    // long after the others are done (painting's stroke: 0.2 s).
-    let (bytes, glb) = rayon::join(
-        || lib.to_bytes(),
-        || {
-            glb::world_glb(&glb::World {
-                graph,
-                summaries: &summaries,
-                motion,
-                links: &links,
-                period_s: inputs.period_s,
-                seed: inputs.seed,
-                input_hash: hash.to_string(),
-                region,
-                library: &lib,
-            })
-        },
-    );
+    // long after the others are done (painting's stroke: 0.2 s). But a large library's after
+    // it: the glTF holds its longest loops' keys and headings whole while it makes them, and
+    // the bytes beside them raised the million's peak by their size (0.9 GB).
+    let (bytes, glb) = if lib.points.len() < POINTS_BYTES_BESIDE_GLB {
+        rayon::join(|| lib.to_bytes(), glb)
+    } else {
+        let glb = glb();
+        (lib.to_bytes(), glb)
+    };
     let glb = glb?;
     let file = ExportFile {
         header: crowd_core::files::Header::new(STAGE, VERSION, hash),

@@ -124,11 +124,24 @@ pub fn loop_headings_walking(
     // has 5.6 million, and its first touch of fresh memory was a third of the time).
     // On every core for a long loop where the caller has threads (painting's longest: 0.11 s
     // of `atan2` on one).
-    let directions: Vec<f64> = map_indices(n - 1, |k| {
-        let (a, b) = (points[k], points[k + 1]);
-        let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
-        if walking[k] { dy.atan2(dx) } else { f64::NAN }
-    });
+    let directions: Vec<f64> =
+        map_indices(n - 1, |k| direction(points[k], points[k + 1], walking[k]));
+    headings_from(times, &directions, rate)
+}
+
+/// The direction of a piece from `a` to `b` (world metres), radians; NaN where it stands.
+fn direction(a: [f64; 2], b: [f64; 2], walks: bool) -> f64 {
+    let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
+    if walks { dy.atan2(dx) } else { f64::NAN }
+}
+
+/// [`loop_headings_walking`] of each piece's [`direction`] (`directions[k]`: from key `k` to
+/// `k + 1`).
+fn headings_from(times: &[f64], directions: &[f64], rate: f64) -> Vec<f64> {
+    let n = times.len();
+    if n < 2 {
+        return vec![PI / 2.0; n];
+    }
     let Some(first_walk) = directions.iter().copied().find(|d| !d.is_nan()) else {
         return vec![PI / 2.0; n];
     };
@@ -155,7 +168,7 @@ pub fn loop_headings_walking(
                 towards(from, d, (rate * (t1 - t0)).min(MAX_PIECE_TURN))
             } else {
                 if ahead.is_none_or(|(j, _, _)| j < k) {
-                    ahead = next_walk(&directions, times, k, length);
+                    ahead = next_walk(directions, times, k, length);
                 }
                 let (_, d, walk_off) = ahead.expect("a loop that walks has a walk ahead");
                 // Standing: the run's one turn ends as it walks off; this piece turns only
@@ -292,8 +305,16 @@ pub fn character_headings(lib: &crate::Library, ch: &crate::Character) -> PointH
         });
         at = tr.next;
     }
-    let keys = loop_keys(lib, &legs);
-    let h = loop_headings_walking(&keys.times, &keys.places, &keys.walking, rate);
+    // The keys' times and pieces' directions, and no more: each list a loop long (the
+    // million's longest has 36 million keys, and its places and directions beside the
+    // headings held 49 bytes a key where these hold 25).
+    let LoopKeys {
+        times,
+        directions,
+        walking,
+    } = loop_keys(lib, &legs);
+    let h = headings_from(&times, &directions, rate);
+    drop((times, directions));
     let points: usize = legs.iter().map(|l| l.points as usize).sum();
     let mut heading = Vec::with_capacity(points);
     let mut key = 0usize;
@@ -305,7 +326,7 @@ pub fn character_headings(lib: &crate::Library, ch: &crate::Character) -> PointH
     }
     PointHeadings {
         heading,
-        walks: keys.walking,
+        walks: walking,
     }
 }
 
@@ -318,10 +339,10 @@ struct Leg {
 }
 
 /// A loop's keys as the heading model reads them: times (seconds from the loop's start),
-/// world places, and whether each piece walks.
+/// and each piece's [`direction`] (from the world places of its keys) and whether it walks.
 struct LoopKeys {
     times: Vec<f64>,
-    places: Vec<[f64; 2]>,
+    directions: Vec<f64>,
     walking: Vec<bool>,
 }
 
@@ -330,9 +351,11 @@ struct LoopKeys {
 /// writing its own part of the lists, on every core where the caller has threads (painting's
 /// longest loop: 0.12 s on one).
 fn loop_keys(lib: &crate::Library, legs: &[Leg]) -> LoopKeys {
-    // Where each run of legs starts: its first leg, key, piece and tick.
+    // Where each run of legs starts: its first leg, key, piece and tick, and the place of the
+    // key before it (a trajectory's first piece starts at the one before's last key).
     let mut runs = Vec::new();
     let (mut key, mut piece, mut tick) = (0usize, 0usize, 0u64);
+    let mut place = None;
     for (j, leg) in legs.iter().enumerate() {
         if j % LEGS_PER_RUN == 0 {
             runs.push(Run {
@@ -340,9 +363,14 @@ fn loop_keys(lib: &crate::Library, legs: &[Leg]) -> LoopKeys {
                 key,
                 piece,
                 tick,
+                before: place,
             });
         }
         let n = leg.points as usize;
+        if n >= 2 || (j == 0 && n == 1) {
+            let last = lib.points[leg.first as usize + n - 1];
+            place = Some(lib.world_position(&lib.patches[leg.patch as usize], last));
+        }
         key += if j == 0 { n } else { n.saturating_sub(1) };
         piece += n.saturating_sub(1);
         // Its duration: its last point's ticks (`Library::duration_ticks`).
@@ -351,14 +379,14 @@ fn loop_keys(lib: &crate::Library, legs: &[Leg]) -> LoopKeys {
     }
     let mut out = LoopKeys {
         times: vec![0.0; key],
-        places: vec![[0.0; 2]; key],
+        directions: vec![0.0; piece],
         walking: vec![false; piece],
     };
     // Each run's share of the lists, cut off in order.
     let mut parts = Vec::with_capacity(runs.len());
-    let (mut times, mut places, mut walking) = (
+    let (mut times, mut directions, mut walking) = (
         &mut out.times[..],
-        &mut out.places[..],
+        &mut out.directions[..],
         &mut out.walking[..],
     );
     for (r, run) in runs.iter().enumerate() {
@@ -366,14 +394,14 @@ fn loop_keys(lib: &crate::Library, legs: &[Leg]) -> LoopKeys {
         let keys = next.map_or(key, |n| n.key) - run.key;
         let pieces = next.map_or(piece, |n| n.piece) - run.piece;
         let (t, t_rest) = std::mem::take(&mut times).split_at_mut(keys);
-        let (p, p_rest) = std::mem::take(&mut places).split_at_mut(keys);
+        let (d, d_rest) = std::mem::take(&mut directions).split_at_mut(pieces);
         let (w, w_rest) = std::mem::take(&mut walking).split_at_mut(pieces);
-        (times, places, walking) = (t_rest, p_rest, w_rest);
+        (times, directions, walking) = (t_rest, d_rest, w_rest);
         let end = next.map_or(legs.len(), |n| n.leg);
-        parts.push((&legs[run.leg..end], run, (t, p, w)));
+        parts.push((&legs[run.leg..end], run, (t, d, w)));
     }
-    let fill = |(legs, run, (t, p, w)): (&[Leg], &Run, KeysPart)| {
-        fill_keys(lib, legs, run, (t, p, w));
+    let fill = |(legs, run, (t, d, w)): (&[Leg], &Run, KeysPart)| {
+        fill_keys(lib, legs, run, (t, d, w));
     };
     #[cfg(feature = "rayon")]
     if key >= PARALLEL_KEYS {
@@ -391,14 +419,22 @@ struct Run {
     key: usize,
     piece: usize,
     tick: u64,
+    /// The world place of the key before the run's first (none before the loop's first).
+    before: Option<[f64; 2]>,
 }
 
 /// A run's share of [`LoopKeys`]' lists.
-type KeysPart<'a> = (&'a mut [f64], &'a mut [[f64; 2]], &'a mut [bool]);
+type KeysPart<'a> = (&'a mut [f64], &'a mut [f64], &'a mut [bool]);
 
 /// Writes the keys of `legs`, a run of a loop that starts at `run`, into its share.
-fn fill_keys(lib: &crate::Library, legs: &[Leg], run: &Run, (times, places, walking): KeysPart) {
+fn fill_keys(
+    lib: &crate::Library,
+    legs: &[Leg],
+    run: &Run,
+    (times, directions, walking): KeysPart,
+) {
     let (mut key, mut piece, mut tick) = (0usize, 0usize, run.tick);
+    let mut last = run.before.unwrap_or_default();
     for (j, leg) in legs.iter().enumerate() {
         if let Some(ahead) = legs.get(j + PREFETCH_LEGS) {
             crate::sampler::prefetch(lib.points.as_ptr().wrapping_add(ahead.first as usize));
@@ -409,12 +445,17 @@ fn fill_keys(lib: &crate::Library, legs: &[Leg], run: &Run, (times, places, walk
         for (i, p) in pts.iter().enumerate() {
             if i > 0 || loop_first {
                 times[key] = (tick + u64::from(p.t)) as f64 * crate::TICK_S;
-                places[key] = lib.world_position(patch, *p);
+                let place = lib.world_position(patch, *p);
+                if i > 0 {
+                    // From the key before: this trajectory's last point, or the one before's
+                    // last, in that trajectory's patch.
+                    let walks = piece_walks(lib, pts[i - 1], *p);
+                    walking[piece] = walks;
+                    directions[piece] = direction(last, place, walks);
+                    piece += 1;
+                }
+                last = place;
                 key += 1;
-            }
-            if i > 0 {
-                walking[piece] = piece_walks(lib, pts[i - 1], *p);
-                piece += 1;
             }
         }
         tick += u64::from(pts.last().map_or(0, |p| p.t));
@@ -721,8 +762,16 @@ mod tests {
         (lib, ch)
     }
 
+    /// A loop's keys as the heading model first read them: times, world places and whether
+    /// each piece walks.
+    struct PlacedKeys {
+        times: Vec<f64>,
+        places: Vec<[f64; 2]>,
+        walking: Vec<bool>,
+    }
+
     /// A loop's keys walked in one go, a point at a time: the oracle of [`loop_keys`].
-    fn keys_in_one_go(lib: &crate::Library, ch: &crate::Character) -> LoopKeys {
+    fn keys_in_one_go(lib: &crate::Library, ch: &crate::Character) -> PlacedKeys {
         let (mut times, mut places, mut walking) = (Vec::new(), Vec::new(), Vec::new());
         let (mut at, mut tick) = (ch.first_trajectory as usize, 0u64);
         for j in 0..ch.trajectories {
@@ -740,7 +789,7 @@ mod tests {
             tick += u64::from(lib.duration_ticks(tr));
             at = tr.next as usize;
         }
-        LoopKeys {
+        PlacedKeys {
             times,
             places,
             walking,
@@ -771,9 +820,11 @@ mod tests {
             let (runs, one) = (loop_keys(&lib, &legs_of), keys_in_one_go(&lib, &ch));
             let bits = |v: &[f64]| v.iter().map(|a| a.to_bits()).collect::<Vec<u64>>();
             assert_eq!(bits(&runs.times), bits(&one.times), "{legs} legs");
-            let flat = |v: &[[f64; 2]]| v.iter().flatten().map(|a| a.to_bits()).collect::<Vec<_>>();
-            assert_eq!(flat(&runs.places), flat(&one.places), "{legs} legs");
             assert_eq!(runs.walking, one.walking, "{legs} legs");
+            let directions: Vec<f64> = (0..one.walking.len())
+                .map(|k| direction(one.places[k], one.places[k + 1], one.walking[k]))
+                .collect();
+            assert_eq!(bits(&runs.directions), bits(&directions), "{legs} legs");
             let rate = f64::from(lib.world.turn_rate_deg_s).to_radians();
             let h = reference_loop_headings_walking(&one.times, &one.places, &one.walking, rate);
             let made = character_headings(&lib, &ch);
