@@ -18,4 +18,4 @@ pub use format::{
     Character, Crossing, Library, MAGIC, MAX_PERIODS_PER_TRAJECTORY, Patch, Point, QUANT_STEPS,
     TICK_S, Trajectory, VERSION, World,
 };
-pub use sampler::{Sample, Sampler, packed_heading};
+pub use sampler::{PackedHeadings, Sample, Sampler, packed_heading};

@@ -15,7 +15,7 @@ mod steps;
 mod turning;
 mod walker;
 
-pub use walker::packed_heading;
+pub use walker::{PackedHeadings, packed_heading};
 
 use crate::format::{Library, TICK_S};
 use place::place;
@@ -76,7 +76,7 @@ impl<'a> Sampler<'a> {
 
     /// [`Sampler::new`] with the library's headings made already: `headings` must be
     /// [`crate::turn::library_headings`] of `lib` (made, say, a character per thread).
-    pub fn with_headings(lib: &'a Library, headings: crate::turn::PointHeadings) -> Sampler<'a> {
+    pub fn with_headings(lib: &'a Library, headings: impl Into<PackedHeadings>) -> Sampler<'a> {
         let mut cursors = Vec::with_capacity(lib.walkers() as usize);
         for (c, ch) in lib.characters.iter().enumerate() {
             for lap in 0..ch.laps {
@@ -105,7 +105,7 @@ impl<'a> Sampler<'a> {
                 heading: 0.0,
             })
             .collect();
-        Sampler::of(lib, headings, cursors, standers)
+        Sampler::of(lib, headings.into(), cursors, standers)
     }
 
     /// A sampler of only the walkers `walkers` (ids below `lib.walkers()`, each at most once),
@@ -116,7 +116,7 @@ impl<'a> Sampler<'a> {
     /// Returns `None` when an id is not a walker of `lib`.
     pub fn playing(
         lib: &'a Library,
-        headings: crate::turn::PointHeadings,
+        headings: impl Into<PackedHeadings>,
         walkers: &[u32],
     ) -> Option<Sampler<'a>> {
         // Each loop's first walker id, to find a walker's loop by a binary search.
@@ -139,12 +139,12 @@ impl<'a> Sampler<'a> {
                 })
             })
             .collect::<Option<Vec<Cursor>>>()?;
-        Some(Sampler::of(lib, headings, cursors, Vec::new()))
+        Some(Sampler::of(lib, headings.into(), cursors, Vec::new()))
     }
 
     fn of(
         lib: &'a Library,
-        headings: crate::turn::PointHeadings,
+        headings: PackedHeadings,
         cursors: Vec<Cursor>,
         standers: Vec<Sample>,
     ) -> Sampler<'a> {

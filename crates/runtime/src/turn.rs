@@ -840,6 +840,20 @@ mod tests {
         }
     }
 
+    /// Headings taken in packed, a character at a time (what `crowd check` holds), are every
+    /// point's headings packed after they are all made (what the sampler kept).
+    #[test]
+    fn headings_taken_in_packed_are_the_library_headings_packed() {
+        for (legs, seed) in [(1, 5), (300, 6), (2000, 7)] {
+            let (mut lib, ch) = one_long_loop(legs, seed);
+            lib.characters = vec![ch];
+            let whole = crate::PackedHeadings::from(library_headings(&lib));
+            let mut taken = crate::PackedHeadings::for_points(&lib);
+            taken.take(&lib, &ch, &character_headings(&lib, &ch));
+            assert_eq!(taken, whole, "{legs} legs");
+        }
+    }
+
     proptest! {
         /// The headings made in place, lap over lap, are the first way's to the bit, at any
         /// rate (slow rates need several laps to settle).
