@@ -79,6 +79,77 @@ fn plans(w: &World) -> Vec<plan::Plan> {
         .collect()
 }
 
+/// A walker slot's keys, and the spans of the clip it is shown (all of it without a region).
+struct Slot {
+    id: u32,
+    next: u32,
+    /// Its loop (in the library's CHAR order) and lap.
+    lp: u32,
+    lap: u32,
+    keys: Keys,
+    shown: Vec<(f64, f64)>,
+}
+
+/// The slots of every loop that may show (`laps[lp]` each), in loop and lap order: the
+/// patches they walk read from the final motion (`plan.rs`), each loop's path made and its
+/// slots cut from it. A planned slot whose keys' box misses the region shows nothing: its
+/// keys are never made.
+fn slots(w: &World, laps: &[u32]) -> crowd_core::Result<Vec<Slot>> {
+    let hidden = |b: (DVec2, DVec2)| w.region.is_some_and(|r| !region::may_show(b, r));
+    let firsts: Vec<u32> = laps
+        .iter()
+        .scan(0u32, |id, &n| {
+            let first = *id;
+            *id += n;
+            Some(first)
+        })
+        .collect();
+    let plans = plans(w);
+    let held = Held::load(
+        w.motion,
+        &plan::patches(&plans, w.links, w.graph.patches.len()),
+    )?;
+    let loop_slots = |plan: &plan::Plan| -> Vec<Slot> {
+        let path = keys::loop_path(w, &held, plan);
+        let first = firsts[plan.lp];
+        // A loop of 60,000 laps (painting's longest) has its slots made in parallel too.
+        (plan.laps.par_iter())
+            .filter(|&&lap| !hidden(keys::window_box(&path, lap)))
+            .map(|&lap| {
+                let keys = slot_keys(&path, lap);
+                let shown = match w.region {
+                    Some(r) => region::shown(&keys.times, &keys.points, r),
+                    None => vec![(0.0, w.period_s)],
+                };
+                Slot {
+                    id: first + lap,
+                    next: first + path.next_lap(lap),
+                    lp: plan.lp as u32,
+                    lap,
+                    keys,
+                    shown,
+                }
+            })
+            .collect()
+    };
+    // Loops are independent: their keys are made in parallel and kept in loop order
+    // (painting's 428 loops were two seconds of the export on one core), but for the longest.
+    let keys_of = |plan: &plan::Plan| -> usize {
+        (w.links.loops[plan.lp].iter())
+            .map(|&i| w.summaries.trajectories[i].points)
+            .sum()
+    };
+    let mut per_loop: Vec<Option<Vec<Slot>>> = (plans.par_iter())
+        .map(|plan| (keys_of(plan) < LONG_LOOP_KEYS).then(|| loop_slots(plan)))
+        .collect();
+    for (made, plan) in per_loop.iter_mut().zip(&plans) {
+        if made.is_none() {
+            *made = Some(loop_slots(plan));
+        }
+    }
+    Ok(per_loop.into_iter().flatten().flatten().collect())
+}
+
 /// Keys of loops from this long are made one loop at a time (each on every core): a loop's
 /// keys and headings are made whole before its slots are cut from them, 80 bytes a key, and
 /// the million's four longest, 8 to 36 million keys, made at once held gigabytes.
@@ -119,74 +190,10 @@ pub fn world_glb(w: &World) -> crowd_core::Result<Vec<u8>> {
         w.region
             .is_none_or(|(x0, y0, x1, y1)| p.x >= x0 && p.x < x1 && p.y >= y0 && p.y < y1)
     };
-    // Every slot's keys, and the spans of the clip it is shown (all of it without a region).
-    struct Slot {
-        id: u32,
-        next: u32,
-        /// Its loop (in the library's CHAR order) and lap.
-        lp: u32,
-        lap: u32,
-        keys: Keys,
-        shown: Vec<(f64, f64)>,
-    }
-    let hidden = |b: (DVec2, DVec2)| w.region.is_some_and(|r| !region::may_show(b, r));
     let laps: Vec<u32> = (w.links.loops.iter())
         .map(|members| keys::loop_laps(w, members))
         .collect();
-    let firsts: Vec<u32> = laps
-        .iter()
-        .scan(0u32, |id, &n| {
-            let first = *id;
-            *id += n;
-            Some(first)
-        })
-        .collect();
-    let plans = plans(w);
-    let held = Held::load(
-        w.motion,
-        &plan::patches(&plans, w.links, w.graph.patches.len()),
-    )?;
-    // A planned slot whose keys' box misses the region shows nothing: its keys are never made.
-    let loop_slots = |plan: &plan::Plan| -> Vec<Slot> {
-        let path = keys::loop_path(w, &held, plan);
-        let first = firsts[plan.lp];
-        // A loop of 60,000 laps (painting's longest) has its slots made in parallel too.
-        (plan.laps.par_iter())
-            .filter(|&&lap| !hidden(keys::window_box(&path, lap)))
-            .map(|&lap| {
-                let keys = slot_keys(&path, lap);
-                let shown = match w.region {
-                    Some(r) => region::shown(&keys.times, &keys.points, r),
-                    None => vec![(0.0, period)],
-                };
-                Slot {
-                    id: first + lap,
-                    next: first + path.next_lap(lap),
-                    lp: plan.lp as u32,
-                    lap,
-                    keys,
-                    shown,
-                }
-            })
-            .collect()
-    };
-    // Loops are independent: their keys are made in parallel and kept in loop order
-    // (painting's 428 loops were two seconds of the export on one core), but for the longest.
-    let keys_of = |plan: &plan::Plan| -> usize {
-        (w.links.loops[plan.lp].iter())
-            .map(|&i| w.summaries.trajectories[i].points)
-            .sum()
-    };
-    let mut per_loop: Vec<Option<Vec<Slot>>> = (plans.par_iter())
-        .map(|plan| (keys_of(plan) < LONG_LOOP_KEYS).then(|| loop_slots(plan)))
-        .collect();
-    for (made, plan) in per_loop.iter_mut().zip(&plans) {
-        if made.is_none() {
-            *made = Some(loop_slots(plan));
-        }
-    }
-    drop(held);
-    let slots: Vec<Slot> = per_loop.into_iter().flatten().flatten().collect();
+    let slots = slots(w, &laps)?;
     let named: std::collections::HashSet<u32> = slots
         .iter()
         .filter(|s| !s.shown.is_empty())
