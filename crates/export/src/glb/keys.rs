@@ -67,12 +67,15 @@ impl LoopPath {
         self.clock.next_lap(lap)
     }
 
-    /// The stretch that holds loop time `tau` (the first for a time before the loop's start).
+    /// The stretch that holds loop time `tau` (the first for a time before the loop's start;
+    /// the last, which then ends the loop, for a time past its last key: a loop's keys may end
+    /// a rounding short of its laps' length, and the walker holds its last point there).
     fn stretch(&self, tau: f64) -> &Stretch {
         let i = (self.stretches.partition_point(|s| s.times[0] <= tau)).saturating_sub(1);
         let s = &self.stretches[i];
+        let last = i + 1 == self.stretches.len();
         assert!(
-            s.times[0] <= tau.max(0.0) && tau <= s.times[s.times.len() - 1],
+            s.times[0] <= tau.max(0.0) && (last || tau <= s.times[s.times.len() - 1]),
             "world.glb reads loop time {tau} outside the keys it holds"
         );
         s
@@ -615,6 +618,26 @@ mod tests {
     fn angle(a: [f32; 4], b: [f32; 4]) -> f64 {
         let dot: f32 = a.iter().zip(&b).map(|(x, y)| x * y).sum();
         2.0 * f64::from(dot.abs().min(1.0)).acos()
+    }
+
+    /// Keys that end a rounding short of the laps' length: a slot whose clip starts or ends
+    /// past the last key holds the last point there, as a player holds a track's last key.
+    #[test]
+    fn a_loop_a_hair_short_of_its_laps_holds_its_last_point_to_the_end() {
+        let end = 16.0 - 1e-9;
+        let times = vec![0.0, 4.0, 8.0, 12.0, end];
+        let points = vec![
+            DVec2::new(0.0, 0.0),
+            DVec2::new(4.0, 0.0),
+            DVec2::new(4.0, 4.0),
+            DVec2::new(0.0, 4.0),
+            DVec2::new(0.0, 0.0),
+        ];
+        let p = path(times, points, 0.0, 2, 8.0);
+        let tau = 16.0 - 1e-10;
+        assert_eq!(p.at(tau), DVec2::ZERO);
+        assert!(p.heading(tau).is_finite());
+        assert!(p.turn_breaks(tau, 16.0).is_empty());
     }
 
     #[test]
