@@ -706,52 +706,22 @@ pub fn encode_file(
     collisions: Option<CollisionSummary>,
     smoothing: Option<SmoothingSummary>,
 ) -> (TrajectoriesFile, crate::files::Writes) {
-    let encoded = Encoded {
-        bytes: encode_motion(motion),
-        summary: summarize(motion, period_s),
-    };
-    encode_file_of(
-        out,
+    let bytes = encode_motion(motion);
+    let (side, record) = SideFile::beside(out, &bytes);
+    let summary = summarize(motion, period_s);
+    let file = file_of(
         header,
         (period_s, radius_m),
-        encoded,
-        collisions,
-        smoothing,
-    )
-}
-
-/// A motion side file's bytes, as [`encode_motion`] writes them, and their [`summarize`].
-pub struct Encoded {
-    pub bytes: Vec<u8>,
-    pub summary: MotionSummary,
-}
-
-/// [`encode_file`] of motion already encoded.
-pub fn encode_file_of(
-    out: &Path,
-    header: Header,
-    (period_s, radius_m): (f64, f64),
-    encoded: Encoded,
-    collisions: Option<CollisionSummary>,
-    smoothing: Option<SmoothingSummary>,
-) -> (TrajectoriesFile, crate::files::Writes) {
-    let (side, record) = SideFile::beside(out, &encoded.bytes);
-    let file = TrajectoriesFile {
-        header,
-        period_s,
-        radius_m,
-        summary: encoded.summary,
-        collisions,
-        smoothing,
-        edits: None,
-        motion: record,
-    };
+        (summary, record),
+        (collisions, smoothing),
+    );
     let ron = crate::files::to_stage_ron(&file).into_bytes();
-    (file, vec![(side, encoded.bytes), (out.to_path_buf(), ron)])
+    (file, vec![(side, bytes), (out.to_path_buf(), ron)])
 }
 
-/// [`encode_file_of`] of a side file streamed to its temporary name already
-/// ([`crate::files::Streamed`], at `out`'s side file path): the file, and its RON to write.
+/// [`encode_file`] of a side file streamed to its temporary name already
+/// ([`crate::files::Streamed`], at `out`'s side file path), whose motion `summary` sums: the
+/// file, and its RON to write.
 pub fn file_of_streamed(
     out: &Path,
     header: Header,
@@ -766,7 +736,24 @@ pub fn file_of_streamed(
         "a side file streamed where its owner names it"
     );
     (record.bytes, record.hash) = (side.bytes, side.hash);
-    let file = TrajectoriesFile {
+    let file = file_of(
+        header,
+        (period_s, radius_m),
+        (summary, record),
+        (collisions, smoothing),
+    );
+    let ron = crate::files::to_stage_ron(&file).into_bytes();
+    (file, vec![(out.to_path_buf(), ron)])
+}
+
+/// The file that names side file `record`, whose motion `summary` sums.
+fn file_of(
+    header: Header,
+    (period_s, radius_m): (f64, f64),
+    (summary, record): (MotionSummary, SideFile),
+    (collisions, smoothing): (Option<CollisionSummary>, Option<SmoothingSummary>),
+) -> TrajectoriesFile {
+    TrajectoriesFile {
         header,
         period_s,
         radius_m,
@@ -775,9 +762,7 @@ pub fn file_of_streamed(
         smoothing,
         edits: None,
         motion: record,
-    };
-    let ron = crate::files::to_stage_ron(&file).into_bytes();
-    (file, vec![(out.to_path_buf(), ron)])
+    }
 }
 
 /// `trajectories.ron` (stage 4's file, and the shape of stages 5 and 6's).

@@ -372,31 +372,12 @@ pub fn encode(
     crowd_core::trajectories::TrajectoriesFile,
     crowd_core::files::Writes,
 ) {
-    let encoded = crowd_core::trajectories::Encoded {
-        bytes: crowd_core::trajectories::encode_motion(motion),
-        summary: crowd_core::trajectories::summarize(motion, inputs.period_s),
-    };
-    encode_gathered(out, encoded, summary, collided, inputs, hash)
-}
-
-/// [`encode`] of motion already encoded (gathered from shards).
-pub fn encode_gathered(
-    out: &std::path::Path,
-    encoded: crowd_core::trajectories::Encoded,
-    summary: SmoothingSummary,
-    collided: &crowd_core::trajectories::TrajectoriesFile,
-    inputs: &Inputs,
-    hash: Hash,
-) -> (
-    crowd_core::trajectories::TrajectoriesFile,
-    crowd_core::files::Writes,
-) {
-    let header = crowd_core::files::Header::new(STAGE, VERSION, hash);
-    crowd_core::trajectories::encode_file_of(
+    crowd_core::trajectories::encode_file(
         out,
-        header,
-        (inputs.period_s, collided.radius_m),
-        encoded,
+        crowd_core::files::Header::new(STAGE, VERSION, hash),
+        inputs.period_s,
+        collided.radius_m,
+        motion,
         collided.collisions.clone(),
         Some(summary),
     )
@@ -418,10 +399,9 @@ pub fn encode_streamed(
     crowd_core::trajectories::TrajectoriesFile,
     crowd_core::files::Writes,
 ) {
-    let header = crowd_core::files::Header::new(STAGE, VERSION, hash);
     crowd_core::trajectories::file_of_streamed(
         out,
-        header,
+        crowd_core::files::Header::new(STAGE, VERSION, hash),
         (inputs.period_s, collided.radius_m),
         (side, motion),
         collided.collisions.clone(),

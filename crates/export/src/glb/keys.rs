@@ -598,20 +598,18 @@ mod tests {
     /// A square loop of 4 m sides walked at 1 m/s in 16 s, two laps of an 8 s period, with
     /// a period split point at every corner, entered at world time 3.
     fn square() -> LoopPath {
-        let corners = [
+        path(vec![0.0, 4.0, 8.0, 12.0, 16.0], corners(), 3.0, 2, 8.0)
+    }
+
+    /// The square's corners, the first again at the end.
+    fn corners() -> Vec<DVec2> {
+        vec![
             DVec2::new(0.0, 0.0),
             DVec2::new(4.0, 0.0),
             DVec2::new(4.0, 4.0),
             DVec2::new(0.0, 4.0),
             DVec2::new(0.0, 0.0),
-        ];
-        path(
-            vec![0.0, 4.0, 8.0, 12.0, 16.0],
-            corners.to_vec(),
-            3.0,
-            2,
-            8.0,
-        )
+        ]
     }
 
     /// The angle between two rotation keys, radians.
@@ -625,15 +623,7 @@ mod tests {
     #[test]
     fn a_loop_a_hair_short_of_its_laps_holds_its_last_point_to_the_end() {
         let end = 16.0 - 1e-9;
-        let times = vec![0.0, 4.0, 8.0, 12.0, end];
-        let points = vec![
-            DVec2::new(0.0, 0.0),
-            DVec2::new(4.0, 0.0),
-            DVec2::new(4.0, 4.0),
-            DVec2::new(0.0, 4.0),
-            DVec2::new(0.0, 0.0),
-        ];
-        let p = path(times, points, 0.0, 2, 8.0);
+        let p = path(vec![0.0, 4.0, 8.0, 12.0, end], corners(), 0.0, 2, 8.0);
         let tau = 16.0 - 1e-10;
         assert_eq!(p.at(tau), DVec2::ZERO);
         assert!(p.heading(tau).is_finite());
