@@ -331,11 +331,12 @@ const MEMBERS_PER_RUN: usize = 1024;
 /// Keys from which [`stretch_keys`] uses every core.
 const PARALLEL_KEYS: usize = 1 << 16;
 
-/// When loop `lp`'s slots start: its first trajectory's start, its laps, the period.
-pub(super) fn clock(w: &World, lp: &[usize]) -> Clock {
+/// When loop `lp`'s slots start: its first trajectory's start, its `laps` ([`loop_laps`]),
+/// the period.
+pub(super) fn clock(w: &World, lp: &[usize], laps: u32) -> Clock {
     Clock {
         start: w.summaries.trajectories[lp[0]].start_s,
-        laps: loop_laps(w, lp),
+        laps,
         period: w.period_s,
     }
 }

@@ -58,11 +58,19 @@ pub struct World<'a> {
 /// The patches whose keyframes [`world_glb`] reads: those its shown slots walk through (all that
 /// hold a trajectory, without a region).
 pub fn patches_read(w: &World) -> Vec<bool> {
-    plan::patches(&plans(w), w.links, w.graph.patches.len())
+    plan::patches(&plans(w, &laps(w)), w.links, w.graph.patches.len())
 }
 
-/// Every loop's [`plan::Plan`] (in loop order), but those of loops no slot of which may show.
-fn plans(w: &World) -> Vec<plan::Plan> {
+/// How many periods each loop lasts ([`keys::loop_laps`]), in loop order.
+fn laps(w: &World) -> Vec<u32> {
+    (w.links.loops.iter())
+        .map(|members| keys::loop_laps(w, members))
+        .collect()
+}
+
+/// Every loop's [`plan::Plan`] (in loop order, `laps` each), but those of loops no slot of
+/// which may show.
+fn plans(w: &World, laps: &[u32]) -> Vec<plan::Plan> {
     // With a region, a loop whose box misses it shows nothing (most of painting's, for its
     // 160 m region).
     (0..w.links.loops.len())
@@ -74,7 +82,8 @@ fn plans(w: &World) -> Vec<plan::Plan> {
             {
                 return None;
             }
-            plan::plan(w.summaries, w.links, lp, keys::clock(w, members), w.region)
+            let clock = keys::clock(w, members, laps[lp]);
+            plan::plan(w.summaries, w.links, lp, clock, w.region)
         })
         .collect()
 }
@@ -104,7 +113,7 @@ fn slots(w: &World, laps: &[u32]) -> crowd_core::Result<Vec<Slot>> {
             Some(first)
         })
         .collect();
-    let plans = plans(w);
+    let plans = plans(w, laps);
     let held = Held::load(
         w.motion,
         &plan::patches(&plans, w.links, w.graph.patches.len()),
@@ -190,9 +199,7 @@ pub fn world_glb(w: &World) -> crowd_core::Result<Vec<u8>> {
         w.region
             .is_none_or(|(x0, y0, x1, y1)| p.x >= x0 && p.x < x1 && p.y >= y0 && p.y < y1)
     };
-    let laps: Vec<u32> = (w.links.loops.iter())
-        .map(|members| keys::loop_laps(w, members))
-        .collect();
+    let laps = laps(w);
     let slots = slots(w, &laps)?;
     let named: std::collections::HashSet<u32> = slots
         .iter()
