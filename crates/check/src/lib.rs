@@ -170,7 +170,10 @@ fn judge(
         let mut m = motion::Measure::new(c.len());
         for (p, (o, _)) in own.iter().enumerate() {
             if let Some(tally) = &o.tally {
-                m.add(p, tally, &t[p]);
+                let tally = tally
+                    .unpack()
+                    .expect("a tally packed here or checked in its memo");
+                m.add(p, &tally, &t[p]);
             }
         }
         m.finish()
@@ -222,7 +225,7 @@ fn own_shares(
         }
         let m = w.source.patch(p)?;
         let tally = (w.crossings.zip(tables))
-            .map(|(c, t)| motion::patch_tally((graph, c, w.period_s), p, &m, &t[p]));
+            .map(|(c, t)| motion::patch_tally((graph, c, w.period_s), p, &m, &t[p]).pack());
         let own = Own {
             extent: strips::Extent::of(graph, p, &m),
             walkers: m.trajectories.len() as u64,

@@ -16,7 +16,7 @@
 //! read field by field it takes a twentieth of that.
 
 use crate::library::Played;
-use crate::motion::PatchTally;
+use crate::motion::PackedTally;
 use crate::strips::Extent;
 use crate::world::Pairs;
 use crowd_core::Hash;
@@ -30,7 +30,7 @@ use std::collections::HashMap;
 pub(crate) struct Own {
     pub extent: Extent,
     pub walkers: u64,
-    pub tally: Option<PatchTally>,
+    pub tally: Option<PackedTally>,
 }
 
 /// What a check remembers: each patch's own share and the pairs it owns, for the stage file
@@ -191,7 +191,8 @@ pub(crate) fn bytes_of(values: &[u64]) -> Vec<u8> {
     values.iter().flat_map(|v| v.to_le_bytes()).collect()
 }
 
-const MAGIC: &[u8; 8] = b"CRWDMEMO";
+/// The memo's format: a memo of another one is not read (its patches are judged again).
+const MAGIC: &[u8; 8] = b"CRWDMEM2";
 
 /// A memo being written: little-endian numbers.
 pub(crate) struct Bytes(pub Vec<u8>);
@@ -212,6 +213,19 @@ impl Bytes {
     pub fn vec2(&mut self, v: DVec2) {
         self.f64(v.x);
         self.f64(v.y);
+    }
+    /// `v` in LEB128: seven bits a byte, the lowest first, the top bit set on all but the last.
+    pub fn varint(&mut self, mut v: u64) {
+        while v >= 0x80 {
+            self.0.push(v as u8 | 0x80);
+            v >>= 7;
+        }
+        self.0.push(v as u8);
+    }
+    /// `bytes`, after their count.
+    pub fn blob(&mut self, bytes: &[u8]) {
+        self.u64(bytes.len() as u64);
+        self.0.extend_from_slice(bytes);
     }
     /// `items`, after their count.
     pub fn list<T>(&mut self, items: &[T], mut put: impl FnMut(&mut Bytes, &T)) {
@@ -254,6 +268,23 @@ impl<'a> Reader<'a> {
     pub fn vec2(&mut self) -> Option<DVec2> {
         Some(DVec2::new(self.f64()?, self.f64()?))
     }
+    /// A number written by [`Bytes::varint`] (`None` past 64 bits).
+    pub fn varint(&mut self) -> Option<u64> {
+        let mut v = 0u64;
+        for shift in (0..64).step_by(7) {
+            let b = self.u8()?;
+            v |= u64::from(b & 0x7f).checked_shl(shift)?;
+            if b & 0x80 == 0 {
+                return (shift < 63 || b <= 1).then_some(v);
+            }
+        }
+        None
+    }
+    /// Bytes written by [`Bytes::blob`].
+    pub fn blob(&mut self) -> Option<&'a [u8]> {
+        let n = usize::try_from(self.u64()?).ok()?;
+        self.take(n)
+    }
     fn key(&mut self) -> Option<[u8; 32]> {
         self.take(32)?.try_into().ok()
     }
@@ -290,7 +321,7 @@ impl Own {
         Some(Own {
             extent: Extent::get(r)?,
             walkers: r.u64()?,
-            tally: r.option(PatchTally::get)?,
+            tally: r.option(PackedTally::get)?,
         })
     }
 }
