@@ -221,6 +221,57 @@ fn a_sampler_of_some_walkers_places_them_as_the_sampler_of_all() {
     );
 }
 
+/// A library written a piece at a time (as a build writes a large one) is the bytes of it
+/// written whole, and of the file stage 8 wrote; and its stated size is theirs.
+#[test]
+fn a_library_written_a_piece_at_a_time_is_the_library_written_whole() {
+    for name in ["bands", "city", "ring"] {
+        let file = std::fs::read(scene(name).join("library.crowd")).unwrap();
+        let lib = Library::from_bytes(&file).unwrap();
+        let mut pieces = Vec::new();
+        let mut count = 0;
+        lib.write_to(|piece| {
+            pieces.extend_from_slice(piece);
+            count += 1;
+            Ok::<(), ()>(())
+        })
+        .unwrap();
+        assert!(
+            pieces == file,
+            "{name}: the pieces differ from library.crowd"
+        );
+        assert!(
+            lib.to_bytes() == file,
+            "{name}: to_bytes differs from library.crowd"
+        );
+        assert_eq!(lib.byte_len(), file.len(), "{name}");
+        // The header, then each section's pieces: city's and ring's points take more than one.
+        let pieces = |n: usize| n.div_ceil(1 << 18);
+        let points_pieces = pieces(lib.points.len());
+        let others = [
+            lib.patches.len(),
+            lib.standers.len(),
+            lib.crossings.len(),
+            lib.trajectories.len(),
+            lib.characters.len(),
+        ];
+        let expected = 1 + 2 + others.map(pieces).iter().sum::<usize>() + points_pieces;
+        assert_eq!(count, expected, "{name}");
+        assert!(name == "bands" || points_pieces > 1, "{name}");
+        // A sink that fails stops the writing there.
+        let mut handed = 0;
+        let failed = lib.write_to(|_| {
+            handed += 1;
+            if handed == 3 {
+                Err("disk full")
+            } else {
+                Ok(())
+            }
+        });
+        assert_eq!((failed, handed), (Err("disk full"), 3), "{name}");
+    }
+}
+
 fn bands_library() -> &'static Vec<u8> {
     static BYTES: OnceLock<Vec<u8>> = OnceLock::new();
     BYTES.get_or_init(|| std::fs::read(scene("bands").join("library.crowd")).unwrap())
@@ -524,7 +575,7 @@ fn export_made_patch_by_patch_writes_what_export_of_the_held_motion_writes() {
                 Ok(crowd_export::simplify::patch(lazy.patch(p)?, tolerance))
             });
             let part = crowd_export::export(&graph, &crossings, &made, &inputs, hash).unwrap();
-            assert_eq!(whole.file, part.file, "{name} {region:?}");
+            assert_eq!(whole.manifest, part.manifest, "{name} {region:?}");
             assert!(
                 whole.library == part.library,
                 "{name} {region:?}: library.crowd differs"

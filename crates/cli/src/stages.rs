@@ -753,12 +753,40 @@ fn export(a: &mut Artifacts, out: &Path, hash: Hash, _: &Ui) -> Result<Ran> {
         });
         crowd_export::export(&graph, &patterns.1, &made, &inputs, hash).map_err(failed)?
     };
-    let f = &export.file;
-    let library = (out.with_file_name(&f.library), f.library_hash);
-    let gltf = (out.with_file_name(&f.gltf), f.gltf_hash);
-    Ok(Ran::files(crowd_export::writes(out, export))
-        .knowing(library.0, library.1)
-        .knowing(gltf.0, gltf.1))
+    let gltf = (
+        out.with_file_name(crowd_export::GLB_FILE),
+        export.manifest.gltf_hash(),
+    );
+    let library = out.with_file_name(crowd_export::LIBRARY_FILE);
+    let ran = match export.library {
+        crowd_export::LibraryBytes::Held(_) => {
+            let (writes, file) = crowd_export::writes(out, export);
+            Ran::files(writes).knowing(library, file.library_hash)
+        }
+        crowd_export::LibraryBytes::Records(lib) => {
+            let streamed = write_library(&library, lib)?;
+            let file = export.manifest.file((streamed.bytes, streamed.hash));
+            let hash = streamed.hash;
+            Ran {
+                streamed: vec![streamed],
+                ..Ran::files(vec![
+                    (gltf.0.clone(), export.glb),
+                    (out.to_path_buf(), files::to_stage_ron(&file).into_bytes()),
+                ])
+            }
+            .knowing(library, hash)
+        }
+    };
+    Ok(ran.knowing(gltf.0, gltf.1))
+}
+
+/// A large library written to `path`'s temporary name a piece at a time, its records freed
+/// as soon as it is (the million's 0.9 GB of bytes were held beside its 0.9 GB of records).
+fn write_library(path: &Path, lib: crowd_runtime::Library) -> Result<files::StreamedFile> {
+    let mut file = files::Streamed::create(path)?;
+    lib.write_to(|piece| file.write(piece))?;
+    drop(lib);
+    Ok(file.finish()?)
 }
 
 /// `stage`'s motion left in its files, each patch read when asked: the read-ahead's, or

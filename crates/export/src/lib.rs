@@ -112,9 +112,38 @@ fn differs(path: &std::path::Path, name: &str, bytes: u64, hash: Hash) -> Option
 
 /// Everything stage 8 makes, in memory.
 pub struct Export {
-    pub file: ExportFile,
-    pub library: Vec<u8>,
+    pub library: LibraryBytes,
     pub glb: Vec<u8>,
+    pub manifest: Manifest,
+}
+
+/// `export.ron` but the library's size and hash, which are known once its bytes are made.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Manifest(ExportFile);
+
+/// `library.crowd` as stage 8 hands it over.
+#[derive(Debug, Clone, PartialEq)]
+pub enum LibraryBytes {
+    /// Its bytes, made beside `world.glb`.
+    Held(Vec<u8>),
+    /// A large library's records, to be written a piece at a time
+    /// (`crowd_runtime::Library::write_to`): the million's 0.9 GB were held beside them.
+    Records(crowd_runtime::Library),
+}
+
+impl Manifest {
+    /// `export.ron`, for a library of `bytes` bytes that hash to `hash`.
+    pub fn file(self, (bytes, hash): (u64, Hash)) -> ExportFile {
+        ExportFile {
+            library_bytes: bytes,
+            library_hash: hash,
+            ..self.0
+        }
+    }
+
+    pub fn gltf_hash(&self) -> Hash {
+        self.0.gltf_hash
+    }
 }
 
 /// Why stage 8 cannot export a build.
@@ -201,21 +230,22 @@ pub fn export<M: motion::Motion>(
         })
     };
     // The library's bytes beside `world.glb`: the glTF's longest loop keeps one thread busy
-    // long after the others are done (painting's stroke: 0.2 s). But a large library's after
-    // it: the glTF holds its longest loops' keys and headings whole while it makes them, and
-    // the bytes beside them raised the million's peak by their size (0.9 GB).
+    // long after the others are done (painting's stroke: 0.2 s). But a large library's are not
+    // made here: its records are handed over, to be written a piece at a time. Made beside the
+    // glTF, its bytes raised the million's peak by their size (0.9 GB); made after it, they
+    // were held beside the records (0.9 GB again).
     let (bytes, glb) = if lib.points.len() < POINTS_BYTES_BESIDE_GLB {
-        rayon::join(|| lib.to_bytes(), glb)
+        let (bytes, glb) = rayon::join(|| lib.to_bytes(), glb);
+        (Some(bytes), glb?)
     } else {
-        let glb = glb();
-        (lib.to_bytes(), glb)
+        (None, glb()?)
     };
-    let glb = glb?;
     let file = ExportFile {
         header: crowd_core::files::Header::new(STAGE, VERSION, hash),
         library: LIBRARY_FILE.to_string(),
-        library_bytes: bytes.len() as u64,
-        library_hash: Hash::of(&bytes),
+        // Filled in by `Export::file`.
+        library_bytes: 0,
+        library_hash: Hash::of(&[]),
         gltf: GLB_FILE.to_string(),
         gltf_bytes: glb.len() as u64,
         gltf_hash: Hash::of(&glb),
@@ -231,22 +261,32 @@ pub fn export<M: motion::Motion>(
         time_error_s: if eased_m > 0.0 { 1.5 } else { 0.5 } * crowd_runtime::TICK_S,
     };
     Ok(Export {
-        file,
-        library: bytes,
+        library: bytes.map_or(LibraryBytes::Records(lib), LibraryBytes::Held),
         glb,
+        manifest: Manifest(file),
     })
 }
 
 /// Stage 8's files: the library, then `export.ron` (written last, so that a manifest always
-/// names a library that is there).
-pub fn writes(out: &std::path::Path, export: Export) -> crowd_core::files::Writes {
+/// names a library that is there). A large library's bytes are made here, whole: a build
+/// writes them a piece at a time instead (`crowd build`'s export).
+pub fn writes(out: &std::path::Path, export: Export) -> (crowd_core::files::Writes, ExportFile) {
     let dir = out.parent().unwrap_or(std::path::Path::new("."));
-    vec![
-        (dir.join(LIBRARY_FILE), export.library),
-        (dir.join(GLB_FILE), export.glb),
-        (
-            out.to_path_buf(),
-            crowd_core::files::to_stage_ron(&export.file).into_bytes(),
-        ),
-    ]
+    let Export {
+        library,
+        glb,
+        manifest,
+    } = export;
+    let library = match library {
+        LibraryBytes::Held(bytes) => bytes,
+        LibraryBytes::Records(lib) => lib.to_bytes(),
+    };
+    let file = manifest.file((library.len() as u64, Hash::of(&library)));
+    let ron = crowd_core::files::to_stage_ron(&file).into_bytes();
+    let writes = vec![
+        (dir.join(LIBRARY_FILE), library),
+        (dir.join(GLB_FILE), glb),
+        (out.to_path_buf(), ron),
+    ];
+    (writes, file)
 }

@@ -9,6 +9,7 @@ use super::rules::invalid;
 use super::{MAGIC, VERSION};
 use crate::crc::crc32;
 use crate::error::LoadError;
+use std::ops::Range;
 
 const HEADER_LEN: usize = 16;
 const ENTRY_LEN: usize = 24;
@@ -25,48 +26,149 @@ const TURN: [u8; 4] = *b"TURN";
 /// The turn rates a library may ask for, degrees a second (`export.turn_rate_deg_s`'s range).
 pub const TURN_RATES_DEG_S: std::ops::RangeInclusive<f32> = 30.0..=3600.0;
 
+/// A section: its tag, the size and number of its records, and a run of them appended to a
+/// list.
+struct Section {
+    tag: [u8; 4],
+    size: usize,
+    records: fn(&Library) -> usize,
+    write: fn(&Library, Range<usize>, &mut Vec<u8>),
+}
+
+/// The sections, in the order they are written.
+const SECTIONS: [Section; 8] = [
+    Section {
+        tag: WORLD,
+        size: 36,
+        records: |_| 1,
+        write: |lib, _, w| write_world(lib, w),
+    },
+    Section {
+        tag: PATCHES,
+        size: 24,
+        records: |lib| lib.patches.len(),
+        write: write_patches,
+    },
+    Section {
+        tag: STANDERS,
+        size: 4,
+        records: |lib| lib.standers.len(),
+        write: write_standers,
+    },
+    Section {
+        tag: CROSSINGS,
+        size: 28,
+        records: |lib| lib.crossings.len(),
+        write: write_crossings,
+    },
+    Section {
+        tag: TRAJECTORIES,
+        size: 28,
+        records: |lib| lib.trajectories.len(),
+        write: write_trajectories,
+    },
+    Section {
+        tag: POINTS,
+        size: 8,
+        records: |lib| lib.points.len(),
+        write: write_points,
+    },
+    Section {
+        tag: CHARACTERS,
+        size: 12,
+        records: |lib| lib.characters.len(),
+        write: write_characters,
+    },
+    Section {
+        tag: TURN,
+        size: 4,
+        records: |_| 1,
+        write: |lib, _, w| put_f32(w, lib.world.turn_rate_deg_s),
+    },
+];
+
+/// Records a piece of [`Library::write_to`] holds (2 MB of points: a piece that long is hashed
+/// on every core).
+const PIECE_RECORDS: usize = 1 << 18;
+
 impl Library {
     /// The library's bytes: the header, a table left blank, each section written in place
     /// after it, then the table filled in (each section's checksum of its bytes there). One
     /// list the file's size: the million's library was 0.9 GB, held twice over as sections
     /// and then copied into a list grown as it went.
     pub fn to_bytes(&self) -> Vec<u8> {
-        let sections: [([u8; 4], SectionWriter); 8] = [
-            (WORLD, write_world),
-            (PATCHES, write_patches),
-            (STANDERS, write_standers),
-            (CROSSINGS, write_crossings),
-            (TRAJECTORIES, write_trajectories),
-            (POINTS, write_points),
-            (CHARACTERS, write_characters),
-            (TURN, write_turn),
-        ];
-        let table_end = HEADER_LEN + ENTRY_LEN * sections.len();
-        let records = 36
-            + self.patches.len() * 24
-            + self.standers.len() * 4
-            + self.crossings.len() * 28
-            + self.trajectories.len() * 28
-            + self.points.len() * 8
-            + self.characters.len() * 12
-            + 4;
-        let mut out = Vec::with_capacity(table_end + records);
+        let table_end = HEADER_LEN + ENTRY_LEN * SECTIONS.len();
+        let mut out = Vec::with_capacity(self.byte_len());
+        out.extend_from_slice(&self.head(&[0; SECTIONS.len()]));
+        for (i, section) in SECTIONS.iter().enumerate() {
+            let start = out.len();
+            (section.write)(self, 0..(section.records)(self), &mut out);
+            let at = HEADER_LEN + ENTRY_LEN * i + 4;
+            let crc = crc32(&out[start..]);
+            out[at..at + 4].copy_from_slice(&crc.to_le_bytes());
+        }
+        debug_assert!(out.len() == self.byte_len() && table_end <= out.len());
+        out
+    }
+
+    /// The bytes of [`Library::to_bytes`], handed to `sink` a piece at a time and never held
+    /// whole (a gathering build writes the million's 0.9 GB so): each section is made twice,
+    /// once for its checksum in the table before it, once to hand over.
+    pub fn write_to<E>(&self, mut sink: impl FnMut(&[u8]) -> Result<(), E>) -> Result<(), E> {
+        let mut crcs = [0; SECTIONS.len()];
+        for (crc, section) in crcs.iter_mut().zip(&SECTIONS) {
+            let mut c = crate::crc::Crc32::new();
+            self.pieces(section, |piece| {
+                c.update(piece);
+                Ok::<(), E>(())
+            })?;
+            *crc = c.finish();
+        }
+        sink(&self.head(&crcs))?;
+        for section in &SECTIONS {
+            self.pieces(section, &mut sink)?;
+        }
+        Ok(())
+    }
+
+    /// The size of [`Library::to_bytes`].
+    pub fn byte_len(&self) -> usize {
+        let records: usize = SECTIONS.iter().map(|s| s.size * (s.records)(self)).sum();
+        HEADER_LEN + ENTRY_LEN * SECTIONS.len() + records
+    }
+
+    /// The header and the section table, with the sections' checksums `crcs`.
+    fn head(&self, crcs: &[u32; SECTIONS.len()]) -> Vec<u8> {
+        let mut out = Vec::with_capacity(HEADER_LEN + ENTRY_LEN * SECTIONS.len());
         out.extend_from_slice(&MAGIC);
         put_u32(&mut out, VERSION);
-        put_u32(&mut out, sections.len() as u32);
-        out.resize(table_end, 0);
-        for (i, (tag, write)) in sections.iter().enumerate() {
-            let start = out.len();
-            write(self, &mut out);
-            let mut entry = Vec::with_capacity(ENTRY_LEN);
-            entry.extend_from_slice(tag);
-            put_u32(&mut entry, crc32(&out[start..]));
-            entry.extend_from_slice(&(start as u64).to_le_bytes());
-            entry.extend_from_slice(&((out.len() - start) as u64).to_le_bytes());
-            let at = HEADER_LEN + ENTRY_LEN * i;
-            out[at..at + ENTRY_LEN].copy_from_slice(&entry);
+        put_u32(&mut out, SECTIONS.len() as u32);
+        let mut start = (HEADER_LEN + ENTRY_LEN * SECTIONS.len()) as u64;
+        for (section, crc) in SECTIONS.iter().zip(crcs) {
+            let len = (section.size * (section.records)(self)) as u64;
+            out.extend_from_slice(&section.tag);
+            put_u32(&mut out, *crc);
+            out.extend_from_slice(&start.to_le_bytes());
+            out.extend_from_slice(&len.to_le_bytes());
+            start += len;
         }
         out
+    }
+
+    /// `section`'s bytes, a run of [`PIECE_RECORDS`] records at a time.
+    fn pieces<E>(
+        &self,
+        section: &Section,
+        mut f: impl FnMut(&[u8]) -> Result<(), E>,
+    ) -> Result<(), E> {
+        let n = (section.records)(self);
+        let mut piece = Vec::with_capacity(section.size * n.min(PIECE_RECORDS));
+        for from in (0..n).step_by(PIECE_RECORDS) {
+            piece.clear();
+            (section.write)(self, from..(from + PIECE_RECORDS).min(n), &mut piece);
+            f(&piece)?;
+        }
+        Ok(())
     }
 
     /// Reads and checks a library. Nothing in `bytes` is trusted: every count is bounded by
@@ -225,9 +327,6 @@ fn put_u32(out: &mut Vec<u8>, v: u32) {
     out.extend_from_slice(&v.to_le_bytes());
 }
 
-/// Appends one section's records to a library's bytes.
-type SectionWriter = fn(&Library, &mut Vec<u8>);
-
 fn write_world(lib: &Library, w: &mut Vec<u8>) {
     let world = &lib.world;
     put_f32(w, world.patch_side_m);
@@ -239,8 +338,8 @@ fn write_world(lib: &Library, w: &mut Vec<u8>) {
     w.extend_from_slice(&world.input_hash);
 }
 
-fn write_patches(lib: &Library, w: &mut Vec<u8>) {
-    for p in &lib.patches {
+fn write_patches(lib: &Library, run: Range<usize>, w: &mut Vec<u8>) {
+    for p in &lib.patches[run] {
         for v in [
             p.col,
             p.row,
@@ -254,15 +353,15 @@ fn write_patches(lib: &Library, w: &mut Vec<u8>) {
     }
 }
 
-fn write_standers(lib: &Library, w: &mut Vec<u8>) {
-    for s in &lib.standers {
+fn write_standers(lib: &Library, run: Range<usize>, w: &mut Vec<u8>) {
+    for s in &lib.standers[run] {
         w.extend_from_slice(&s.x.to_le_bytes());
         w.extend_from_slice(&s.y.to_le_bytes());
     }
 }
 
-fn write_crossings(lib: &Library, w: &mut Vec<u8>) {
-    for c in &lib.crossings {
+fn write_crossings(lib: &Library, run: Range<usize>, w: &mut Vec<u8>) {
+    for c in &lib.crossings[run] {
         put_u32(w, c.from_patch);
         put_u32(w, c.to_patch);
         put_f32(w, c.x);
@@ -273,8 +372,8 @@ fn write_crossings(lib: &Library, w: &mut Vec<u8>) {
     }
 }
 
-fn write_trajectories(lib: &Library, w: &mut Vec<u8>) {
-    for t in &lib.trajectories {
+fn write_trajectories(lib: &Library, run: Range<usize>, w: &mut Vec<u8>) {
+    for t in &lib.trajectories[run] {
         for v in [
             t.patch,
             t.entry,
@@ -289,24 +388,20 @@ fn write_trajectories(lib: &Library, w: &mut Vec<u8>) {
     }
 }
 
-fn write_points(lib: &Library, w: &mut Vec<u8>) {
-    for p in &lib.points {
+fn write_points(lib: &Library, run: Range<usize>, w: &mut Vec<u8>) {
+    for p in &lib.points[run] {
         w.extend_from_slice(&p.x.to_le_bytes());
         w.extend_from_slice(&p.y.to_le_bytes());
         put_u32(w, p.t);
     }
 }
 
-fn write_characters(lib: &Library, w: &mut Vec<u8>) {
-    for c in &lib.characters {
+fn write_characters(lib: &Library, run: Range<usize>, w: &mut Vec<u8>) {
+    for c in &lib.characters[run] {
         put_u32(w, c.first_trajectory);
         put_u32(w, c.trajectories);
         put_u32(w, c.laps);
     }
-}
-
-fn write_turn(lib: &Library, w: &mut Vec<u8>) {
-    put_f32(w, lib.world.turn_rate_deg_s);
 }
 
 fn put_f32(out: &mut Vec<u8>, v: f32) {
