@@ -17,6 +17,7 @@ use crowd_core::patterns::Patterns;
 use crowd_core::trajectories::{LazyMotion, PatchMotion, TrajectoriesFile};
 use crowd_core::{Hash, PatchGraph};
 use rayon::prelude::*;
+use std::borrow::Cow;
 use std::path::Path;
 
 /// The stage files, by the stage that writes them (side files are named in them).
@@ -424,7 +425,8 @@ fn collide(a: &mut Artifacts, out: &Path, hash: Hash, ui: &Ui) -> Result<Ran> {
             let matched = a.take_motion(&MATCH)?;
             let patterns = a.patterns()?;
             let seen = Seen::new(&graph, &patterns.1);
-            let keys = collide_keys(&seen, &matched.1, &s);
+            let held: &[PatchMotion] = &matched.1;
+            let keys = collide_keys(&seen, |p| Ok(Cow::Borrowed(&held[p])), &s)?;
             let previous = a.previous.take(out);
             let reused = reuse::reusable(previous.as_ref(), &keys, &seen.tables);
             drop(previous);
@@ -452,17 +454,7 @@ fn collide(a: &mut Artifacts, out: &Path, hash: Hash, ui: &Ui) -> Result<Ran> {
             let note = reuse::note(motion.len() - todo.len(), motion.len());
             finish_collide(a, out, hash, (motion, reports), (keys, seen.tables), note)
         }
-        Split::Gather => {
-            let gathered = crowd_collide::shard::gather(dir, hash, &a.shard_costs()?)?;
-            // The keys a whole build would leave, so that the next build reuses patches.
-            let matched = a.take_motion(&MATCH)?;
-            let patterns = a.patterns()?;
-            let seen = Seen::new(&graph, &patterns.1);
-            let keys = collide_keys(&seen, &matched.1, &s);
-            drop(matched);
-            let note = "gathered".to_string();
-            finish_collide(a, out, hash, gathered, (keys, seen.tables), note)
-        }
+        Split::Gather => collide_gathered(a, out, hash, &s),
         Split::Shard(shard) => {
             let own: Vec<usize> = shard.run(&a.shard_costs()?).collect();
             let cleared = crowd_collide::shard::with_neighbours(&graph, &own);
@@ -494,11 +486,56 @@ fn collide(a: &mut Artifacts, out: &Path, hash: Hash, ui: &Ui) -> Result<Ran> {
 }
 
 /// Every patch's stage 5 key ([`crowd_collide::patch_key`]), in parallel.
-fn collide_keys(seen: &Seen, matched: &[PatchMotion], s: &crowd_collide::Inputs) -> Vec<Hash> {
-    (0..matched.len())
+fn collide_keys<'a>(
+    seen: &Seen,
+    matched: impl Fn(usize) -> crowd_core::Result<Cow<'a, PatchMotion>> + Sync,
+    s: &crowd_collide::Inputs,
+) -> crowd_core::Result<Vec<Hash>> {
+    (0..seen.graph.patches.len())
         .into_par_iter()
-        .map(|p| crowd_collide::patch_key(seen, p, &matched[p], s))
+        .map(|p| Ok(crowd_collide::patch_key(seen, p, &*matched(p)?, s)))
         .collect()
+}
+
+/// Stage 5 put together from every shard's part in `shards/`: their patch bytes one after
+/// another make the side file one process would write, streamed to disk and never held whole
+/// nor decoded into one world (the million's gather held its motion decoded through stages 5
+/// and 6, and the matched motion for the keys: 1.7 GB). Stage 6 reads the patches from the
+/// parts.
+fn collide_gathered(
+    a: &mut Artifacts,
+    out: &Path,
+    hash: Hash,
+    s: &crowd_collide::Inputs,
+) -> Result<Ran> {
+    let dir = out.parent().unwrap_or(Path::new("."));
+    let mut summing = crowd_core::trajectories::Summing::new(s.period_s);
+    let side_path = out.with_extension("bin");
+    let costs = a.shard_costs()?;
+    let gathered =
+        crowd_collide::shard::gather_bytes(dir, hash, &costs, |m| summing.add(m), &side_path)?;
+    // The keys a whole build would leave, so that the next build reuses patches: from the
+    // matched motion, each patch read when asked.
+    let (graph, patterns) = (a.graph()?, a.patterns()?);
+    let seen = Seen::new(&graph, &patterns.1);
+    let keys = each_patch(a, &MATCH, |motion| collide_keys(&seen, motion, s))??;
+    let reports = gathered.reports;
+    let side = gathered.side;
+    let (file, writes) =
+        crowd_collide::encode_streamed(out, (&side, summing.finish()), &reports, &graph, s, hash);
+    let extra = reports
+        .iter()
+        .map(|r| ron::to_string(r).map(String::into_bytes))
+        .collect::<std::result::Result<Vec<_>, _>>()?;
+    let writes = with_keys(out, writes, file.motion.hash, keys, &seen.tables, extra);
+    let known = (side.path.clone(), side.hash);
+    a.made_lazy_motion(&COLLIDE, (file, gathered.motion));
+    Ok(Ran {
+        note: Some("gathered".to_string()),
+        streamed: vec![side],
+        ..Ran::files(writes)
+    }
+    .knowing(known.0, known.1))
 }
 
 /// Stage 5's files from every patch's motion and report, with the keys of each patch.
@@ -577,10 +614,11 @@ fn smooth(a: &mut Artifacts, out: &Path, hash: Hash, ui: &Ui) -> Result<Ran> {
     let motion: &[PatchMotion] = &collided.1;
     let mut ahead = std::mem::take(&mut a.previous);
     let (keys, previous) = rayon::join(
-        || crowd_smooth::patch_keys(&seen, motion, &inputs),
+        || crowd_smooth::patch_keys(&seen, |p| Ok(Cow::Borrowed(&motion[p])), &inputs),
         || ahead.take(out),
     );
     a.previous = ahead;
+    let keys = keys?;
     let counted = |counts: [u64; 3]| counts.iter().flat_map(|c| c.to_le_bytes()).collect();
     let mut done = reuse::reusable(previous.as_ref(), &keys, &seen.tables);
     let todo: Vec<usize> = (0..done.len()).filter(|&p| done[p].is_none()).collect();
@@ -644,11 +682,16 @@ fn smooth_gathered(
     )?;
     let counts = gathered.reports;
     let (graph, patterns) = (a.graph()?, a.patterns()?);
-    let collided = a.take_motion(&COLLIDE)?;
+    // The keys from stage 5's motion, each patch read when asked.
     let seen = Seen::new(&graph, &patterns.1);
-    let keys = crowd_smooth::patch_keys(&seen, &collided.1, inputs);
-    let collided_file = collided.0.clone();
-    drop(collided);
+    let keys = each_patch(a, &COLLIDE, |motion| {
+        crowd_smooth::patch_keys(&seen, motion, inputs)
+    })??;
+    let collided_file = if a.holds_motion(&COLLIDE) {
+        a.take_motion(&COLLIDE)?.0.clone()
+    } else {
+        lazy_motion(a, &COLLIDE)?.0.clone()
+    };
     let extra = (counts.iter())
         .map(|c| c.iter().flat_map(|c| c.to_le_bytes()).collect())
         .collect();
@@ -787,6 +830,23 @@ fn write_library(path: &Path, lib: crowd_runtime::Library) -> Result<files::Stre
     lib.write_to(|piece| file.write(piece))?;
     drop(lib);
     Ok(file.finish()?)
+}
+
+/// `f` of `stage`'s motion a patch at a time: held by this build (its stage ran, and its
+/// files wait for the commit), or else read from its files when asked.
+fn each_patch<T>(
+    a: &mut Artifacts,
+    stage: &'static Stage,
+    f: impl for<'m> FnOnce(&'m (dyn Fn(usize) -> crowd_core::Result<Cow<'m, PatchMotion>> + Sync)) -> T,
+) -> Result<T> {
+    if a.holds_motion(stage) {
+        let held = a.take_motion(stage)?;
+        let motion: &[PatchMotion] = &held.1;
+        return Ok(f(&|p| Ok(Cow::Borrowed(&motion[p]))));
+    }
+    let lazy = lazy_motion(a, stage)?;
+    let motion = &lazy.1;
+    Ok(f(&|p| motion.patch(p).map(Cow::Owned)))
 }
 
 /// `stage`'s motion left in its files, each patch read when asked: the read-ahead's, or

@@ -484,9 +484,46 @@ pub fn encode(
     crowd_core::trajectories::TrajectoriesFile,
     crowd_core::files::Writes,
 ) {
-    use crowd_core::trajectories::CollisionSummary;
-    let header = crowd_core::files::Header::new(STAGE, VERSION, hash);
-    let collisions = Some(CollisionSummary {
+    crowd_core::trajectories::encode_file(
+        out,
+        crowd_core::files::Header::new(STAGE, VERSION, hash),
+        inputs.period_s,
+        graph.radius_m,
+        motion,
+        Some(collisions(reports)),
+        None,
+    )
+}
+
+/// [`encode`] of motion gathered from shards into a side file streamed to disk already
+/// (`shard::gather_bytes`), which `summary` sums.
+pub fn encode_streamed(
+    out: &std::path::Path,
+    side: (
+        &crowd_core::files::StreamedFile,
+        crowd_core::trajectories::MotionSummary,
+    ),
+    reports: &[PatchReport],
+    graph: &PatchGraph,
+    inputs: &Inputs,
+    hash: crowd_core::Hash,
+) -> (
+    crowd_core::trajectories::TrajectoriesFile,
+    crowd_core::files::Writes,
+) {
+    crowd_core::trajectories::file_of_streamed(
+        out,
+        crowd_core::files::Header::new(STAGE, VERSION, hash),
+        (inputs.period_s, graph.radius_m),
+        side,
+        Some(collisions(reports)),
+        None,
+    )
+}
+
+/// What the patches' reports say of the clearing, for `collided.ron`.
+fn collisions(reports: &[PatchReport]) -> crowd_core::trajectories::CollisionSummary {
+    crowd_core::trajectories::CollisionSummary {
         iterations: reports.iter().map(|r| r.iterations as u64).sum(),
         min_margin_m: reports.iter().map(|r| r.worst_margin_m).fold(0.0, f64::min),
         unconverged: reports.iter().filter_map(|r| r.stall).collect(),
@@ -495,16 +532,7 @@ pub fn encode(
             .iter()
             .flat_map(|r| r.waited.iter().map(|&w| (r.patch, w)))
             .collect(),
-    });
-    crowd_core::trajectories::encode_file(
-        out,
-        header,
-        inputs.period_s,
-        graph.radius_m,
-        motion,
-        collisions,
-        None,
-    )
+    }
 }
 
 #[cfg(test)]

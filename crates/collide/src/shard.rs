@@ -2,13 +2,13 @@
 //! [`crowd_core::Shard::run`]) and clears them and their neighbours ([`with_neighbours`]:
 //! stage 6 of a patch needs the pieces its neighbours walk up to their shared crossings); it
 //! writes its own patches, with their reports, to `shards/collide-I-of-N.ron` (and `.bin`).
-//! The gathering build reads every shard's part back ([`gather`]) and hands them, in patch
-//! order, to the encoder one process uses, so `collided.ron` and `collided.bin` are the same
-//! bytes.
+//! The gathering build puts every shard's part together ([`gather_bytes`]): their patches'
+//! bytes one after another make the side file one process writes, so `collided.ron` and
+//! `collided.bin` are the same bytes.
 
 use crate::PatchReport;
 use crowd_core::files::{Header, Writes};
-use crowd_core::shard::{encode_part, gather_parts};
+use crowd_core::shard::{Gathered, encode_part, gather_encoded};
 use crowd_core::trajectories::PatchMotion;
 use crowd_core::{Hash, PatchGraph, Result, Shard};
 use std::path::Path;
@@ -48,13 +48,17 @@ pub fn encode_shard(
     encode_part(dir, header(hash), shard, parts)
 }
 
-/// Stage 5's motion and reports for every patch, from every shard's part in `dir/shards`
-/// (each made for `hash` and holding the patches its shard owns by `costs`).
-pub fn gather(
+/// Stage 5's motion for every patch left in the parts, from every shard's part in
+/// `dir/shards` (each made for `hash`, holding the patches its shard owns by `costs`): the side
+/// file one process would write streamed to `side`'s temporary name, and each patch's report;
+/// `each` sees every patch's motion in patch order. The million's gather held the world's
+/// motion decoded (1.4 GB) through stages 5 and 6.
+pub fn gather_bytes(
     dir: &Path,
     hash: Hash,
     costs: &[u64],
-) -> Result<(Vec<PatchMotion>, Vec<PatchReport>)> {
-    let parts: Vec<(PatchMotion, PatchReport)> = gather_parts(dir, &header(hash), costs)?;
-    Ok(parts.into_iter().unzip())
+    each: impl FnMut(&PatchMotion),
+    side: &Path,
+) -> Result<Gathered<PatchReport>> {
+    gather_encoded(dir, &header(hash), costs, each, side)
 }

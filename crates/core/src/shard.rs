@@ -149,25 +149,10 @@ pub fn encode_part<R: Serialize>(
 
 /// Every patch's motion and report, put together from the parts of the stage `header` names
 /// in `dir/shards`: all N parts of one count, each made for `header` and holding exactly the
-/// patches its shard's run of `costs` ([`costs`]) gives it. Refused, naming the file, when
-/// one is missing, stale or holds other patches.
-pub fn gather_parts<R: DeserializeOwned + Clone>(
-    dir: &Path,
-    header: &Header,
-    costs: &[u64],
-) -> Result<Vec<(PatchMotion, R)>> {
-    let mut all = Vec::with_capacity(costs.len());
-    for_each_part(dir, header, costs, |part: Part<R>, read| {
-        let motion = read.index.decode_all(&read.path, &read.bytes)?;
-        all.extend(motion.into_iter().zip(part.reports));
-        Ok(())
-    })?;
-    Ok(all)
-}
-
-/// [`gather_parts`] left encoded: the side file one process would have written
-/// ([`encode_motion`] of every patch: the parts' patch bytes one after another), streamed to
-/// `side`'s temporary name part by part, and every patch's report. `each` sees every patch's
+/// patches its shard's run of `costs` ([`costs`]) gives it (refused, naming the file, when one
+/// is missing, stale or holds other patches). Left encoded: the side file one process would
+/// have written ([`encode_motion`] of every patch: the parts' patch bytes one after another),
+/// streamed to `side`'s temporary name part by part, and every patch's report. `each` sees every patch's
 /// motion in patch order, decoded one part at a time: the world's motion is never held, decoded
 /// (the million's was 11 GB with its bytes) or encoded (4.2 GB).
 pub fn gather_encoded<R: DeserializeOwned + Clone>(

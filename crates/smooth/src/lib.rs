@@ -46,24 +46,25 @@ pub const VERSION: u32 = 10;
 /// neighbours' (each in its own numbering, with its surroundings: the velocity at a crossing is
 /// what both sides walk there), its surroundings and the settings. Each patch's own part is
 /// hashed once, then combined with its neighbours'.
-pub fn patch_keys(
+pub fn patch_keys<'a>(
     seen: &crowd_core::patch_keys::Seen,
-    collided: &[PatchMotion],
+    collided: impl Fn(usize) -> crowd_core::Result<std::borrow::Cow<'a, PatchMotion>> + Sync,
     inputs: &Inputs,
-) -> Vec<Hash> {
+) -> crowd_core::Result<Vec<Hash>> {
     use crowd_core::patch_keys::{local_bytes, neighbours};
     use rayon::prelude::*;
-    let n = collided.len();
-    let own: Vec<Hash> = (0..n)
+    let n = seen.graph.patches.len();
+    let own: Vec<crowd_core::Result<Hash>> = (0..n)
         .into_par_iter()
         .map(|p| {
             let mut h = crowd_core::Hasher::new("smooth patch part", VERSION);
             h.binary("surroundings", &seen.surroundings(p))
-                .part("motion", &local_bytes(&seen.tables[p], &collided[p]));
-            h.finish()
+                .part("motion", &local_bytes(&seen.tables[p], &*collided(p)?));
+            Ok(h.finish())
         })
         .collect();
-    (0..n)
+    let own = own.into_iter().collect::<crowd_core::Result<Vec<Hash>>>()?;
+    let keys = (0..n)
         .into_par_iter()
         .map(|p| {
             let mut h = crowd_core::Hasher::new("smooth patch", VERSION);
@@ -76,7 +77,8 @@ pub fn patch_keys(
             }
             h.finish()
         })
-        .collect()
+        .collect();
+    Ok(keys)
 }
 
 /// What stage 6 reads of a pipeline besides its input files.

@@ -6,7 +6,7 @@
 
 use crate::Inputs;
 use crowd_core::files::{Header, Writes};
-use crowd_core::shard::{encode_part, gather_encoded, gather_parts};
+use crowd_core::shard::{encode_part, gather_encoded};
 use crowd_core::trajectories::PatchMotion;
 use crowd_core::{Hash, Hasher, Result, Shard};
 use std::path::Path;
@@ -38,16 +38,10 @@ pub fn encode_shard(
     )
 }
 
-/// Stage 6's motion for every patch and its summary, from every shard's part in
-/// `dir/shards` (each made for `hash`, holding the patches its shard owns by `costs`).
-pub fn gather(dir: &Path, hash: Hash, costs: &[u64]) -> Result<Vec<(PatchMotion, [u64; 3])>> {
-    let header = Header::new(crate::STAGE, crate::VERSION, hash);
-    gather_parts(dir, &header, costs)
-}
-
-/// [`gather`] left encoded (`crowd_core::shard::gather_encoded`): the side file streamed to
-/// `side`'s temporary name, and each patch's counts; `each` sees every patch's motion in
-/// patch order.
+/// Stage 6's motion for every patch left in the parts, from every shard's part in
+/// `dir/shards` (each made for `hash`, holding the patches its shard owns by `costs`;
+/// `crowd_core::shard::gather_encoded`): the side file streamed to `side`'s temporary name,
+/// and each patch's counts; `each` sees every patch's motion in patch order.
 pub fn gather_bytes(
     dir: &Path,
     hash: Hash,
