@@ -11,8 +11,8 @@
 #     SLURM_ARRAY_TASK_ID    (a Slurm array job)
 #   CROWD     the crowd binary (default: crowd on the PATH)
 #   WORK      scratch space for this shard's build folder (default: a temporary folder)
-#   MAX_MEMORY bytes the build may take (`--max-memory`; default: the machine's), for a world
-#             whose one-process estimate is above the machine though a shard is not
+#   MAX_MEMORY bytes the build may take (`--max-memory`; default: the machine's): a shard is
+#             held to its own estimate (its part of the world), not the one-process build's
 set -eu
 : "${PIPELINE:?set PIPELINE to the pipeline file}"
 : "${SHARDS:?set SHARDS to the number of shards}"

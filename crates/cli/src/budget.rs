@@ -14,7 +14,23 @@
 //! | city | 5,000 (+160 standers) | 20 s | 223 MB | 221 MB |
 //! | painting | 95,000 | 20 s | 2.81-3.39 GB | 3.37 GB |
 //! | bands, period 600 s | 1,100 | 600 s | 313 MB | 336 MB |
+//!
+//! A build split over processes is sized by its part (2026-12-06, `/usr/bin/time`, release):
+//! a shard holds the world's motion of stage 4 and a little more of every walker (600 bytes),
+//! and its own patches' stages 5 and 6 (12 kB a walker); a gather holds what its check judges.
+//! Its check takes a large world a strip and a part at a time (about 3 kB a walker), but one
+//! whose stage 6 side file is under a gibibyte (about 244,000 walkers) in its three forms at
+//! once, for speed (12.5 kB a walker).
+//!
+//! | build | walkers | peak measured | estimate |
+//! | --- | ---: | ---: | ---: |
+//! | painting, a shard of 4 (`--threads 1`) | 95,000 | 358-364 MB | 382 MB |
+//! | painting, a shard of 8 | 95,000 | 196-227 MB | 239 MB |
+//! | the million, a shard of 8 | 1,016,000 | 1.63-1.65 GB | 2.17 GB |
+//! | painting, the gather of 4 shards | 95,000 | 1.14 GB | 1.23 GB |
+//! | the million, the gather of 8 shards | 1,016,000 | 2.94 GB | 3.09 GB |
 
+use crate::driver::Split;
 use crowd_core::config::{LayerKind, People, PipelineFile};
 
 /// Memory of a build whatever its size, bytes: the binary, the maps, the graph.
@@ -24,10 +40,42 @@ const PER_WALKER: f64 = 35e3;
 /// How the peak grows with the period: (period / 20 s) to this power.
 const PERIOD_POWER: f64 = 0.6;
 
-/// The estimated peak memory of building `pipeline`, bytes.
-pub fn estimate(pipeline: &PipelineFile) -> f64 {
+/// A shard's peak bytes per walker of the world (stage 4's motion of every one).
+const SHARD_PER_WALKER: f64 = 600.0;
+/// A shard's peak bytes per walker of its own (its patches' stages 5 and 6).
+const SHARD_PER_OWN_WALKER: f64 = 12e3;
+/// A gather's peak bytes per walker, when its check takes the world a strip at a time.
+const GATHER_PER_WALKER: f64 = 3e3;
+/// A gather's peak bytes per walker, when its check judges the world's three forms at once.
+const GATHER_PER_WALKER_AT_ONCE: f64 = 12.5e3;
+/// The walkers of the largest world whose check judges its three forms at once (its stage 6
+/// side file, about 4.4 kB a walker, under `check::SMALL_WORLD_BYTES`).
+const AT_ONCE_WALKERS: f64 = 244e3;
+
+/// The estimated peak memory of building `pipeline` (or its part `split`), bytes.
+pub fn estimate(pipeline: &PipelineFile, split: Split) -> f64 {
     let p = &pipeline.pipeline;
-    BASE + characters(pipeline) * PER_WALKER * (p.period_s / 20.0).powf(PERIOD_POWER)
+    let w = characters(pipeline);
+    let per_period = (p.period_s / 20.0).powf(PERIOD_POWER);
+    let held = match split {
+        Split::Whole => w * PER_WALKER,
+        Split::Shard(shard) => {
+            w * SHARD_PER_WALKER + w / f64::from(shard.count()) * SHARD_PER_OWN_WALKER
+        }
+        Split::Gather => {
+            (w.min(AT_ONCE_WALKERS) * GATHER_PER_WALKER_AT_ONCE).max(w * GATHER_PER_WALKER)
+        }
+    };
+    BASE + held * per_period
+}
+
+/// What of the build `split` is, for a refusal.
+fn part(split: Split) -> String {
+    match split {
+        Split::Whole => "the build".to_string(),
+        Split::Shard(s) => format!("shard {}/{}", s.index(), s.count()),
+        Split::Gather => "the gather".to_string(),
+    }
 }
 
 /// The characters a build may place: the totals, or with `people: PerSquareMetre(..)` what
@@ -68,9 +116,9 @@ pub fn machine_memory() -> Option<u64> {
     crate::memory::kb_field(&info, "MemTotal:")
 }
 
-/// Refuses `pipeline` when its estimated peak passes `limit` bytes (`--max-memory`, else the
-/// machine's memory; no limit where neither is known).
-pub fn check(pipeline: &PipelineFile, limit: Option<u64>) -> crowd_core::Result<()> {
+/// Refuses `pipeline` (or its part `split`) when its estimated peak passes `limit` bytes
+/// (`--max-memory`, else the machine's memory; no limit where neither is known).
+pub fn check(pipeline: &PipelineFile, split: Split, limit: Option<u64>) -> crowd_core::Result<()> {
     let (limit, source) = match limit {
         Some(l) => (l, "--max-memory"),
         None => match machine_memory() {
@@ -78,7 +126,8 @@ pub fn check(pipeline: &PipelineFile, limit: Option<u64>) -> crowd_core::Result<
             None => return Ok(()),
         },
     };
-    let need = estimate(pipeline);
+    let need = estimate(pipeline, split);
+    let part = part(split);
     if need <= limit as f64 {
         return Ok(());
     }
@@ -88,9 +137,9 @@ pub fn check(pipeline: &PipelineFile, limit: Option<u64>) -> crowd_core::Result<
             "people",
             format!(
                 "asks for about {:.0} characters as the layers are painted, over a {} s \
-                 period: the build could need about {} at peak, more than the {} of \
-                 {source}; lower the densities (or `period_s`), or raise --max-memory if the \
-                 machine has more to give",
+                 period: {part} could need about {} at peak, more than the {} of \
+                 {source}; lower the densities (or `period_s`), split the build into more \
+                 shards, or raise --max-memory if the machine has more to give",
                 characters(pipeline),
                 p.period_s,
                 size(need),
@@ -101,10 +150,10 @@ pub fn check(pipeline: &PipelineFile, limit: Option<u64>) -> crowd_core::Result<
     Err(pipeline.field_error(
         "walkers",
         format!(
-            "is {}: with {} standers over a {} s period the build needs about {} at peak \
+            "is {}: with {} standers over a {} s period {part} needs about {} at peak \
              (stages 4 to 8 hold every walker's points over one period), more than the {} of \
-             {source}; lower `walkers` (or `standers`, `period_s`), or raise --max-memory if \
-             the machine has more to give",
+             {source}; lower `walkers` (or `standers`, `period_s`), split the build into more \
+             shards, or raise --max-memory if the machine has more to give",
             p.walkers,
             p.standers,
             p.period_s,
@@ -184,11 +233,57 @@ mod tests {
         ] {
             let file = PipelineFile::parse(std::path::Path::new("p.ron"), text(walkers, period))
                 .unwrap_or_else(|e| panic!("{e}"));
-            let e = estimate(&file);
+            let e = estimate(&file, Split::Whole);
             assert!(
                 e > 0.5 * measured && e < 1.7 * measured,
                 "{walkers} walkers, {period} s: {e} for {measured}"
             );
         }
+    }
+
+    /// A shard or a gather is sized by its part, never below what it was measured to take,
+    /// and well under the whole build (the million's: 35 GB).
+    #[test]
+    fn a_split_build_is_sized_by_its_part() {
+        let file = |walkers: u32| {
+            let text = format!(
+                "(scene: (meters_per_pixel: 1.0, layers: [(kind: Density, path: \"d.png\")]), \
+                 walkers: {walkers}, standers: 0, patch_side_m: 8.0, period_s: 20.0, \
+                 radius_m: 0.3, seed: 1, output: \"out\")"
+            );
+            PipelineFile::parse(std::path::Path::new("p.ron"), text)
+                .unwrap_or_else(|e| panic!("{e}"))
+        };
+        let shard = |i, n| Split::Shard(crowd_core::Shard::new(i, n).unwrap());
+        for (walkers, split, measured) in [
+            (95_000, shard(0, 4), 364e6),
+            (95_000, shard(7, 8), 227e6),
+            (1_016_000, shard(3, 8), 1.65e9),
+            (95_000, Split::Gather, 1.14e9),
+            (1_016_000, Split::Gather, 2.94e9),
+        ] {
+            let f = file(walkers);
+            let e = estimate(&f, split);
+            assert!(
+                e >= measured && e < 1.4 * measured,
+                "{walkers} walkers, {split:?}: {e} for {measured}"
+            );
+            assert!(
+                e < 0.5 * estimate(&f, Split::Whole),
+                "{walkers} walkers, {split:?}"
+            );
+        }
+        // The million's shards and gather fit a machine of 8 GB; the whole build does not.
+        let million = file(1_016_000);
+        let limit = Some(8_000_000_000);
+        assert!(check(&million, shard(0, 8), limit).is_ok());
+        assert!(check(&million, Split::Gather, limit).is_ok());
+        let refused = check(&million, Split::Whole, limit)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            refused.contains("the build needs about") && refused.contains("more shards"),
+            "{refused}"
+        );
     }
 }

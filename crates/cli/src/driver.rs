@@ -79,7 +79,7 @@ pub fn build(
     // The layers are read (headers checked, the region held to the maps) before the folder
     // is made: a refused painting leaves no trace.
     artifacts.layers()?;
-    crate::budget::check(&pipeline, options.max_memory)?;
+    crate::budget::check(&pipeline, options.split, options.max_memory)?;
     let existed = out.exists();
     std::fs::create_dir_all(&out)
         .map_err(|e| crowd_core::Error::io(&out, "create the output folder", e))?;
