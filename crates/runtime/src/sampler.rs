@@ -41,7 +41,10 @@ pub struct Sample {
 #[derive(Debug, Clone)]
 pub struct Sampler<'a> {
     lib: &'a Library,
-    loops: Loops,
+    /// Shared by the sampler's clones: a clone plays the same loops from its own walkers'
+    /// state (the check plays a period in runs on every core; each clone held the million's
+    /// 270 MB of loop tables again).
+    loops: std::sync::Arc<Loops>,
     scale: Scale,
     walkers: Walkers,
     cursors: Vec<Cursor>,
@@ -150,7 +153,7 @@ impl<'a> Sampler<'a> {
     ) -> Sampler<'a> {
         Sampler {
             lib,
-            loops: Loops::new(lib, headings),
+            loops: std::sync::Arc::new(Loops::new(lib, headings)),
             scale: Scale::of(lib),
             walkers: Walkers::new(cursors.len()),
             cursors,
