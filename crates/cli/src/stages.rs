@@ -780,12 +780,18 @@ fn export(a: &mut Artifacts, out: &Path, hash: Hash, _: &Ui) -> Result<Ran> {
     let tolerance_m = crowd_export::tolerance_m(&inputs);
     let stage = final_motion(a.pipeline);
     let failed = |e| anyhow!("{}: cannot export: {e}", out.display());
+    // A gathering build writes its library a piece at a time whatever its size, as a world
+    // too large for one process needs (and the shards' tests see that path).
+    let handing = match a.split {
+        Split::Gather => crowd_export::Handing::Records,
+        _ => crowd_export::Handing::BySize,
+    };
     let export = if a.holds_motion(stage) {
         // Each patch's dense keyframes are freed as it is thinned.
         let held = a.take_motion(stage)?;
         let motion = std::rc::Rc::try_unwrap(held).map_or_else(|shared| shared.1.clone(), |m| m.1);
         let kept = crowd_export::simplify::motion(motion, tolerance_m);
-        crowd_export::export(&graph, &patterns.1, &kept, &inputs, hash).map_err(failed)?
+        crowd_export::export(&graph, &patterns.1, &kept, &inputs, hash, handing).map_err(failed)?
     } else {
         // A gathering build: each patch read from the stage's files and thinned when export
         // asks, so neither the world's dense motion nor its thinned copy is held.
@@ -794,7 +800,7 @@ fn export(a: &mut Artifacts, out: &Path, hash: Hash, _: &Ui) -> Result<Ran> {
         let made = crowd_export::motion::Made::new(motion.patches(), |p| {
             Ok(crowd_export::simplify::patch(motion.patch(p)?, tolerance_m))
         });
-        crowd_export::export(&graph, &patterns.1, &made, &inputs, hash).map_err(failed)?
+        crowd_export::export(&graph, &patterns.1, &made, &inputs, hash, handing).map_err(failed)?
     };
     let gltf = (
         out.with_file_name(crowd_export::GLB_FILE),

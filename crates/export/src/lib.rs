@@ -186,6 +186,17 @@ pub fn tolerance_m(inputs: &Inputs) -> f64 {
 /// 9.3 million; the million's 96.5 million are made after it).
 const POINTS_BYTES_BESIDE_GLB: usize = 32 << 20;
 
+/// How stage 8 hands `library.crowd` over.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Handing {
+    /// Its bytes, made beside `world.glb`, for a library under 32 million points; a larger
+    /// one's records ([`LibraryBytes`]).
+    BySize,
+    /// Its records, whatever its size: a gathering build writes every file that grows with the
+    /// world a piece at a time (and its tests then see that path on small worlds).
+    Records,
+}
+
 /// Stage 8's pure core: the library of the final trajectories, and its manifest. `motion` is
 /// the final motion thinned out by [`simplify::motion`] (or [`simplify::patch`] patch by patch)
 /// with [`tolerance_m`], held or made a patch at a time when asked ([`motion::Made`]).
@@ -195,6 +206,7 @@ pub fn export<M: motion::Motion>(
     motion: &M,
     inputs: &Inputs,
     hash: Hash,
+    handing: Handing,
 ) -> Result<Export, ExportError> {
     let tolerance_m = tolerance_m(inputs);
     let summaries = motion::Summaries::of(graph, motion)?;
@@ -234,7 +246,8 @@ pub fn export<M: motion::Motion>(
     // made here: its records are handed over, to be written a piece at a time. Made beside the
     // glTF, its bytes raised the million's peak by their size (0.9 GB); made after it, they
     // were held beside the records (0.9 GB again).
-    let (bytes, glb) = if lib.points.len() < POINTS_BYTES_BESIDE_GLB {
+    let beside = handing == Handing::BySize && lib.points.len() < POINTS_BYTES_BESIDE_GLB;
+    let (bytes, glb) = if beside {
         let (bytes, glb) = rayon::join(|| lib.to_bytes(), glb);
         (Some(bytes), glb?)
     } else {

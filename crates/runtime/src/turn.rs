@@ -294,6 +294,56 @@ pub fn character_headings(lib: &crate::Library, ch: &crate::Character) -> PointH
     // (growing them, and the fresh memory each growth touched, was a third of the time), and
     // so that each trajectory's points can be asked for ahead of their turn: the loop goes
     // from patch to patch, each trajectory's points a miss of the cache.
+    let legs = loop_legs(lib, ch);
+    let (runs, keys, pieces) = loop_runs(lib, &legs);
+    let (h, walking) = if keys < STREAM_KEYS {
+        // The keys' times and pieces' directions, and no more: each list a loop long.
+        let LoopKeys {
+            times,
+            directions,
+            walking,
+        } = loop_keys(lib, &legs, (&runs, keys, pieces));
+        (headings_from(&times, &directions, rate), walking)
+    } else {
+        // A long loop's keys made a window of runs at a time, each lap (the million's longest
+        // has 36 million keys: its lists held 25 bytes a key beside the headings).
+        streamed_headings(lib, &legs, (&runs, keys, pieces), rate, WINDOW_RUNS)
+    };
+    PointHeadings {
+        heading: key_headings_at_points(h, &legs),
+        walks: walking,
+    }
+}
+
+/// The headings at every key of a loop, `h`, made the headings at every point of its `legs`
+/// in turn (a trajectory's first point is the one before's last key), in place: from the last
+/// point back, each written at or after the key it reads, once the keys there are read.
+fn key_headings_at_points(mut h: Vec<f64>, legs: &[Leg]) -> Vec<f64> {
+    // Each leg's first key.
+    let mut key = 0usize;
+    let starts: Vec<usize> = (legs.iter().enumerate())
+        .map(|(j, leg)| {
+            key -= usize::from(j > 0);
+            let start = key;
+            key += leg.points as usize;
+            start
+        })
+        .collect();
+    let points: usize = legs.iter().map(|l| l.points as usize).sum();
+    let keys = h.len();
+    h.resize(points.max(keys), 0.0);
+    let mut point = points;
+    for (leg, &start) in legs.iter().zip(&starts).rev() {
+        let n = leg.points as usize;
+        point -= n;
+        h.copy_within(start..start + n, point);
+    }
+    h.truncate(points);
+    h
+}
+
+/// The trajectories of `ch`'s loop in walking order.
+fn loop_legs(lib: &crate::Library, ch: &crate::Character) -> Vec<Leg> {
     let mut legs = Vec::with_capacity(ch.trajectories as usize);
     let mut at = ch.first_trajectory;
     for _ in 0..ch.trajectories {
@@ -305,29 +355,7 @@ pub fn character_headings(lib: &crate::Library, ch: &crate::Character) -> PointH
         });
         at = tr.next;
     }
-    // The keys' times and pieces' directions, and no more: each list a loop long (the
-    // million's longest has 36 million keys, and its places and directions beside the
-    // headings held 49 bytes a key where these hold 25).
-    let LoopKeys {
-        times,
-        directions,
-        walking,
-    } = loop_keys(lib, &legs);
-    let h = headings_from(&times, &directions, rate);
-    drop((times, directions));
-    let points: usize = legs.iter().map(|l| l.points as usize).sum();
-    let mut heading = Vec::with_capacity(points);
-    let mut key = 0usize;
-    for (j, leg) in legs.iter().enumerate() {
-        // The first point's key is the last of the trajectory before.
-        key -= usize::from(j > 0);
-        heading.extend_from_slice(&h[key..key + leg.points as usize]);
-        key += leg.points as usize;
-    }
-    PointHeadings {
-        heading,
-        walks: walking,
-    }
+    legs
 }
 
 /// One trajectory of a loop, as [`loop_keys`] reads it: its points and its patch.
@@ -346,11 +374,9 @@ struct LoopKeys {
     walking: Vec<bool>,
 }
 
-/// The keys of the loop of trajectories `legs` (a trajectory's first point is its
-/// predecessor's last: one key for both). Long loops are cut into runs of trajectories, each
-/// writing its own part of the lists, on every core where the caller has threads (painting's
-/// longest loop: 0.12 s on one).
-fn loop_keys(lib: &crate::Library, legs: &[Leg]) -> LoopKeys {
+/// Where each run of [`LEGS_PER_RUN`] trajectories of the loop `legs` starts, and the loop's
+/// keys and pieces (a trajectory's first point is its predecessor's last: one key for both).
+fn loop_runs(lib: &crate::Library, legs: &[Leg]) -> (Vec<Run>, usize, usize) {
     // Where each run of legs starts: its first leg, key, piece and tick, and the place of the
     // key before it (a trajectory's first piece starts at the one before's last key).
     let mut runs = Vec::new();
@@ -377,6 +403,17 @@ fn loop_keys(lib: &crate::Library, legs: &[Leg]) -> LoopKeys {
         let last = (leg.first as usize + n).checked_sub(1);
         tick += u64::from(last.filter(|_| n > 0).map_or(0, |l| lib.points[l].t));
     }
+    (runs, key, piece)
+}
+
+/// The keys of the loop of trajectories `legs`, cut into `runs` ([`loop_runs`]), each run
+/// writing its own part of the lists, on every core where the caller has threads (painting's
+/// longest loop: 0.12 s on one).
+fn loop_keys(
+    lib: &crate::Library,
+    legs: &[Leg],
+    (runs, key, piece): (&[Run], usize, usize),
+) -> LoopKeys {
     let mut out = LoopKeys {
         times: vec![0.0; key],
         directions: vec![0.0; piece],
@@ -411,6 +448,176 @@ fn loop_keys(lib: &crate::Library, legs: &[Leg]) -> LoopKeys {
     }
     parts.into_iter().for_each(fill);
     out
+}
+
+/// Loops of this many keys or more have their headings made by [`streamed_headings`] (their
+/// lists would hold 100 MB).
+const STREAM_KEYS: usize = 1 << 22;
+
+/// Runs whose keys [`streamed_headings`] makes at once (on every core where the caller has
+/// threads): about 2.6 million keys, 44 MB.
+const WINDOW_RUNS: usize = 64;
+
+/// One run's share of a loop's keys ([`LoopKeys`]): the times of its keys, and the directions
+/// and walk flags of the pieces that end at them.
+fn run_keys(
+    lib: &crate::Library,
+    legs: &[Leg],
+    (runs, keys, pieces): (&[Run], usize, usize),
+    r: usize,
+) -> LoopKeys {
+    let (run, next) = (&runs[r], runs.get(r + 1));
+    let mut out = LoopKeys {
+        times: vec![0.0; next.map_or(keys, |n| n.key) - run.key],
+        directions: vec![0.0; next.map_or(pieces, |n| n.piece) - run.piece],
+        walking: vec![false; next.map_or(pieces, |n| n.piece) - run.piece],
+    };
+    let end = next.map_or(legs.len(), |n| n.leg);
+    let part = (
+        &mut out.times[..],
+        &mut out.directions[..],
+        &mut out.walking[..],
+    );
+    fill_keys(lib, &legs[run.leg..end], run, part);
+    out
+}
+
+/// `each` of every run's keys in order ([`run_keys`]), `window` runs made at once; stops
+/// when `each` says so (false).
+fn each_run_keys(
+    lib: &crate::Library,
+    legs: &[Leg],
+    runs: (&[Run], usize, usize),
+    window: usize,
+    mut each: impl FnMut(usize, &LoopKeys) -> bool,
+) {
+    let count = runs.0.len();
+    for from in (0..count).step_by(window.max(1)) {
+        let to = (from + window.max(1)).min(count);
+        let made = map_indices_at_all(to - from, |i| run_keys(lib, legs, runs, from + i));
+        for (i, keys) in made.iter().enumerate() {
+            if !each(from + i, keys) {
+                return;
+            }
+        }
+    }
+}
+
+/// [`headings_from`] of a loop's keys made a window of runs at a time, never all at once: a
+/// first walk through finds where each run first walks (what a standing piece turns towards
+/// may be runs ahead) and the walk flags, then each lap makes the keys again. The same bits
+/// as [`headings_from`] of [`loop_keys`], with the walk flags.
+fn streamed_headings(
+    lib: &crate::Library,
+    legs: &[Leg],
+    runs: (&[Run], usize, usize),
+    rate: f64,
+    window: usize,
+) -> (Vec<f64>, Vec<bool>) {
+    let (list, n, pieces) = runs;
+    if n < 2 {
+        let walking = loop_keys(lib, legs, runs).walking;
+        return (vec![PI / 2.0; n], walking);
+    }
+    // Each run's first walking piece: (piece, direction, the time it starts); the loop's
+    // first and last times; the walk flags.
+    let mut walking = Vec::with_capacity(pieces);
+    let mut first_walks: Vec<Option<(usize, f64, f64)>> = Vec::with_capacity(list.len());
+    let (mut first_time, mut last_time) = (0.0, 0.0);
+    each_run_keys(lib, legs, runs, window, |r, keys| {
+        let run = &list[r];
+        if r == 0 {
+            first_time = keys.times[0];
+        }
+        let start = |p: usize| key_time(keys, run, last_time, p);
+        let walk = (keys.directions.iter().position(|d| !d.is_nan()))
+            .map(|i| (run.piece + i, keys.directions[i], start(run.piece + i)));
+        first_walks.push(walk);
+        walking.extend_from_slice(&keys.walking);
+        last_time = keys.times.last().copied().unwrap_or(last_time);
+        true
+    });
+    let Some((_, first_walk, first_walk_t)) = first_walks.iter().flatten().next().copied() else {
+        return (vec![PI / 2.0; n], walking);
+    };
+    let length = last_time - first_time;
+    // The first walk after run `r`: in a run after it, or a loop later.
+    let walk_after = |r: usize| {
+        (first_walks[r + 1..].iter().flatten().next().copied()).unwrap_or((
+            usize::MAX,
+            first_walk,
+            first_walk_t + length,
+        ))
+    };
+    let mut h = vec![0.0; n];
+    // A lap as `headings_from`'s, piece by piece through the runs' keys.
+    let lap = |h: &mut [f64], h0: f64, again: bool| {
+        h[0] = h0;
+        let mut ahead: Option<(usize, f64, f64)> = None;
+        let mut before = 0.0;
+        each_run_keys(lib, legs, runs, window, |r, keys| {
+            let run = &list[r];
+            for i in 0..keys.directions.len() {
+                let k = run.piece + i;
+                let (t0, t1) = (
+                    key_time(keys, run, before, k),
+                    key_time(keys, run, before, k + 1),
+                );
+                let from = h[k];
+                let d = keys.directions[i];
+                let next = if !d.is_nan() {
+                    towards(from, d, (rate * (t1 - t0)).min(MAX_PIECE_TURN))
+                } else {
+                    if ahead.is_none_or(|(j, _, _)| j < k) {
+                        ahead = (keys.directions[i + 1..].iter().position(|d| !d.is_nan()))
+                            .map(|j| {
+                                let j = k + 1 + j;
+                                (
+                                    j,
+                                    keys.directions[j - run.piece],
+                                    key_time(keys, run, before, j),
+                                )
+                            })
+                            .or_else(|| Some(walk_after(r)));
+                    }
+                    let (_, d, walk_off) = ahead.expect("a loop that walks has a walk ahead");
+                    let starts = walk_off - turn_between(d, from).abs() / rate;
+                    let step = (rate * (t1 - starts.max(t0)).max(0.0)).min(MAX_PIECE_TURN);
+                    towards(from, d, step)
+                };
+                let next = turn_between(next, 0.0);
+                if again && h[k + 1].to_bits() == next.to_bits() {
+                    return false;
+                }
+                h[k + 1] = next;
+            }
+            before = keys.times.last().copied().unwrap_or(before);
+            true
+        });
+    };
+    lap(&mut h, first_walk, false);
+    for _ in 0..8 {
+        let end = h[n - 1];
+        if turn_between(end, h[0]).abs() <= 1e-12 {
+            break;
+        }
+        lap(&mut h, end, true);
+    }
+    for a in h.iter_mut() {
+        *a = turn_between(*a, 0.0);
+    }
+    h[n - 1] = h[0];
+    (h, walking)
+}
+
+/// The time of key `k` of a loop, from run `run`'s keys, or `before` (the last key of the run
+/// before) for the key just before the run's first.
+fn key_time(keys: &LoopKeys, run: &Run, before: f64, k: usize) -> f64 {
+    if k >= run.key {
+        keys.times[k - run.key]
+    } else {
+        before
+    }
 }
 
 /// Where a run of a loop's legs starts (see [`loop_keys`]).
@@ -477,6 +684,17 @@ fn map_indices<T: Send>(n: usize, f: impl Fn(usize) -> T + Sync + Send) -> Vec<T
         use rayon::prelude::*;
         return (0..n).into_par_iter().map(f).collect();
     }
+    (0..n).map(f).collect()
+}
+
+/// `f` of every index below `n`, in order, on every core where the `rayon` feature is on.
+fn map_indices_at_all<T: Send>(n: usize, f: impl Fn(usize) -> T + Sync + Send) -> Vec<T> {
+    #[cfg(feature = "rayon")]
+    {
+        use rayon::prelude::*;
+        (0..n).into_par_iter().map(f).collect()
+    }
+    #[cfg(not(feature = "rayon"))]
     (0..n).map(f).collect()
 }
 
@@ -690,6 +908,16 @@ mod tests {
     /// A library of one loop of `legs` trajectories of 1 to 40 points each, in shuffled
     /// patches and places (not a valid library: only what [`character_headings`] reads).
     fn one_long_loop(legs: usize, seed: u64) -> (crate::Library, crate::Character) {
+        one_long_loop_standing(legs, seed, 0)
+    }
+
+    /// [`one_long_loop`] whose points stay where the one before was `still` times in 1,000
+    /// (the trajectories stand for long stretches, across runs of them).
+    fn one_long_loop_standing(
+        legs: usize,
+        seed: u64,
+        still: u64,
+    ) -> (crate::Library, crate::Character) {
         use crate::{Patch, Point, Trajectory, World};
         let mut state = seed;
         let mut next = move |n: u64| {
@@ -716,12 +944,15 @@ mod tests {
             let n = 1 + next(40) as u32;
             let first = points.len() as u32;
             let mut t = 0;
-            for _ in 0..n {
-                points.push(Point {
-                    x: next(65536) as u16,
-                    y: next(65536) as u16,
-                    t,
-                });
+            for i in 0..n {
+                let stays = still > 0 && i > 0 && next(1000) < still;
+                let (x, y) = if stays {
+                    let p: &Point = points.last().expect("a point before");
+                    (p.x, p.y)
+                } else {
+                    (next(65536) as u16, next(65536) as u16)
+                };
+                points.push(Point { x, y, t });
                 // Now and then a pause: the same place a while.
                 t += 1 + next(3000) as u32;
             }
@@ -803,21 +1034,12 @@ mod tests {
     fn a_long_loop_made_in_runs_is_the_loop_walked_in_one_go() {
         for (legs, seed) in [(1, 1), (1023, 2), (1025, 3), (5000, 4)] {
             let (lib, ch) = one_long_loop(legs, seed);
-            let legs_of: Vec<Leg> = {
-                let mut at = ch.first_trajectory as usize;
-                (0..ch.trajectories)
-                    .map(|_| {
-                        let tr = &lib.trajectories[at];
-                        at = tr.next as usize;
-                        Leg {
-                            first: tr.first_point,
-                            points: tr.points,
-                            patch: tr.patch,
-                        }
-                    })
-                    .collect()
-            };
-            let (runs, one) = (loop_keys(&lib, &legs_of), keys_in_one_go(&lib, &ch));
+            let legs_of = loop_legs(&lib, &ch);
+            let runs = loop_runs(&lib, &legs_of);
+            let (runs, one) = (
+                loop_keys(&lib, &legs_of, (&runs.0, runs.1, runs.2)),
+                keys_in_one_go(&lib, &ch),
+            );
             let bits = |v: &[f64]| v.iter().map(|a| a.to_bits()).collect::<Vec<u64>>();
             assert_eq!(bits(&runs.times), bits(&one.times), "{legs} legs");
             assert_eq!(runs.walking, one.walking, "{legs} legs");
@@ -837,6 +1059,54 @@ mod tests {
                 key += leg.points as usize;
             }
             assert_eq!(bits(&made.heading), bits(&expected), "{legs} legs");
+        }
+    }
+
+    /// A long loop's headings made a window of runs at a time, lap after lap, are the bits of
+    /// its keys made at once: whatever the window, where the loop walks throughout, where it
+    /// stands for runs on end (a standing piece turns towards a walk runs ahead, or a loop
+    /// later), at a slow rate that takes several laps.
+    #[test]
+    fn a_long_loop_streamed_a_window_at_a_time_is_the_loop_made_at_once() {
+        for (legs, seed, still, rate) in [
+            (1, 11, 0, 6.0),
+            (3000, 12, 0, 6.0),
+            (3000, 13, 990, 6.0),
+            (5000, 14, 999, 6.0),
+            (2500, 15, 500, 0.02),
+        ] {
+            let (lib, ch) = one_long_loop_standing(legs, seed, still);
+            let legs_of = loop_legs(&lib, &ch);
+            let (runs, keys, pieces) = loop_runs(&lib, &legs_of);
+            let runs = (&runs[..], keys, pieces);
+            let at_once = loop_keys(&lib, &legs_of, runs);
+            let h = headings_from(&at_once.times, &at_once.directions, rate);
+            let bits = |v: &[f64]| v.iter().map(|a| a.to_bits()).collect::<Vec<u64>>();
+            for window in [1, 2, 3, 64] {
+                let (streamed, walking) = streamed_headings(&lib, &legs_of, runs, rate, window);
+                let case = format!("{legs} legs, {still} still, rate {rate}, window {window}");
+                assert_eq!(walking, at_once.walking, "{case}");
+                assert_eq!(bits(&streamed), bits(&h), "{case}");
+            }
+        }
+    }
+
+    /// A loop's key headings put at its points in place are the points' headings copied out.
+    #[test]
+    fn key_headings_put_at_points_in_place_are_the_copied_ones() {
+        for (legs, seed) in [(1, 21), (8, 22), (1500, 23)] {
+            let (lib, ch) = one_long_loop(legs, seed);
+            let legs_of = loop_legs(&lib, &ch);
+            let keys = loop_runs(&lib, &legs_of).1;
+            let h: Vec<f64> = (0..keys).map(|k| k as f64 * 0.5).collect();
+            let mut expected = Vec::new();
+            let mut key = 0usize;
+            for (j, leg) in legs_of.iter().enumerate() {
+                key -= usize::from(j > 0);
+                expected.extend_from_slice(&h[key..key + leg.points as usize]);
+                key += leg.points as usize;
+            }
+            assert_eq!(key_headings_at_points(h, &legs_of), expected, "{legs} legs");
         }
     }
 
