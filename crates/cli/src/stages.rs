@@ -518,7 +518,7 @@ fn collide_gathered(
     // matched motion, each patch read when asked.
     let (graph, patterns) = (a.graph()?, a.patterns()?);
     let seen = Seen::new(&graph, &patterns.1);
-    let keys = each_patch(a, &MATCH, |motion| collide_keys(&seen, motion, s))??;
+    let keys = each_patch(a, &MATCH, |motion| collide_keys(&seen, motion, s))?.0?;
     let reports = gathered.reports;
     let side = gathered.side;
     let (file, writes) =
@@ -684,14 +684,10 @@ fn smooth_gathered(
     let (graph, patterns) = (a.graph()?, a.patterns()?);
     // The keys from stage 5's motion, each patch read when asked.
     let seen = Seen::new(&graph, &patterns.1);
-    let keys = each_patch(a, &COLLIDE, |motion| {
+    let (keys, collided_file) = each_patch(a, &COLLIDE, |motion| {
         crowd_smooth::patch_keys(&seen, motion, inputs)
-    })??;
-    let collided_file = if a.holds_motion(&COLLIDE) {
-        a.take_motion(&COLLIDE)?.0.clone()
-    } else {
-        lazy_motion(a, &COLLIDE)?.0.clone()
-    };
+    })?;
+    let keys = keys?;
     let extra = (counts.iter())
         .map(|c| c.iter().flat_map(|c| c.to_le_bytes()).collect())
         .collect();
@@ -838,21 +834,21 @@ fn write_library(path: &Path, lib: crowd_runtime::Library) -> Result<files::Stre
     Ok(file.finish()?)
 }
 
-/// `f` of `stage`'s motion a patch at a time: held by this build (its stage ran, and its
-/// files wait for the commit), or else read from its files when asked.
+/// `f` of `stage`'s motion a patch at a time, and the stage's file: held by this build (its
+/// stage ran, and its files wait for the commit), or else read from its files when asked.
 fn each_patch<T>(
     a: &mut Artifacts,
     stage: &'static Stage,
     f: impl for<'m> FnOnce(&'m (dyn Fn(usize) -> crowd_core::Result<Cow<'m, PatchMotion>> + Sync)) -> T,
-) -> Result<T> {
+) -> Result<(T, TrajectoriesFile)> {
     if a.holds_motion(stage) {
         let held = a.take_motion(stage)?;
         let motion: &[PatchMotion] = &held.1;
-        return Ok(f(&|p| Ok(Cow::Borrowed(&motion[p]))));
+        return Ok((f(&|p| Ok(Cow::Borrowed(&motion[p]))), held.0.clone()));
     }
     let lazy = lazy_motion(a, stage)?;
     let motion = &lazy.1;
-    Ok(f(&|p| motion.patch(p).map(Cow::Owned)))
+    Ok((f(&|p| motion.patch(p).map(Cow::Owned)), lazy.0.clone()))
 }
 
 /// `stage`'s motion left in its files, each patch read when asked: the read-ahead's, or
