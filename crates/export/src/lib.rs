@@ -183,7 +183,7 @@ pub fn tolerance_m(inputs: &Inputs) -> f64 {
 }
 
 /// Libraries of fewer points than this are made into bytes beside `world.glb` (painting's has
-/// 9.3 million; the million's 96.5 million are made after it).
+/// 9.3 million; the million's 96.5 million are handed over as records, [`Handing`]).
 const POINTS_BYTES_BESIDE_GLB: usize = 32 << 20;
 
 /// How stage 8 hands `library.crowd` over.
@@ -256,7 +256,7 @@ pub fn export<M: motion::Motion>(
     let file = ExportFile {
         header: crowd_core::files::Header::new(STAGE, VERSION, hash),
         library: LIBRARY_FILE.to_string(),
-        // Filled in by `Export::file`.
+        // Filled in by `Manifest::file`, once the library's bytes are made.
         library_bytes: 0,
         library_hash: Hash::of(&[]),
         gltf: GLB_FILE.to_string(),

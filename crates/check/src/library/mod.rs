@@ -79,9 +79,9 @@ pub fn figures_memo(lib: &Library, inputs: &Inputs, memo: &Recalled) -> Judged {
     let walked = walked(lib);
     // The world's pairs and the played frames at once: the pairs' serial parts (the pieces,
     // the grid) left a core idle, and the sampler holds little (painting's check -1 s). But
-    // one after the other for a large library: the sampler holds a heading for every point,
-    // and makes each loop's whole (the million's: 0.9 GB and up to 0.9 GB more), beside a
-    // strip's pairs.
+    // one after the other for a large library: the sampler holds every point's packed heading
+    // and makes a run of loops' headings at a time (the million's: 0.2 GB, and 0.3 GB more for
+    // its longest loop), beside a strip's pairs.
     let pairs = || clearance(lib, &walked, inputs.walls, memo);
     let played = || {
         let sampled = inputs
