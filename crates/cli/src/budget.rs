@@ -128,6 +128,12 @@ pub fn check(pipeline: &PipelineFile, split: Split, limit: Option<u64>) -> crowd
     };
     let need = estimate(pipeline, split);
     let part = part(split);
+    // Shards hold a part of the world; a gather holds what its check judges of all of it.
+    let split_it = match split {
+        Split::Whole => " split the build into shards (`--shard I/N`, then `--gather`),",
+        Split::Shard(_) => " split the build into more shards,",
+        Split::Gather => "",
+    };
     if need <= limit as f64 {
         return Ok(());
     }
@@ -138,8 +144,8 @@ pub fn check(pipeline: &PipelineFile, split: Split, limit: Option<u64>) -> crowd
             format!(
                 "asks for about {:.0} characters as the layers are painted, over a {} s \
                  period: {part} could need about {} at peak, more than the {} of \
-                 {source}; lower the densities (or `period_s`), split the build into more \
-                 shards, or raise --max-memory if the machine has more to give",
+                 {source}; lower the densities (or `period_s`),{split_it} or raise \
+                 --max-memory if the machine has more to give",
                 characters(pipeline),
                 p.period_s,
                 size(need),
@@ -152,8 +158,8 @@ pub fn check(pipeline: &PipelineFile, split: Split, limit: Option<u64>) -> crowd
         format!(
             "is {}: with {} standers over a {} s period {part} needs about {} at peak \
              (stages 4 to 8 hold every walker's points over one period), more than the {} of \
-             {source}; lower `walkers` (or `standers`, `period_s`), split the build into more \
-             shards, or raise --max-memory if the machine has more to give",
+             {source}; lower `walkers` (or `standers`, `period_s`),{split_it} or raise \
+             --max-memory if the machine has more to give",
             p.walkers,
             p.standers,
             p.period_s,
@@ -282,7 +288,22 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(
-            refused.contains("the build needs about") && refused.contains("more shards"),
+            refused.contains("the build needs about") && refused.contains("into shards"),
+            "{refused}"
+        );
+        // Too little for a shard: more shards; for the gather, which holds its whole world's
+        // check, shards are no advice.
+        let tiny = Some(100_000_000);
+        let refused = check(&million, shard(0, 8), tiny).unwrap_err().to_string();
+        assert!(
+            refused.contains("shard 0/8 needs") && refused.contains("more shards"),
+            "{refused}"
+        );
+        let refused = check(&million, Split::Gather, tiny)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            refused.contains("the gather needs") && !refused.contains("shards"),
             "{refused}"
         );
     }
