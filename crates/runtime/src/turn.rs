@@ -159,45 +159,66 @@ fn headings_from(times: &[f64], directions: &[f64], rate: f64) -> Vec<f64> {
         h[0] = h0;
         // The walk a standing piece aims at: the next walking piece round the loop (found
         // once for a run of standing pieces), and when it starts (a loop later past the last).
-        let mut ahead: Option<(usize, f64, f64)> = None;
+        let mut walk: Option<(usize, f64, f64)> = None;
         for k in 0..n - 1 {
-            let (t0, t1) = (times[k], times[k + 1]);
-            let from = h[k];
-            let d = directions[k];
-            let next = if !d.is_nan() {
-                towards(from, d, (rate * (t1 - t0)).min(MAX_PIECE_TURN))
-            } else {
-                if ahead.is_none_or(|(j, _, _)| j < k) {
-                    ahead = next_walk(directions, times, k, length);
-                }
-                let (_, d, walk_off) = ahead.expect("a loop that walks has a walk ahead");
-                // Standing: the run's one turn ends as it walks off; this piece turns only
-                // for the part of it that falls inside the piece.
-                let starts = walk_off - turn_between(d, from).abs() / rate;
-                let step = (rate * (t1 - starts.max(t0)).max(0.0)).min(MAX_PIECE_TURN);
-                towards(from, d, step)
-            };
-            let next = turn_between(next, 0.0);
+            let piece = (k, directions[k], times[k], times[k + 1]);
+            let ahead = || next_walk(directions, times, k, length);
+            let next = piece_end(h[k], piece, rate, &mut walk, ahead);
             if again && h[k + 1].to_bits() == next.to_bits() {
                 break;
             }
             h[k + 1] = next;
         }
     };
-    lap(&mut h, first_walk, false);
+    settle(&mut h, first_walk, lap);
+    h
+}
+
+/// The heading at a piece's end (`(t0, t1)` its times, `d` its direction, NaN where it
+/// stands) from `from` at its start, kept within a turn; `ahead` gives a standing piece the
+/// walk it turns towards (its piece, direction and start), found once for a run of standing
+/// pieces and kept in `walk`.
+fn piece_end(
+    from: f64,
+    (k, d, t0, t1): (usize, f64, f64, f64),
+    rate: f64,
+    walk: &mut Option<(usize, f64, f64)>,
+    ahead: impl FnOnce() -> Option<(usize, f64, f64)>,
+) -> f64 {
+    let next = if !d.is_nan() {
+        towards(from, d, (rate * (t1 - t0)).min(MAX_PIECE_TURN))
+    } else {
+        if walk.is_none_or(|(j, _, _)| j < k) {
+            *walk = ahead();
+        }
+        let (_, d, walk_off) = walk.expect("a loop that walks has a walk ahead");
+        // Standing: the run's one turn ends as it walks off; this piece turns only for the
+        // part of it that falls inside the piece.
+        let starts = walk_off - turn_between(d, from).abs() / rate;
+        let step = (rate * (t1 - starts.max(t0)).max(0.0)).min(MAX_PIECE_TURN);
+        towards(from, d, step)
+    };
+    turn_between(next, 0.0)
+}
+
+/// A loop's headings `h` settled from its first walking direction: `lap(h, h0, again)` walks
+/// a lap from heading `h0` (stopping where it meets the lap before, when `again`), until the
+/// heading at the loop's start repeats; then the loop's end is its start.
+fn settle(h: &mut [f64], first_walk: f64, mut lap: impl FnMut(&mut [f64], f64, bool)) {
+    let n = h.len();
+    lap(h, first_walk, false);
     for _ in 0..8 {
         let end = h[n - 1];
         if turn_between(end, h[0]).abs() <= 1e-12 {
             break;
         }
-        lap(&mut h, end, true);
+        lap(h, end, true);
     }
-    // The loop's end is its start (a loop that never caught up keeps its last lap's start).
+    // A loop that never caught up keeps its last lap's start.
     for a in h.iter_mut() {
         *a = turn_between(*a, 0.0);
     }
     h[n - 1] = h[0];
-    h
 }
 
 /// The first walking piece after standing piece `k` of a loop (`directions` NaN where a piece
@@ -555,39 +576,22 @@ fn streamed_headings(
     // A lap as `headings_from`'s, piece by piece through the runs' keys.
     let lap = |h: &mut [f64], h0: f64, again: bool| {
         h[0] = h0;
-        let mut ahead: Option<(usize, f64, f64)> = None;
+        let mut walk: Option<(usize, f64, f64)> = None;
         let mut before = 0.0;
         each_run_keys(lib, legs, runs, window, |r, keys| {
             let run = &list[r];
-            for i in 0..keys.directions.len() {
+            let time = |k| key_time(keys, run, before, k);
+            for (i, &d) in keys.directions.iter().enumerate() {
                 let k = run.piece + i;
-                let (t0, t1) = (
-                    key_time(keys, run, before, k),
-                    key_time(keys, run, before, k + 1),
-                );
-                let from = h[k];
-                let d = keys.directions[i];
-                let next = if !d.is_nan() {
-                    towards(from, d, (rate * (t1 - t0)).min(MAX_PIECE_TURN))
-                } else {
-                    if ahead.is_none_or(|(j, _, _)| j < k) {
-                        ahead = (keys.directions[i + 1..].iter().position(|d| !d.is_nan()))
-                            .map(|j| {
-                                let j = k + 1 + j;
-                                (
-                                    j,
-                                    keys.directions[j - run.piece],
-                                    key_time(keys, run, before, j),
-                                )
-                            })
-                            .or_else(|| Some(walk_after(r)));
-                    }
-                    let (_, d, walk_off) = ahead.expect("a loop that walks has a walk ahead");
-                    let starts = walk_off - turn_between(d, from).abs() / rate;
-                    let step = (rate * (t1 - starts.max(t0)).max(0.0)).min(MAX_PIECE_TURN);
-                    towards(from, d, step)
+                // The walk ahead: in this run, or in one after it, or a loop later.
+                let ahead = || {
+                    let rest = keys.directions[i + 1..].iter().position(|d| !d.is_nan());
+                    Some(rest.map_or_else(
+                        || walk_after(r),
+                        |j| (k + 1 + j, keys.directions[i + 1 + j], time(k + 1 + j)),
+                    ))
                 };
-                let next = turn_between(next, 0.0);
+                let next = piece_end(h[k], (k, d, time(k), time(k + 1)), rate, &mut walk, ahead);
                 if again && h[k + 1].to_bits() == next.to_bits() {
                     return false;
                 }
@@ -597,18 +601,7 @@ fn streamed_headings(
             true
         });
     };
-    lap(&mut h, first_walk, false);
-    for _ in 0..8 {
-        let end = h[n - 1];
-        if turn_between(end, h[0]).abs() <= 1e-12 {
-            break;
-        }
-        lap(&mut h, end, true);
-    }
-    for a in h.iter_mut() {
-        *a = turn_between(*a, 0.0);
-    }
-    h[n - 1] = h[0];
+    settle(&mut h, first_walk, lap);
     (h, walking)
 }
 
