@@ -14,6 +14,7 @@ use crowd_core::files::{self, Header};
 use crowd_core::maps::MergeFile;
 use crowd_core::patch_keys::Seen;
 use crowd_core::patterns::Patterns;
+use crowd_core::trajectories::SideMotion::Streamed;
 use crowd_core::trajectories::{LazyMotion, PatchMotion, TrajectoriesFile};
 use crowd_core::{Hash, PatchGraph};
 use rayon::prelude::*;
@@ -521,8 +522,14 @@ fn collide_gathered(
     let keys = each_patch(a, &MATCH, |motion| collide_keys(&seen, motion, s))?.0?;
     let reports = gathered.reports;
     let side = gathered.side;
-    let (file, writes) =
-        crowd_collide::encode_streamed(out, (&side, summing.finish()), &reports, &graph, s, hash);
+    let (file, writes) = crowd_collide::encode(
+        out,
+        Streamed(&side, summing.finish()),
+        &reports,
+        &graph,
+        s,
+        hash,
+    );
     let extra = reports
         .iter()
         .map(|r| ron::to_string(r).map(String::into_bytes))
@@ -693,9 +700,9 @@ fn smooth_gathered(
         .collect();
     let summary = crowd_smooth::summary_of(counts.iter().copied());
     let side = gathered.side;
-    let (file, writes) = crowd_smooth::encode_streamed(
+    let (file, writes) = crowd_smooth::encode(
         out,
-        (&side, summing.finish()),
+        Streamed(&side, summing.finish()),
         summary,
         &collided_file,
         inputs,

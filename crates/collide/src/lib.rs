@@ -473,9 +473,9 @@ pub fn input_hash(
 }
 
 /// Stage 5's files, encoded: the motion side file, then `collided.ron`.
-pub fn encode(
+pub fn encode<'a>(
     out: &std::path::Path,
-    motion: &[PatchMotion],
+    motion: impl Into<crowd_core::trajectories::SideMotion<'a>>,
     reports: &[PatchReport],
     graph: &PatchGraph,
     inputs: &Inputs,
@@ -490,32 +490,6 @@ pub fn encode(
         inputs.period_s,
         graph.radius_m,
         motion,
-        Some(collisions(reports)),
-        None,
-    )
-}
-
-/// [`encode`] of motion gathered from shards into a side file streamed to disk already
-/// (`shard::gather_bytes`), which `summary` sums.
-pub fn encode_streamed(
-    out: &std::path::Path,
-    side: (
-        &crowd_core::files::StreamedFile,
-        crowd_core::trajectories::MotionSummary,
-    ),
-    reports: &[PatchReport],
-    graph: &PatchGraph,
-    inputs: &Inputs,
-    hash: crowd_core::Hash,
-) -> (
-    crowd_core::trajectories::TrajectoriesFile,
-    crowd_core::files::Writes,
-) {
-    crowd_core::trajectories::file_of_streamed(
-        out,
-        crowd_core::files::Header::new(STAGE, VERSION, hash),
-        (inputs.period_s, graph.radius_m),
-        side,
         Some(collisions(reports)),
         None,
     )

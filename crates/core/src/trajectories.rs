@@ -695,20 +695,54 @@ impl Summing {
     }
 }
 
-/// Encodes a trajectories-shaped stage file at `out`: its motion side file (`.bin` beside it),
-/// then the RON that names it. Stages 4 and later all write this shape.
-pub fn encode_file(
+/// The motion a stage file names: held, to be encoded beside it; or its side file streamed to
+/// its temporary name already ([`crate::files::Streamed`], at the owner's side file path: a
+/// gathering build's), with the summary of its motion.
+pub enum SideMotion<'a> {
+    Held(&'a [PatchMotion]),
+    Streamed(&'a crate::files::StreamedFile, MotionSummary),
+}
+
+impl<'a> From<&'a [PatchMotion]> for SideMotion<'a> {
+    fn from(motion: &'a [PatchMotion]) -> Self {
+        SideMotion::Held(motion)
+    }
+}
+
+impl<'a> From<&'a Vec<PatchMotion>> for SideMotion<'a> {
+    fn from(motion: &'a Vec<PatchMotion>) -> Self {
+        SideMotion::Held(motion)
+    }
+}
+
+/// Encodes a trajectories-shaped stage file at `out`: its motion side file (`.bin` beside it,
+/// unless streamed already), then the RON that names it. Stages 4 and later all write this
+/// shape.
+pub fn encode_file<'a>(
     out: &Path,
     header: Header,
     period_s: f64,
     radius_m: f64,
-    motion: &[PatchMotion],
+    motion: impl Into<SideMotion<'a>>,
     collisions: Option<CollisionSummary>,
     smoothing: Option<SmoothingSummary>,
 ) -> (TrajectoriesFile, crate::files::Writes) {
-    let bytes = encode_motion(motion);
-    let (side, record) = SideFile::beside(out, &bytes);
-    let summary = summarize(motion, period_s);
+    let (summary, record, side) = match motion.into() {
+        SideMotion::Held(motion) => {
+            let bytes = encode_motion(motion);
+            let (path, record) = SideFile::beside(out, &bytes);
+            (summarize(motion, period_s), record, Some((path, bytes)))
+        }
+        SideMotion::Streamed(side, summary) => {
+            let (path, mut record) = SideFile::beside(out, &[]);
+            debug_assert_eq!(
+                path, side.path,
+                "a side file streamed where its owner names it"
+            );
+            (record.bytes, record.hash) = (side.bytes, side.hash);
+            (summary, record, None)
+        }
+    };
     let file = file_of(
         header,
         (period_s, radius_m),
@@ -716,34 +750,8 @@ pub fn encode_file(
         (collisions, smoothing),
     );
     let ron = crate::files::to_stage_ron(&file).into_bytes();
-    (file, vec![(side, bytes), (out.to_path_buf(), ron)])
-}
-
-/// [`encode_file`] of a side file streamed to its temporary name already
-/// ([`crate::files::Streamed`], at `out`'s side file path), whose motion `summary` sums: the
-/// file, and its RON to write.
-pub fn file_of_streamed(
-    out: &Path,
-    header: Header,
-    (period_s, radius_m): (f64, f64),
-    (side, summary): (&crate::files::StreamedFile, MotionSummary),
-    collisions: Option<CollisionSummary>,
-    smoothing: Option<SmoothingSummary>,
-) -> (TrajectoriesFile, crate::files::Writes) {
-    let (path, mut record) = SideFile::beside(out, &[]);
-    debug_assert_eq!(
-        path, side.path,
-        "a side file streamed where its owner names it"
-    );
-    (record.bytes, record.hash) = (side.bytes, side.hash);
-    let file = file_of(
-        header,
-        (period_s, radius_m),
-        (summary, record),
-        (collisions, smoothing),
-    );
-    let ron = crate::files::to_stage_ron(&file).into_bytes();
-    (file, vec![(out.to_path_buf(), ron)])
+    let writes = side.into_iter().chain([(out.to_path_buf(), ron)]).collect();
+    (file, writes)
 }
 
 /// The file that names side file `record`, whose motion `summary` sums.

@@ -363,9 +363,9 @@ const HOLDS: u32 = 4;
 
 /// Stage 6's files, encoded: the motion side file, then `smoothed.ron`. The collide stage's
 /// figures are carried over: smoothing leaves no pair closer than stage 5 did.
-pub fn encode(
+pub fn encode<'a>(
     out: &std::path::Path,
-    motion: &[PatchMotion],
+    motion: impl Into<crowd_core::trajectories::SideMotion<'a>>,
     summary: SmoothingSummary,
     collided: &crowd_core::trajectories::TrajectoriesFile,
     inputs: &Inputs,
@@ -380,32 +380,6 @@ pub fn encode(
         inputs.period_s,
         collided.radius_m,
         motion,
-        collided.collisions.clone(),
-        Some(summary),
-    )
-}
-
-/// [`encode`] of motion gathered from shards into a side file streamed to disk already
-/// (`side`, whose motion `motion` sums): the file, and its RON to write.
-pub fn encode_streamed(
-    out: &std::path::Path,
-    (side, motion): (
-        &crowd_core::files::StreamedFile,
-        crowd_core::trajectories::MotionSummary,
-    ),
-    summary: SmoothingSummary,
-    collided: &crowd_core::trajectories::TrajectoriesFile,
-    inputs: &Inputs,
-    hash: Hash,
-) -> (
-    crowd_core::trajectories::TrajectoriesFile,
-    crowd_core::files::Writes,
-) {
-    crowd_core::trajectories::file_of_streamed(
-        out,
-        crowd_core::files::Header::new(STAGE, VERSION, hash),
-        (inputs.period_s, collided.radius_m),
-        (side, motion),
         collided.collisions.clone(),
         Some(summary),
     )
