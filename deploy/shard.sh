@@ -1,6 +1,11 @@
 #!/bin/sh
-# One shard of a crowd build, on any job runner: stages 1-4 and this shard's patches of stages 5-6,
-# its files copied to "$SHARED/shards" (a volume, or a folder the runner uploads).
+# One shard of a crowd build, on any job runner, in two steps (each an array job of its own):
+#   STEP=regions  this shard's run of stage 3's regions (stages 1-2 first), its files copied to
+#                 "$SHARED/shards" (`optimize-I-of-N`): so that no shard solves stage 3 whole;
+#   STEP=patches  (the default) stages 1-4, taking every region from the region files in
+#                 "$SHARED/shards" (any missing is solved here), then this shard's patches of
+#                 stages 5-6, copied to "$SHARED/shards" (a volume, or a folder the runner
+#                 uploads). Without a regions step first every shard solves stage 3 whole.
 #
 #   PIPELINE  the pipeline file (its layers beside it, as on a workstation)
 #   SHARDS    how many shards the build is split into
@@ -9,6 +14,7 @@
 #     SHARD_INDEX            (given by hand, or by a CI matrix)
 #     JOB_COMPLETION_INDEX   (a Kubernetes Indexed Job)
 #     SLURM_ARRAY_TASK_ID    (a Slurm array job)
+#   STEP      regions or patches (default)
 #   CROWD     the crowd binary (default: crowd on the PATH)
 #   WORK      scratch space for this shard's build folder (default: a temporary folder)
 #   MAX_MEMORY bytes the build may take (`--max-memory`; default: the machine's): a shard is
@@ -25,16 +31,38 @@ if [ -z "$index" ]; then
 fi
 crowd="${CROWD:-crowd}"
 work="${WORK:-$(mktemp -d)}"
+step="${STEP:-patches}"
 out="$work/shard-$index"
 set -- build --quiet --pipeline "$PIPELINE" --output "$out" --shard "$index/$SHARDS"
+case "$step" in
+  regions)
+    set -- "$@" --until optimize
+    mine="optimize-$index-of-$SHARDS" ;;
+  patches)
+    # Every shard's regions, where the regions step left them.
+    mkdir -p "$out/shards"
+    for f in "$SHARED"/shards/optimize-*-of-"$SHARDS".*; do
+      if [ -f "$f" ]; then cp "$f" "$out/shards/"; fi
+    done
+    mine="*-$index-of-$SHARDS" ;;
+  *)
+    echo "shard.sh: STEP is regions or patches, not $step" >&2
+    exit 2 ;;
+esac
 if [ -n "${MAX_MEMORY:-}" ]; then set -- "$@" --max-memory "$MAX_MEMORY"; fi
 "$crowd" "$@"
 mkdir -p "$SHARED/shards"
 # Side file first, then the file that names it: a gather never reads a half-copied shard as whole.
-for f in "$out"/shards/*.bin "$out"/shards/*.ron; do
-  cp "$f" "$SHARED/shards/.$(basename "$f").part"
-  mv "$SHARED/shards/.$(basename "$f").part" "$SHARED/shards/$(basename "$f")"
+for f in "$out"/shards/$mine.bin "$out"/shards/$mine.ron; do
+  name="$(basename "$f")"
+  case "$step-$name" in patches-optimize-*) continue ;; esac
+  cp "$f" "$SHARED/shards/.$name.part"
+  mv "$SHARED/shards/.$name.part" "$SHARED/shards/$name"
 done
+if [ "$step" = regions ]; then
+  echo "shard $index/$SHARDS regions -> $SHARED/shards"
+  exit 0
+fi
 # Shard 0 also leaves its stage 1-4 files (the same in every shard) for the gather, which then
 # need not make them again (it checks them against its inputs, and remakes any that differ).
 if [ "$index" = 0 ]; then

@@ -8,30 +8,46 @@ use std::path::Path;
 /// in its own folder under `dir` (as a job runner would), and copies every shard's files into
 /// `gathered/shards`.
 fn run_shards(pipeline: &Path, dir: &Path, n: u32, at_once: u32, gathered: &Path) {
-    let folder = |i: u32| dir.join(format!("shard-{i}"));
+    run_step(pipeline, dir, (n, at_once), &[]);
+    for i in 0..n {
+        copy_files(
+            &shard_folder(dir, i).join("shards"),
+            &gathered.join("shards"),
+        );
+    }
+}
+
+fn shard_folder(dir: &Path, i: u32) -> std::path::PathBuf {
+    dir.join(format!("shard-{i}"))
+}
+
+/// `crowd build --shard I/N` with `args`, for every I, `at_once` processes at a time, each in
+/// its own folder under `dir`; what each said.
+fn run_step(pipeline: &Path, dir: &Path, (n, at_once): (u32, u32), args: &[&str]) -> Vec<String> {
+    let mut said = Vec::new();
     for batch in (0..n).collect::<Vec<_>>().chunks(at_once as usize) {
         let running: Vec<_> = batch
             .iter()
             .map(|&i| {
                 std::process::Command::new(env!("CARGO_BIN_EXE_crowd"))
-                    .args(["build", "-q", "--pipeline", s(pipeline), "--output"])
-                    .arg(folder(i))
+                    .args(["build", "--pipeline", s(pipeline), "--output"])
+                    .arg(shard_folder(dir, i))
                     .args(["--shard", &format!("{i}/{n}")])
-                    .output()
+                    .args(args)
+                    .stdout(std::process::Stdio::null())
+                    .stderr(std::process::Stdio::piped())
+                    .spawn()
                     .expect("crowd runs")
             })
             .collect();
-        for (out, i) in running.iter().zip(batch) {
-            assert!(
-                out.status.success(),
-                "shard {i}/{n}: {}",
-                String::from_utf8_lossy(&out.stderr)
-            );
+        for (child, i) in running.into_iter().zip(batch) {
+            let out = child.wait_with_output().expect("crowd runs");
+            let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+            assert!(out.status.success(), "shard {i}/{n}: {stderr}");
+            said.push(stderr);
         }
     }
-    for i in 0..n {
-        copy_files(&folder(i).join("shards"), &gathered.join("shards"));
-    }
+    said
 }
 
 /// Every file `whole` has (but its times: `timings.ron`, `report.md`), with the same bytes.
@@ -60,8 +76,8 @@ fn four_shards_gathered_write_what_one_process_writes() {
         run_shards(&pipeline, dir.path(), 4, 2, &gathered);
         let shard_files = std::fs::read_dir(gathered.join("shards")).unwrap().count();
         assert_eq!(
-            shard_files, 16,
-            "{name}: four shards, a .ron and a .bin of stages 5 and 6 each"
+            shard_files, 24,
+            "{name}: four shards, a .ron and a .bin of stages 4, 5 and 6 each"
         );
         let said = crowd_ok(&[
             "build",
@@ -77,6 +93,136 @@ fn four_shards_gathered_write_what_one_process_writes() {
         }
         assert_same_files(whole, &gathered, name);
     }
+}
+
+/// `city` read in regions of 8 patches (the million's way: stage 3 by region).
+fn city_in_regions(dir: &Path) -> std::path::PathBuf {
+    let layers = format!("{}/", s(&shared_scenes().join("city")));
+    let text = std::fs::read_to_string(scene_pipeline("city")).unwrap();
+    let text = text
+        .replace("../../../shared/scenes/city/", &layers)
+        .replace(
+            "    output:",
+            "    optimize: (region_patches: Some(8)),\n    output:",
+        );
+    assert!(text.contains("region_patches") && text.contains(&layers));
+    let path = dir.join("city-regions.ron");
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+/// How many regions of how many a build's stage 3 said it optimised.
+fn regions_optimised(said: &str) -> (u32, u32) {
+    let line = said
+        .lines()
+        .find(|l| l.contains("optimize: built"))
+        .expect(said);
+    let before = line.split(" regions optimised").next().expect(line);
+    let mut words = before.rsplit(' ');
+    let of = words.next().unwrap().parse().expect(line);
+    let done = words.nth(1).unwrap().parse().expect(line);
+    (done, of)
+}
+
+/// Stage 3 split too (`--shard I/N --until optimize`): the shards solve the regions between
+/// them, each region once; then no shard, nor the gather, solves any region, and the gather
+/// writes the bytes one process writes.
+#[test]
+fn regions_solved_by_the_shards_are_solved_by_none_after_them() {
+    let dir = tempfile::tempdir().unwrap();
+    let pipeline = city_in_regions(dir.path());
+    let whole = dir.path().join("whole");
+    let said = crowd_ok(&["build", "--pipeline", s(&pipeline), "--output", s(&whole)]);
+    let (solved, regions) = regions_optimised(&String::from_utf8_lossy(&said.stderr));
+    assert!(regions >= 8 && solved == regions, "{solved} of {regions}");
+    // Step 1: each of 4 shards its run of the regions, two at a time.
+    let said = run_step(&pipeline, dir.path(), (4, 2), &["--until", "optimize"]);
+    let mut next = 0;
+    for (i, said) in said.iter().enumerate() {
+        let line = said
+            .lines()
+            .find(|l| l.contains("optimize: built"))
+            .expect(said);
+        let run = line
+            .split("(regions ")
+            .nth(1)
+            .and_then(|r| r.split(' ').next());
+        let (from, to) = run.and_then(|r| r.split_once("..")).expect(line);
+        assert_eq!(from.parse::<u32>().unwrap(), next, "shard {i}: {line}");
+        next = to.parse().unwrap();
+        assert!(line.contains(&format!("of {regions}:")), "{line}");
+        assert!(
+            !shard_folder(dir.path(), i as u32)
+                .join("patterns.ron")
+                .exists(),
+            "shard {i} made no whole stage 3"
+        );
+    }
+    assert_eq!(next, regions, "every region dealt once");
+    // Step 2: every shard holds every region part, and solves nothing.
+    let gathered = dir.path().join("gathered");
+    for i in 0..4 {
+        for into in [shard_folder(dir.path(), i), gathered.clone()] {
+            for j in 0..4 {
+                let name = format!("optimize-{j}-of-4");
+                for ext in ["ron", "bin"] {
+                    let file = format!("shards/{name}.{ext}");
+                    let from = shard_folder(dir.path(), j).join(&file);
+                    std::fs::create_dir_all(into.join("shards")).unwrap();
+                    if from != into.join(&file) {
+                        std::fs::copy(&from, into.join(&file)).unwrap();
+                    }
+                }
+            }
+        }
+    }
+    for said in run_step(&pipeline, dir.path(), (4, 2), &[]) {
+        assert_eq!(regions_optimised(&said), (0, regions), "{said}");
+        assert!(said.contains("in 4 shard parts"), "{said}");
+    }
+    for i in 0..4 {
+        copy_files(
+            &shard_folder(dir.path(), i).join("shards"),
+            &gathered.join("shards"),
+        );
+    }
+    // The gather makes stages 1-4 itself (no shard left it them), taking every region.
+    let said = crowd_ok(&[
+        "build",
+        "--pipeline",
+        s(&pipeline),
+        "--output",
+        s(&gathered),
+        "--gather",
+    ]);
+    assert_eq!(
+        regions_optimised(&String::from_utf8_lossy(&said.stderr)),
+        (0, regions)
+    );
+    assert_same_files(&whole, &gathered, "city in regions");
+    // A region part of other settings is refused, by name, before anything is written.
+    let other = dir.path().join("other.ron");
+    let text = std::fs::read_to_string(&pipeline).unwrap();
+    std::fs::write(&other, text.replace("seed: 1,", "seed: 2,")).unwrap();
+    let stale = dir.path().join("stale");
+    std::fs::create_dir_all(stale.join("shards")).unwrap();
+    copy_files(&gathered.join("shards"), &stale.join("shards"));
+    let stderr = crowd_err(&[
+        "build",
+        "--pipeline",
+        s(&other),
+        "--output",
+        s(&stale),
+        "--gather",
+    ]);
+    assert!(
+        stderr.contains("optimize-0-of-4.ron") && stderr.contains("was made for other inputs"),
+        "{stderr}"
+    );
+    assert!(
+        !stale.join("graph.ron").exists(),
+        "a refused gather writes nothing"
+    );
 }
 
 /// Gathering refuses, naming the file, a missing shard and a shard made from other settings,
@@ -175,8 +321,8 @@ fn a_shard_is_named_i_of_n() {
 /// The job-runner examples of `deploy/` run as each runner runs them: shard 0 given by hand
 /// (`SHARD_INDEX`, a CI matrix), shard 1 as a Kubernetes Indexed Job pod
 /// (`JOB_COMPLETION_INDEX`), shard 2 as a Slurm array task (`slurm/shards.sbatch` with
-/// `SLURM_ARRAY_TASK_ID`, three tasks here); `gather.sh` then writes the one-process bytes,
-/// making none of stages 1-4 again (shard 0 left them).
+/// `SLURM_ARRAY_TASK_ID`, three tasks here), each step of them; `gather.sh` then writes the
+/// one-process bytes, making none of stages 1-3 again (shard 0 left them).
 #[test]
 fn the_deploy_scripts_shard_and_gather_as_each_job_runner_runs_them() {
     let name = "ring";
@@ -212,35 +358,54 @@ fn the_deploy_scripts_shard_and_gather_as_each_job_runner_runs_them() {
     assert_eq!(code, Some(1), "a gather before any shard: {stderr}");
     assert!(stderr.contains("no shard files"), "{stderr}");
     assert!(!early.exists(), "a refused gather makes no folder");
-    for (script, var, index) in [
-        (&shard, "SHARD_INDEX", "0"),
-        (&shard, "JOB_COMPLETION_INDEX", "1"),
-        (
-            &deploy.join("slurm/shards.sbatch"),
-            "SLURM_ARRAY_TASK_ID",
-            "2",
-        ),
+    let (code, stderr) = run(&shard, &[("SHARD_INDEX", "0"), ("STEP", "all")]);
+    assert_eq!(code, Some(2), "no such step: {stderr}");
+    assert!(stderr.contains("STEP is regions or patches"), "{stderr}");
+    // Each step as each runner runs it: the regions, then the patches.
+    for (step, slurm) in [
+        ("regions", "slurm/regions.sbatch"),
+        ("patches", "slurm/shards.sbatch"),
     ] {
-        let (code, stderr) = run(script, &[(var, index), ("SLURM_ARRAY_TASK_COUNT", "3")]);
-        assert_eq!(code, Some(0), "{var}={index}: {stderr}");
+        for (script, var, index) in [
+            (&shard, "SHARD_INDEX", "0"),
+            (&shard, "JOB_COMPLETION_INDEX", "1"),
+            (&deploy.join(slurm), "SLURM_ARRAY_TASK_ID", "2"),
+        ] {
+            let vars = [
+                (var, index),
+                ("SLURM_ARRAY_TASK_COUNT", "3"),
+                ("STEP", step),
+            ];
+            let (code, stderr) = run(script, &vars);
+            assert_eq!(code, Some(0), "{step}: {var}={index}: {stderr}");
+        }
     }
     let files = std::fs::read_dir(shared.join("shards")).unwrap().count();
     assert_eq!(
-        files, 12,
-        "three shards, a .ron and a .bin of two stages each, no partial copies"
+        files, 24,
+        "three shards, a .ron and a .bin of stages 3-6 each, no partial copies"
     );
+    // The patches step took every region from the regions step.
+    for j in 0..3 {
+        let part = dir
+            .path()
+            .join(format!("shard-1/shards/optimize-{j}-of-3.ron"));
+        assert!(part.exists(), "{} not taken", part.display());
+    }
     let gathered = dir.path().join("gathered");
     let output = gathered.to_str().unwrap();
     let (code, stderr) = run(&deploy.join("gather.sh"), &[("OUTPUT", output)]);
     assert_eq!(code, Some(0), "{stderr}");
     assert_same_files(scene(name), &gathered, name);
-    // Stages 1-4 came from shard 0: the gather ran none of them.
+    // Stages 1-3 came from shard 0: the gather ran none of them, and gathered stage 4.
     let timings = std::fs::read_to_string(gathered.join("timings.ron")).unwrap();
-    for stage in ["merge", "graph", "optimize", "match"] {
+    for stage in ["merge", "graph", "optimize"] {
         assert!(
             !timings.contains(&format!("\"{stage}\"")),
             "{stage} ran: {timings}"
         );
     }
-    assert!(timings.contains("\"collide\""), "{timings}");
+    for stage in ["match", "collide"] {
+        assert!(timings.contains(&format!("\"{stage}\"")), "{timings}");
+    }
 }

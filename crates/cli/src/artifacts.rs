@@ -32,6 +32,10 @@ pub struct Artifacts<'p> {
     pub hashes: BTreeMap<&'static str, crowd_core::Hash>,
     /// What each patch costs, for dealing patches to shards (stage 5 works it out).
     pub shard_costs: Option<Rc<Vec<u64>>>,
+    /// A shard that does only its share of stage 3 (`--shard I/N --until optimize`).
+    pub regions_only: bool,
+    /// A shard's stage 4 motion: its own patches and their neighbours, the others empty.
+    pub shard_matched: Option<Vec<PatchMotion>>,
     /// A shard's stage 5 motion: its own patches and their neighbours, the others empty.
     pub shard_collided: Option<Vec<PatchMotion>>,
     /// The last build's outputs of stages 4-6, read ahead (`crate::reuse::Prefetch`).
@@ -59,6 +63,8 @@ impl<'p> Artifacts<'p> {
             split: crate::driver::Split::Whole,
             hashes: BTreeMap::new(),
             shard_costs: None,
+            regions_only: false,
+            shard_matched: None,
             shard_collided: None,
             previous: Default::default(),
             dir: dir.to_path_buf(),
@@ -187,20 +193,13 @@ impl<'p> Artifacts<'p> {
         if let Some(costs) = &self.shard_costs {
             return Ok(costs.clone());
         }
-        let costs = match self.motion.get(stages::MATCH.output) {
-            Some(matched) => {
-                let m = &matched.1;
-                crowd_core::shard::costs(m.len(), |p| m[p].trajectories.len())
-            }
-            None => {
-                let path = self.path(stages::MATCH.output);
-                let file: TrajectoriesFile = files::read_ron(&path)?;
-                let bytes = file.motion.read(&path)?;
-                let index = crowd_core::trajectories::MotionIndex::of(&path, &bytes)?;
-                crowd_core::shard::costs(index.patches(), |p| index.trajectories(p) as usize)
-            }
-        };
-        let costs = Rc::new(costs);
+        // From stage 3, so that a shard knows its patches before it matches them.
+        let (graph, patterns) = (self.graph()?, self.patterns()?);
+        let mut walkers = vec![0usize; graph.patches.len()];
+        for c in &patterns.1 {
+            walkers[c.ends(&graph).1.patch.0 as usize] += 1;
+        }
+        let costs = Rc::new(crowd_core::shard::costs(walkers.len(), |p| walkers[p]));
         self.shard_costs = Some(costs.clone());
         Ok(costs)
     }

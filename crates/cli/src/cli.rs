@@ -79,9 +79,12 @@ pub enum Command {
         /// Do shard I of N (0 <= I < N) of the stages that split: stages 1-4 here, then this
         /// shard's patches of stages 5 and 6 into `shards/` (`collide-I-of-N.ron`,
         /// `smooth-I-of-N.ron` and their `.bin`), and no more. Copy every shard's `shards/`
-        /// into one folder and `--gather` there.
+        /// into one folder and `--gather` there. With `--until optimize`, only this shard's
+        /// regions of stage 3 (`optimize-I-of-N.ron`): run that for every I first and put every
+        /// shard's `optimize-*` files in each shard's `shards/`, and no shard solves stage 3
+        /// whole.
         #[arg(long, value_name = "I/N", value_parser = |s: &str| s.parse::<crowd_core::Shard>(),
-              conflicts_with_all = ["gather", "until", "force"])]
+              conflicts_with_all = ["gather", "force"])]
         shard: Option<crowd_core::Shard>,
         /// Put stages 5 and 6 together from the shard files in `shards/` (every shard of one count,
         /// made from this painting and settings), then build the rest: the same bytes as one
@@ -422,6 +425,14 @@ pub fn run(cli: Cli) -> Result<()> {
         } => {
             let file = PipelineFile::load(&pipeline)?;
             let out = output.clone().unwrap_or_else(|| file.output_dir());
+            if shard.is_some() && until.is_some_and(|u| *u != stages::OPTIMIZE) {
+                return Err(Broken(
+                    "--shard takes --until optimize (this shard's regions of stage 3) or no \
+                     --until (its part of stages 5 and 6)"
+                        .to_string(),
+                )
+                .into());
+            }
             let split = match (shard, gather) {
                 (Some(shard), _) => driver::Split::Shard(shard),
                 (None, true) => driver::Split::Gather,
@@ -436,7 +447,11 @@ pub fn run(cli: Cli) -> Result<()> {
             };
             let (_, _lock) = driver::build(&pipeline, &options, &ui)?;
             if let Some(shard) = shard {
-                for stage in stages::SHARDED {
+                let parts: &[&Stage] = match until {
+                    Some(_) => &[&stages::OPTIMIZE],
+                    None => &stages::SHARDED,
+                };
+                for stage in parts {
                     let path = crowd_core::shard::part_path(&out, stage.kind, shard);
                     ui.say(format!(
                         "   shard: {shard} of {} -> {}",

@@ -47,9 +47,10 @@ pub enum Split {
     #[default]
     Whole,
     /// Stages 1-4, then this shard's patches of stages 5 and 6 into `shards/` (and nothing
-    /// after).
+    /// after); or, told to stop at stage 3, stages 1-2 and this shard's regions of stage 3.
     Shard(crowd_core::Shard),
-    /// Stages 5 and 6 put together from every shard's files in `shards/`, then the rest.
+    /// Stages 5 and 6 (and 3, if not made) put together from every shard's files in
+    /// `shards/`, then the rest.
     Gather,
 }
 
@@ -112,10 +113,14 @@ fn run_stages(
     // Whether files can be written is proved before the first stage that runs does any work.
     let mut writable = false;
     let mut stale = Vec::new();
+    // A shard goes no further than its part of stage 6; told to stop at stage 3, it does only
+    // its share of the regions.
     let until = match options.split {
-        Split::Shard(_) => Some(&crate::stages::SMOOTH),
+        Split::Shard(_) => Some(options.until.unwrap_or(&crate::stages::SMOOTH)),
         _ => options.until,
     };
+    artifacts.regions_only = matches!(options.split, Split::Shard(_))
+        && until.is_some_and(|u| *u == crate::stages::OPTIMIZE);
     for stage in stage::up_to(until) {
         if !(stage.applies)(artifacts.pipeline) {
             // An edit stage's files from a build that had edits would be read as this one's
@@ -133,8 +138,9 @@ fn run_stages(
         let hash = (stage.hash)(artifacts)?;
         artifacts.hashes.insert(stage.name, hash);
         // A shard's part is its own file, not the stage's: it always runs.
-        let sharded =
-            matches!(options.split, Split::Shard(_)) && crate::stages::SHARDED.contains(&stage);
+        let sharded = matches!(options.split, Split::Shard(_))
+            && (crate::stages::SHARDED.contains(&stage)
+                || (artifacts.regions_only && *stage == crate::stages::OPTIMIZE));
         if !options.force && !sharded && (stage.fresh)(artifacts, &path, hash)? {
             ui.say(format!(
                 "{:>8}: up to date, skipped ({})",

@@ -38,7 +38,7 @@ pub static STAGES: [&Stage; 8] = [
 
 /// The stages that `crowd build --shard` splits by patch (the others run whole in every
 /// shard, or in the gathering).
-pub static SHARDED: [&Stage; 2] = [&COLLIDE, &SMOOTH];
+pub static SHARDED: [&Stage; 3] = [&MATCH, &COLLIDE, &SMOOTH];
 
 /// The stages that write trajectories (`crowd check` reads them), latest first.
 pub static TRAJECTORY_STAGES: [&Stage; 4] = [&EDIT, &SMOOTH, &COLLIDE, &MATCH];
@@ -173,8 +173,15 @@ pub static COLLIDE: Stage = Stage {
     kind: crowd_collide::STAGE,
     version: crowd_collide::VERSION,
     hash: |a| {
-        let (graph, matched) = (a.bytes(&GRAPH)?, a.bytes(&MATCH)?);
         let inputs = crowd_collide::inputs(a.pipeline);
+        if let Split::Shard(_) = a.split {
+            // A shard has only its part of stage 4: what that part is made from stands in.
+            return Ok(crowd_collide::shard::part_hash(
+                a.hashes[MATCH.name],
+                &inputs,
+            ));
+        }
+        let (graph, matched) = (a.bytes(&GRAPH)?, a.bytes(&MATCH)?);
         Ok(crowd_collide::input_hash(&graph, &matched, &inputs))
     },
     fresh: |a, path, hash| motion_fresh(&COLLIDE, a, path, hash),
@@ -349,10 +356,24 @@ fn optimize(a: &mut Artifacts, out: &Path, hash: Hash, ui: &Ui) -> Result<Ran> {
     let graph = a.graph()?;
     let s = crowd_optimize::inputs(a.pipeline);
     // The last build's regions: those whose inputs are unchanged are not optimised again.
-    let known = std::fs::read(out.with_file_name(crowd_optimize::REGIONS_FILE))
+    let mut known = std::fs::read(out.with_file_name(crowd_optimize::REGIONS_FILE))
         .ok()
         .and_then(|bytes| crowd_optimize::known::decode(&bytes))
         .unwrap_or_default();
+    let dir = out.parent().unwrap_or(Path::new("."));
+    let mut from_parts = None;
+    match a.split {
+        Split::Shard(shard) if a.regions_only => {
+            return optimize_part(a, (dir, shard), hash, &known, &bar);
+        }
+        // The regions the shards solved (`--until optimize`), taken instead of solved again.
+        Split::Shard(_) | Split::Gather => {
+            let (parts, count) = crowd_optimize::shard::read_parts(dir, hash)?;
+            from_parts = Some((parts.len(), count));
+            known.extend(parts);
+        }
+        Split::Whole => {}
+    }
     let outcome = crowd_optimize::optimize_reusing(
         &graph,
         &s.settings,
@@ -372,8 +393,51 @@ fn optimize(a: &mut Artifacts, out: &Path, hash: Hash, ui: &Ui) -> Result<Ran> {
         outcome.regions - outcome.reused,
         outcome.regions,
         outcome.reused
-    );
+    ) + &from_parts
+        .map(|(regions, parts)| format!("; {regions} in {parts} shard parts"))
+        .unwrap_or_default();
     a.made_patterns((patterns, outcome.crossings));
+    Ok(Ran {
+        note: Some(note),
+        ..Ran::files(writes)
+    })
+}
+
+/// A shard's share of stage 3 (`--shard I/N --until optimize`): its run of the regions
+/// solved (or taken from the last build's), into `shards/optimize-I-of-N.ron` and `.bin`.
+fn optimize_part(
+    a: &mut Artifacts,
+    (dir, shard): (&Path, crowd_core::Shard),
+    hash: Hash,
+    known: &crowd_optimize::Known,
+    bar: &dyn crowd_core::Progress,
+) -> Result<Ran> {
+    let graph = a.graph()?;
+    let s = crowd_optimize::inputs(a.pipeline);
+    let costs = crowd_optimize::shard::region_costs(&graph, &s.settings);
+    let run = shard.run(&costs);
+    let at = (s.period_s, s.seed);
+    let part = crowd_optimize::solve_part(
+        &graph,
+        &s.settings,
+        &s.matching,
+        at,
+        run.clone(),
+        known,
+        bar,
+    );
+    let reused = part.iter().filter(|(_, reused)| *reused).count();
+    let solved: Vec<_> = part.into_iter().map(|(solved, _)| solved).collect();
+    let note = format!(
+        "regions {}..{} of {}: {} optimised ({reused} reused)",
+        run.start,
+        run.end,
+        costs.len(),
+        solved.len() - reused
+    );
+    let writes = shard_writes(dir, || {
+        crowd_optimize::shard::encode_part(dir, shard, hash, run, &solved)
+    })?;
     Ok(Ran {
         note: Some(note),
         ..Ran::files(writes)
@@ -385,6 +449,11 @@ fn matching(a: &mut Artifacts, out: &Path, hash: Hash, ui: &Ui) -> Result<Ran> {
     let (graph, patterns) = (a.graph()?, a.patterns()?);
     let (patterns, crossings) = (&patterns.0, &patterns.1);
     let inputs = crowd_match::inputs(a.pipeline);
+    match a.split {
+        Split::Shard(shard) => return matching_shard(a, (out, shard), hash, &inputs, &bar),
+        Split::Gather => return matching_gathered(a, out, hash, &inputs),
+        Split::Whole => {}
+    }
     let measured = &patterns.measured;
     let seen = Seen::new(&graph, crossings);
     let keys: Vec<Hash> = (0..graph.patches.len())
@@ -414,6 +483,69 @@ fn matching(a: &mut Artifacts, out: &Path, hash: Hash, ui: &Ui) -> Result<Ran> {
         ..Ran::files(writes)
     }
     .knowing(side.0, side.1))
+}
+
+/// A shard's part of stage 4: its own patches and their neighbours matched (its stage 5
+/// clears them all), its own written to `shards/match-I-of-N`.
+fn matching_shard(
+    a: &mut Artifacts,
+    (out, shard): (&Path, crowd_core::Shard),
+    hash: Hash,
+    inputs: &crowd_match::Inputs,
+    bar: &dyn crowd_core::Progress,
+) -> Result<Ran> {
+    let dir = out.parent().unwrap_or(Path::new("."));
+    let (graph, patterns) = (a.graph()?, a.patterns()?);
+    let own: Vec<usize> = shard.run(&a.shard_costs()?).collect();
+    let matched = crowd_core::shard::with_neighbours(&graph, &own);
+    let (measured, crossings) = (&patterns.0.measured, &patterns.1);
+    let made = crowd_match::match_patches(&graph, crossings, measured, inputs, bar, &matched);
+    let mut motion = vec![PatchMotion::default(); graph.patches.len()];
+    for (&p, m) in matched.iter().zip(made) {
+        motion[p] = m;
+    }
+    let part = own.iter().map(|&p| (p as u32, &motion[p])).collect();
+    let writes = shard_writes(dir, || {
+        crowd_match::shard::encode_shard(dir, shard, hash, part)
+    })?;
+    a.shard_matched = Some(motion);
+    Ok(Ran::files(writes))
+}
+
+/// Stage 4 put together from every shard's part in `shards/`, streamed as stage 5's are
+/// ([`collide_gathered`]); the keys a whole build would leave, made here from stage 3.
+fn matching_gathered(
+    a: &mut Artifacts,
+    out: &Path,
+    hash: Hash,
+    inputs: &crowd_match::Inputs,
+) -> Result<Ran> {
+    let dir = out.parent().unwrap_or(Path::new("."));
+    let mut summing = crowd_core::trajectories::Summing::new(inputs.period_s);
+    let side_path = out.with_extension("bin");
+    let costs = a.shard_costs()?;
+    let gathered =
+        crowd_match::shard::gather_bytes(dir, hash, &costs, |m| summing.add(m), &side_path)?;
+    let (graph, patterns) = (a.graph()?, a.patterns()?);
+    let seen = Seen::new(&graph, &patterns.1);
+    let measured = &patterns.0.measured;
+    let keys: Vec<Hash> = (0..graph.patches.len())
+        .into_par_iter()
+        .map(|p| crowd_match::patch_key(&seen, p, measured[p].standers, inputs))
+        .collect();
+    let side = gathered.side;
+    let (file, writes) =
+        crowd_match::encode(out, Streamed(&side, summing.finish()), &graph, inputs, hash);
+    let extra = vec![Vec::new(); keys.len()];
+    let writes = with_keys(out, writes, file.motion.hash, keys, &seen.tables, extra);
+    let known = (side.path.clone(), side.hash);
+    a.made_lazy_motion(&MATCH, (file, gathered.motion));
+    Ok(Ran {
+        note: Some("gathered".to_string()),
+        streamed: vec![side],
+        ..Ran::files(writes)
+    }
+    .knowing(known.0, known.1))
 }
 
 fn collide(a: &mut Artifacts, out: &Path, hash: Hash, ui: &Ui) -> Result<Ran> {
@@ -458,9 +590,9 @@ fn collide(a: &mut Artifacts, out: &Path, hash: Hash, ui: &Ui) -> Result<Ran> {
         Split::Gather => collide_gathered(a, out, hash, &s),
         Split::Shard(shard) => {
             let own: Vec<usize> = shard.run(&a.shard_costs()?).collect();
-            let cleared = crowd_collide::shard::with_neighbours(&graph, &own);
-            let matched = a.take_motion(&MATCH)?;
-            let parts = crowd_collide::collide_patches(&graph, &matched.1, &s, &bar, &cleared)
+            let cleared = crowd_core::shard::with_neighbours(&graph, &own);
+            let matched = a.shard_matched.take().expect("stage 4 ran in this shard");
+            let parts = crowd_collide::collide_patches(&graph, &matched, &s, &bar, &cleared)
                 .map_err(|stall| collide_stall(&graph, &s, stall))?;
             drop(matched);
             // Its own patches go to its part; they and their neighbours, to its stage 6.
@@ -513,8 +645,9 @@ fn collide_gathered(
     let mut summing = crowd_core::trajectories::Summing::new(s.period_s);
     let side_path = out.with_extension("bin");
     let costs = a.shard_costs()?;
+    let made_from = crowd_collide::shard::part_hash(a.hashes[MATCH.name], s);
     let gathered =
-        crowd_collide::shard::gather_bytes(dir, hash, &costs, |m| summing.add(m), &side_path)?;
+        crowd_collide::shard::gather_bytes(dir, made_from, &costs, |m| summing.add(m), &side_path)?;
     // The keys a whole build would leave, so that the next build reuses patches: from the
     // matched motion, each patch read when asked.
     let (graph, patterns) = (a.graph()?, a.patterns()?);
@@ -675,9 +808,10 @@ fn smooth_gathered(
     inputs: &crowd_smooth::Inputs,
 ) -> Result<Ran> {
     let dir = out.parent().unwrap_or(Path::new("."));
-    // What each part says it is made from: stage 5's inputs, the patterns, the settings.
-    let made_from =
-        crowd_smooth::shard::part_hash(a.hashes[COLLIDE.name], &a.bytes(&OPTIMIZE)?, inputs);
+    // What each part says it is made from: stage 5's part's, the patterns, the settings.
+    let collide_part =
+        crowd_collide::shard::part_hash(a.hashes[MATCH.name], &crowd_collide::inputs(a.pipeline));
+    let made_from = crowd_smooth::shard::part_hash(collide_part, &a.bytes(&OPTIMIZE)?, inputs);
     let mut summing = crowd_core::trajectories::Summing::new(inputs.period_s);
     let side_path = out.with_extension("bin");
     let gathered = crowd_smooth::shard::gather_bytes(

@@ -1,5 +1,5 @@
 //! Stage 5 split over processes. A shard owns a run of patches (in patch order, of like cost:
-//! [`crowd_core::Shard::run`]) and clears them and their neighbours ([`with_neighbours`]:
+//! [`crowd_core::Shard::run`]) and clears them and their neighbours ([`crowd_core::shard::with_neighbours`]:
 //! stage 6 of a patch needs the pieces its neighbours walk up to their shared crossings); it
 //! writes its own patches, with their reports, to `shards/collide-I-of-N.ron` (and `.bin`).
 //! The gathering build puts every shard's part together ([`gather_bytes`]): their patches'
@@ -10,29 +10,20 @@ use crate::PatchReport;
 use crowd_core::files::{Header, Writes};
 use crowd_core::shard::{Gathered, encode_part, gather_encoded};
 use crowd_core::trajectories::PatchMotion;
-use crowd_core::{Hash, PatchGraph, Result, Shard};
+use crowd_core::{Hash, Result, Shard};
 use std::path::Path;
 
-/// `patches` and every patch next to one of them (sharing a border side), sorted.
-pub fn with_neighbours(graph: &PatchGraph, patches: &[usize]) -> Vec<usize> {
-    let mut all: Vec<usize> = patches.to_vec();
-    for &p in patches {
-        let c = graph.patches[p].cell;
-        for (dc, dr) in [(-1i64, 0i64), (1, 0), (0, -1), (0, 1)] {
-            let (col, row) = (i64::from(c.col) + dc, i64::from(c.row) + dr);
-            if let (Ok(col), Ok(row)) = (u32::try_from(col), u32::try_from(row))
-                && let Some(q) = graph.patch_at(crowd_core::Cell { col, row })
-            {
-                all.push(q);
-            }
-        }
-    }
-    all.sort_unstable();
-    all.dedup();
-    all
+/// What a shard's part of stage 5 is made from: stage 4's input hash (what the matched motion
+/// is made from) and the settings. A shard has not the matched file whose bytes stage 5's own
+/// hash covers: only its part of it.
+pub fn part_hash(match_hash: Hash, inputs: &crate::Inputs) -> Hash {
+    crowd_core::Hasher::new(crate::STAGE, crate::VERSION)
+        .value("stage 4 inputs", &match_hash)
+        .value("inputs", inputs)
+        .finish()
 }
 
-/// The header of stage 5's parts for stage 5's input hash `hash`.
+/// The header of stage 5's parts made from `hash` ([`part_hash`]).
 pub fn header(hash: Hash) -> Header {
     Header::new(crate::STAGE, crate::VERSION, hash)
 }
@@ -49,7 +40,7 @@ pub fn encode_shard(
 }
 
 /// Stage 5's motion for every patch left in the parts, from every shard's part in
-/// `dir/shards` (each made for `hash`, holding the patches its shard owns by `costs`): the side
+/// `dir/shards` (each made from `hash`, [`part_hash`], holding the patches its shard owns by `costs`): the side
 /// file one process would write streamed to `side`'s temporary name, and each patch's report;
 /// `each` sees every patch's motion in patch order. The million's gather held the world's
 /// motion decoded (1.4 GB) through stages 5 and 6.

@@ -86,6 +86,25 @@ impl FromStr for Shard {
     }
 }
 
+/// `patches` and every patch next to one of them (sharing a border side), sorted.
+pub fn with_neighbours(graph: &crate::PatchGraph, patches: &[usize]) -> Vec<usize> {
+    let mut all: Vec<usize> = patches.to_vec();
+    for &p in patches {
+        let c = graph.patches[p].cell;
+        for (dc, dr) in [(-1i64, 0i64), (1, 0), (0, -1), (0, 1)] {
+            let (col, row) = (i64::from(c.col) + dc, i64::from(c.row) + dr);
+            if let (Ok(col), Ok(row)) = (u32::try_from(col), u32::try_from(row))
+                && let Some(q) = graph.patch_at(crate::Cell { col, row })
+            {
+                all.push(q);
+            }
+        }
+    }
+    all.sort_unstable();
+    all.dedup();
+    all
+}
+
 /// The folder, in a build folder, that shard files go to and are gathered from.
 pub const SHARDS_DIR: &str = "shards";
 
@@ -111,8 +130,8 @@ pub fn part_path(dir: &Path, stage: &str, shard: Shard) -> PathBuf {
 }
 
 /// What each patch costs the stages that split, for dealing patches to shards
-/// ([`Shard::run`]): its trajectories in stage 4's motion, plus one. `counts` gives patch
-/// `p`'s trajectories.
+/// ([`Shard::run`]): its walkers (the crossings that enter it, each a trajectory of stage 4's
+/// motion), plus one. `counts` gives patch `p`'s walkers.
 pub fn costs(patches: usize, counts: impl Fn(usize) -> usize) -> Vec<u64> {
     (0..patches).map(|p| counts(p) as u64 + 1).collect()
 }

@@ -13,6 +13,7 @@ mod cache;
 pub mod plan;
 pub mod random;
 pub mod score;
+pub mod shard;
 pub mod stable;
 pub mod standers;
 pub mod way;
@@ -323,9 +324,9 @@ pub fn patch_key(
 }
 
 /// Stage 4's files, encoded: the motion side file, then `trajectories.ron`.
-pub fn encode(
+pub fn encode<'a>(
     out: &std::path::Path,
-    motion: &[PatchMotion],
+    motion: impl Into<crowd_core::trajectories::SideMotion<'a>>,
     graph: &PatchGraph,
     inputs: &Inputs,
     hash: crowd_core::Hash,

@@ -20,6 +20,7 @@ pub mod region;
 pub mod regression;
 pub mod retime;
 pub mod search;
+pub mod shard;
 pub mod spacing;
 pub mod state;
 
@@ -195,40 +196,14 @@ pub fn optimize_reusing(
     known: &Known,
     progress: &dyn Progress,
 ) -> Outcome {
-    let side = graph.world.patch_side_m;
-    let regression = regression::fit(side, period_s, matching, 60, seed);
-    let cut = Cut::new(graph, settings.region_patches);
-    let standers = region::stander_counts(graph, &cut);
-    let rule = SeamRule {
-        regression: &regression,
-        rho_max: settings.rho_max,
-        matching,
-        period_s,
-        seed,
-    };
-    let seams = region::seam_crossings(graph, &cut, &rule);
-    let inputs = RegionInputs {
-        settings,
-        matching,
-        period_s,
-        seed,
-        regression: &regression,
-    };
-    progress.begin("optimize", cut.regions.len() as u64);
-    let solved: Vec<(Region, Solved, bool)> = cut
-        .regions
-        .par_iter()
-        .map(|r| {
-            let region = Region::new(graph, r, &standers, &seams, cut.side);
-            let hash = region.hash(&inputs);
-            let (solved, reused) = match known.get(&hash) {
-                Some(s) => (s.clone(), true),
-                None => (solve(&region, hash, &inputs), false),
-            };
-            progress.advance(1);
-            (region, solved, reused)
-        })
-        .collect();
+    let world = World::new(graph, settings, matching, period_s, seed);
+    let solved = world.solve(0..world.cut.regions.len(), known, progress);
+    let World {
+        regression,
+        standers,
+        seams,
+        ..
+    } = world;
     gather(
         graph,
         settings.rho_max,
@@ -237,6 +212,105 @@ pub fn optimize_reusing(
         seams,
         solved,
     )
+}
+
+/// Only the regions `part` of the world's cut (numbered as [`region::Cut`] lists them), each
+/// taken from `known` or solved: a shard's share of stage 3 ([`shard`]). Every region's result
+/// depends on it alone (its seams are held by a rule), so these are the results
+/// [`optimize_reusing`] would find for them.
+pub fn solve_part(
+    graph: &PatchGraph,
+    settings: &OptimizeSettings,
+    matching: &MatchSettings,
+    (period_s, seed): (f64, u64),
+    part: std::ops::Range<usize>,
+    known: &Known,
+    progress: &dyn Progress,
+) -> Vec<(Solved, bool)> {
+    let world = World::new(graph, settings, matching, period_s, seed);
+    let part = part.start.min(world.cut.regions.len())..part.end.min(world.cut.regions.len());
+    (world.solve(part, known, progress).into_iter())
+        .map(|(_, solved, reused)| (solved, reused))
+        .collect()
+}
+
+/// What every region of a world is solved against: the density regression, the cut into
+/// regions, the standers and the seams' crossings (held by a rule, so that regions are
+/// independent).
+struct World<'a> {
+    graph: &'a PatchGraph,
+    settings: &'a OptimizeSettings,
+    matching: &'a MatchSettings,
+    period_s: f64,
+    seed: u64,
+    regression: Regression,
+    cut: Cut,
+    standers: Vec<u32>,
+    seams: Vec<Vec<Crossing>>,
+}
+
+impl<'a> World<'a> {
+    fn new(
+        graph: &'a PatchGraph,
+        settings: &'a OptimizeSettings,
+        matching: &'a MatchSettings,
+        period_s: f64,
+        seed: u64,
+    ) -> World<'a> {
+        let side = graph.world.patch_side_m;
+        let regression = regression::fit(side, period_s, matching, 60, seed);
+        let cut = Cut::new(graph, settings.region_patches);
+        let standers = region::stander_counts(graph, &cut);
+        let rule = SeamRule {
+            regression: &regression,
+            rho_max: settings.rho_max,
+            matching,
+            period_s,
+            seed,
+        };
+        let seams = region::seam_crossings(graph, &cut, &rule);
+        World {
+            graph,
+            settings,
+            matching,
+            period_s,
+            seed,
+            regression,
+            cut,
+            standers,
+            seams,
+        }
+    }
+
+    /// The regions `part` of the cut, each from `known` (then `true`) or solved, in order.
+    fn solve(
+        &self,
+        part: std::ops::Range<usize>,
+        known: &Known,
+        progress: &dyn Progress,
+    ) -> Vec<(Region, Solved, bool)> {
+        let inputs = RegionInputs {
+            settings: self.settings,
+            matching: self.matching,
+            period_s: self.period_s,
+            seed: self.seed,
+            regression: &self.regression,
+        };
+        progress.begin("optimize", part.len() as u64);
+        self.cut.regions[part]
+            .par_iter()
+            .map(|r| {
+                let region = Region::new(self.graph, r, &self.standers, &self.seams, self.cut.side);
+                let hash = region.hash(&inputs);
+                let (solved, reused) = match known.get(&hash) {
+                    Some(s) => (s.clone(), true),
+                    None => (solve(&region, hash, &inputs), false),
+                };
+                progress.advance(1);
+                (region, solved, reused)
+            })
+            .collect()
+    }
 }
 
 /// One region optimised (Algorithm 1 with its seams held, then the polish).

@@ -228,6 +228,68 @@ fn a_change_inside_a_region_moves_no_crossing_outside_it_and_reuse_is_exact() {
     assert!(parity(&changed, &after.crossings).iter().all(|&b| b == 0));
 }
 
+/// Stage 3 split over shards: each solves its run of regions, its part goes through its
+/// files, and the world put together from the parts solves nothing and is the world solved
+/// in one process, for any count of shards (more shards than regions too).
+#[test]
+fn regions_solved_in_shards_and_read_from_their_files_are_the_world_solved_whole() {
+    let graph = scene(300);
+    let settings = OptimizeSettings {
+        max_iterations: 30,
+        region_patches: Some(2),
+        ..OptimizeSettings::default()
+    };
+    let matching = MatchSettings::default();
+    let whole = optimize(&graph, &settings, &matching, 20.0, 9, &());
+    let costs = shard::region_costs(&graph, &settings);
+    assert_eq!(costs.len(), whole.regions);
+    let hash = Hash::of(b"inputs");
+    for count in [1, 3, 5, whole.regions as u32 + 2] {
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::create_dir(dir.path().join("shards")).unwrap();
+        let mut solved_here = 0;
+        for i in 0..count {
+            let s = crowd_core::Shard::new(i, count).unwrap();
+            let run = s.run(&costs);
+            let part = solve_part(
+                &graph,
+                &settings,
+                &matching,
+                (20.0, 9),
+                run.clone(),
+                &Known::new(),
+                &(),
+            );
+            assert_eq!(part.len(), run.len());
+            solved_here += part.iter().filter(|(_, reused)| !reused).count();
+            let solved: Vec<_> = part.into_iter().map(|(s, _)| s).collect();
+            let writes = shard::encode_part(dir.path(), s, hash, run, &solved);
+            crowd_core::files::write_all(&writes).unwrap();
+        }
+        assert_eq!(
+            solved_here, whole.regions,
+            "{count} shards: each region solved once"
+        );
+        let (known, parts) = shard::read_parts(dir.path(), hash).unwrap();
+        assert_eq!(parts, count as usize);
+        let gathered = optimize_reusing(&graph, &settings, &matching, 20.0, 9, &known, &());
+        assert_eq!(
+            gathered.reused, whole.regions,
+            "{count} shards: nothing solved again"
+        );
+        assert_eq!(gathered.crossings, whole.crossings);
+        assert_eq!(gathered.measured, whole.measured);
+        assert_eq!(gathered.log, whole.log);
+        assert_eq!(
+            known::encode(&gathered.solved),
+            known::encode(&whole.solved)
+        );
+        // A part of other inputs is refused, by name.
+        let other = shard::read_parts(dir.path(), Hash::of(b"other")).unwrap_err();
+        assert!(other.to_string().contains("optimize-0-of-"), "{other}");
+    }
+}
+
 /// A 200 m x 96 m scene of 8 m patches cut in two by a wall without a door: two components.
 fn two_rooms() -> PatchGraph {
     let (w, h) = (200, 96);

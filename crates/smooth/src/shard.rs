@@ -1,8 +1,8 @@
 //! Stage 6 split over processes: a shard smooths the patches it owns (its run, as in stage
 //! 5), from the collided motion of those patches and their neighbours,
 //! and writes them with their counts to `shards/smooth-I-of-N.ron` (and `.bin`). Its header
-//! carries [`part_hash`]: stage 5's input hash (what the collided motion is made from), the
-//! patterns and stage 6's settings, which the gathering build, holding all of these, checks.
+//! carries [`part_hash`]: what stage 5's part is made from, the patterns and stage 6's
+//! settings, which the gathering build, holding all of these, checks.
 
 use crate::Inputs;
 use crowd_core::files::{Header, Writes};
@@ -11,12 +11,12 @@ use crowd_core::trajectories::PatchMotion;
 use crowd_core::{Hash, Hasher, Result, Shard};
 use std::path::Path;
 
-/// What a shard's part of stage 6 is made from: stage 5's input hash, the patterns file's
-/// bytes and the settings (a shard has not the collided file whose bytes stage 6's own hash
-/// covers: only its part of it).
-pub fn part_hash(collide_hash: Hash, patterns: &[u8], inputs: &Inputs) -> Hash {
+/// What a shard's part of stage 6 is made from: what stage 5's part is made from
+/// (`crowd_collide::shard::part_hash`), the patterns file's bytes and the settings (a shard has
+/// not the collided file whose bytes stage 6's own hash covers: only its part of it).
+pub fn part_hash(collide_part_hash: Hash, patterns: &[u8], inputs: &Inputs) -> Hash {
     Hasher::new(crate::STAGE, crate::VERSION)
-        .value("stage 5 inputs", &collide_hash)
+        .value("stage 5 part", &collide_part_hash)
         .file("patterns file", patterns)
         .value("inputs", inputs)
         .finish()
