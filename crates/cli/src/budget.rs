@@ -29,6 +29,16 @@
 //! | the million, a shard of 8 | 1,016,000 | 1.63-1.65 GB | 2.17 GB |
 //! | painting, the gather of 4 shards | 95,000 | 1.14-1.17 GB | 1.23 GB |
 //! | the million, the gather of 8 shards | 1,016,000 | 2.52-2.66 GB | 3.09 GB |
+//!
+//! A build that stops early (`--until`, or a shard's regions step) holds only what its last
+//! stage does of the world (the million's stages on one thread, `timings.ron`, 2026-12-06):
+//!
+//! | last stage | peak measured | estimate |
+//! | --- | ---: | ---: |
+//! | merge or graph (the graph) | 331 MB | 345 MB |
+//! | optimize, whole (every region's result) | 0.76-0.91 GB | 0.95 GB |
+//! | optimize, a shard's regions | 0.28-0.33 GB | 0.95 GB |
+//! | match, whole (every patch's lines) | 1.23 GB | 1.31 GB |
 
 use crate::driver::Split;
 use crowd_core::config::{LayerKind, People, PipelineFile};
@@ -40,6 +50,11 @@ const PER_WALKER: f64 = 35e3;
 /// How the peak grows with the period: (period / 20 s) to this power.
 const PERIOD_POWER: f64 = 0.6;
 
+/// Peak bytes per walker of a build that stops after stage 2 (the graph), stage 3 (the
+/// patterns, every region's result) or stage 4 (every patch's lines and standers).
+const UNTIL_GRAPH_PER_WALKER: f64 = 300.0;
+const UNTIL_OPTIMIZE_PER_WALKER: f64 = 900.0;
+const UNTIL_MATCH_PER_WALKER: f64 = 1250.0;
 /// A shard's peak bytes per walker of the world (stage 4's motion of every one).
 const SHARD_PER_WALKER: f64 = 600.0;
 /// A shard's peak bytes per walker of its own (its patches' stages 5 and 6).
@@ -52,17 +67,21 @@ const GATHER_PER_WALKER_AT_ONCE: f64 = 12.5e3;
 /// side file, about 4.4 kB a walker, under `check::SMALL_WORLD_BYTES`).
 const AT_ONCE_WALKERS: f64 = 244e3;
 
-/// The estimated peak memory of building `pipeline` (or its part `split`), bytes.
-pub fn estimate(pipeline: &PipelineFile, split: Split) -> f64 {
+/// The estimated peak memory of building `pipeline` (or its part `split`) up to the stage
+/// numbered `last` (8: all of it), bytes.
+pub fn estimate(pipeline: &PipelineFile, split: Split, last: u8) -> f64 {
     let p = &pipeline.pipeline;
     let w = characters(pipeline);
     let per_period = (p.period_s / 20.0).powf(PERIOD_POWER);
-    let held = match split {
-        Split::Whole => w * PER_WALKER,
-        Split::Shard(shard) => {
+    let held = match (split, last) {
+        (_, ..=2) => w * UNTIL_GRAPH_PER_WALKER,
+        (_, 3) => w * UNTIL_OPTIMIZE_PER_WALKER,
+        (Split::Whole, 4) => w * UNTIL_MATCH_PER_WALKER,
+        (Split::Whole, _) => w * PER_WALKER,
+        (Split::Shard(shard), _) => {
             w * SHARD_PER_WALKER + w / f64::from(shard.count()) * SHARD_PER_OWN_WALKER
         }
-        Split::Gather => {
+        (Split::Gather, _) => {
             (w.min(AT_ONCE_WALKERS) * GATHER_PER_WALKER_AT_ONCE).max(w * GATHER_PER_WALKER)
         }
     };
@@ -116,9 +135,14 @@ pub fn machine_memory() -> Option<u64> {
     crate::memory::kb_field(&info, "MemTotal:")
 }
 
-/// Refuses `pipeline` (or its part `split`) when its estimated peak passes `limit` bytes
-/// (`--max-memory`, else the machine's memory; no limit where neither is known).
-pub fn check(pipeline: &PipelineFile, split: Split, limit: Option<u64>) -> crowd_core::Result<()> {
+/// Refuses `pipeline` (or its part `split`, up to the stage numbered `last`) when its
+/// estimated peak passes `limit` bytes (`--max-memory`, else the machine's memory; no limit
+/// where neither is known).
+pub fn check(
+    pipeline: &PipelineFile,
+    (split, last): (Split, u8),
+    limit: Option<u64>,
+) -> crowd_core::Result<()> {
     let (limit, source) = match limit {
         Some(l) => (l, "--max-memory"),
         None => match machine_memory() {
@@ -126,7 +150,7 @@ pub fn check(pipeline: &PipelineFile, split: Split, limit: Option<u64>) -> crowd
             None => return Ok(()),
         },
     };
-    let need = estimate(pipeline, split);
+    let need = estimate(pipeline, split, last);
     let part = part(split);
     // Shards hold a part of the world; a gather holds what its check judges of all of it.
     let split_it = match split {
@@ -239,7 +263,7 @@ mod tests {
         ] {
             let file = PipelineFile::parse(std::path::Path::new("p.ron"), text(walkers, period))
                 .unwrap_or_else(|e| panic!("{e}"));
-            let e = estimate(&file, Split::Whole);
+            let e = estimate(&file, Split::Whole, 8);
             assert!(
                 e > 0.5 * measured && e < 1.7 * measured,
                 "{walkers} walkers, {period} s: {e} for {measured}"
@@ -269,22 +293,22 @@ mod tests {
             (1_016_000, Split::Gather, 2.66e9),
         ] {
             let f = file(walkers);
-            let e = estimate(&f, split);
+            let e = estimate(&f, split, 8);
             assert!(
                 e >= measured && e < 1.4 * measured,
                 "{walkers} walkers, {split:?}: {e} for {measured}"
             );
             assert!(
-                e < 0.5 * estimate(&f, Split::Whole),
+                e < 0.5 * estimate(&f, Split::Whole, 8),
                 "{walkers} walkers, {split:?}"
             );
         }
         // The million's shards and gather fit a machine of 8 GB; the whole build does not.
         let million = file(1_016_000);
         let limit = Some(8_000_000_000);
-        assert!(check(&million, shard(0, 8), limit).is_ok());
-        assert!(check(&million, Split::Gather, limit).is_ok());
-        let refused = check(&million, Split::Whole, limit)
+        assert!(check(&million, (shard(0, 8), 8), limit).is_ok());
+        assert!(check(&million, (Split::Gather, 8), limit).is_ok());
+        let refused = check(&million, (Split::Whole, 8), limit)
             .unwrap_err()
             .to_string();
         assert!(
@@ -294,17 +318,56 @@ mod tests {
         // Too little for a shard: more shards; for the gather, which holds its whole world's
         // check, shards are no advice.
         let tiny = Some(100_000_000);
-        let refused = check(&million, shard(0, 8), tiny).unwrap_err().to_string();
+        let refused = check(&million, (shard(0, 8), 8), tiny)
+            .unwrap_err()
+            .to_string();
         assert!(
             refused.contains("shard 0/8 needs") && refused.contains("more shards"),
             "{refused}"
         );
-        let refused = check(&million, Split::Gather, tiny)
+        let refused = check(&million, (Split::Gather, 8), tiny)
             .unwrap_err()
             .to_string();
         assert!(
             refused.contains("the gather needs") && !refused.contains("shards"),
             "{refused}"
         );
+    }
+
+    /// A build that stops early is sized by the stages it runs: the million's stages 1-2, 3
+    /// and 4 whole, and a shard's regions step, fit a machine of 4 GB (each measured at 0.3-1.2
+    /// GB); its whole build, or any that goes past stage 4 in one process, does not.
+    #[test]
+    fn a_build_that_stops_early_is_sized_by_its_last_stage() {
+        let text = "(scene: (meters_per_pixel: 1.0, layers: [(kind: Density, path: \"d.png\")]), \
+                    walkers: 1016000, standers: 0, patch_side_m: 8.0, period_s: 20.0, \
+                    radius_m: 0.3, seed: 1, output: \"out\")";
+        let million = PipelineFile::parse(std::path::Path::new("p.ron"), text.to_string())
+            .unwrap_or_else(|e| panic!("{e}"));
+        let limit = Some(4_000_000_000);
+        let regions = Split::Shard(crowd_core::Shard::new(0, 8).unwrap());
+        for (split, last, measured) in [
+            (Split::Whole, 1, 43e6),
+            (Split::Whole, 2, 331e6),
+            (Split::Whole, 3, 912e6),
+            (regions, 3, 333e6),
+            (Split::Whole, 4, 1.23e9),
+        ] {
+            let e = estimate(&million, split, last);
+            assert!(
+                e >= measured,
+                "{split:?} to stage {last}: {e} for {measured}"
+            );
+            assert!(
+                check(&million, (split, last), limit).is_ok(),
+                "{split:?}, {last}"
+            );
+        }
+        for last in [5, 8] {
+            assert!(
+                check(&million, (Split::Whole, last), limit).is_err(),
+                "{last}"
+            );
+        }
     }
 }

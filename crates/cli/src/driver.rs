@@ -80,7 +80,13 @@ pub fn build(
     // The layers are read (headers checked, the region held to the maps) before the folder
     // is made: a refused painting leaves no trace.
     artifacts.layers()?;
-    crate::budget::check(&pipeline, options.split, options.max_memory)?;
+    // A shard goes to stage 6 unless told to stop at its regions.
+    let last = match (options.split, options.until) {
+        (_, Some(stage)) => stage.number,
+        (Split::Shard(_), None) => crate::stages::SMOOTH.number,
+        (_, None) => crate::stages::EXPORT.number,
+    };
+    crate::budget::check(&pipeline, (options.split, last), options.max_memory)?;
     let existed = out.exists();
     std::fs::create_dir_all(&out)
         .map_err(|e| crowd_core::Error::io(&out, "create the output folder", e))?;

@@ -364,7 +364,7 @@ fn optimize(a: &mut Artifacts, out: &Path, hash: Hash, ui: &Ui) -> Result<Ran> {
     let mut from_parts = None;
     match a.split {
         Split::Shard(shard) if a.regions_only => {
-            return optimize_part(a, (dir, shard), hash, &known, &bar);
+            return optimize_part(a, (dir, shard), hash, known, &bar);
         }
         // The regions the shards solved (`--until optimize`), taken instead of solved again.
         Split::Shard(_) | Split::Gather => {
@@ -380,7 +380,7 @@ fn optimize(a: &mut Artifacts, out: &Path, hash: Hash, ui: &Ui) -> Result<Ran> {
         &s.matching,
         s.period_s,
         s.seed,
-        &known,
+        known,
         &bar,
     );
     if outcome.crossings.is_empty() {
@@ -409,7 +409,7 @@ fn optimize_part(
     a: &mut Artifacts,
     (dir, shard): (&Path, crowd_core::Shard),
     hash: Hash,
-    known: &crowd_optimize::Known,
+    known: crowd_optimize::Known,
     bar: &dyn crowd_core::Progress,
 ) -> Result<Ran> {
     let graph = a.graph()?;
@@ -734,16 +734,8 @@ fn smooth(a: &mut Artifacts, out: &Path, hash: Hash, ui: &Ui) -> Result<Ran> {
         Split::Shard(shard) => {
             let collided = a.shard_collided.take().expect("stage 5 ran in this shard");
             let own: Vec<usize> = shard.run(&a.shard_costs()?).collect();
-            let done =
-                crowd_smooth::smooth_patches(&graph, &patterns.1, &collided, &inputs, &bar, &own);
-            let part = own
-                .iter()
-                .zip(&done)
-                .map(|(&p, (m, counts))| (p as u32, m, *counts))
-                .collect();
-            return Ok(Ran::files(shard_writes(dir, || {
-                crowd_smooth::shard::encode_shard(dir, shard, hash, part)
-            })?));
+            let smoother = crowd_smooth::Smoother::new(&graph, &patterns.1, &collided, &inputs);
+            return smooth_part(dir, (shard, hash), &smoother, &own, &bar);
         }
         Split::Gather => return smooth_gathered(a, out, hash, &inputs),
         Split::Whole => {}
@@ -795,6 +787,47 @@ fn smooth(a: &mut Artifacts, out: &Path, hash: Hash, ui: &Ui) -> Result<Ran> {
         ..Ran::files(writes)
     }
     .knowing(side.0, side.1))
+}
+
+/// A shard's part of stage 6, its `own` patches smoothed a run at a time (in parallel) and
+/// each encoded and written at once: the shard holds a run's curves, never its part's.
+fn smooth_part(
+    dir: &Path,
+    (shard, hash): (crowd_core::Shard, Hash),
+    smoother: &crowd_smooth::Smoother,
+    own: &[usize],
+    bar: &dyn crowd_core::Progress,
+) -> Result<Ran> {
+    /// Patches smoothed before their bytes are written.
+    const RUN: usize = 512;
+    shard_writes(dir, Vec::new)?;
+    let stage = crowd_smooth::STAGE;
+    let mut part = crowd_core::shard::PartWriter::create(dir, stage, shard, own.len())?;
+    let mut counts = Vec::with_capacity(own.len());
+    bar.begin("smooth", own.len() as u64);
+    for run in own.chunks(RUN) {
+        let done: Vec<(Vec<u8>, [u64; 3])> = run
+            .par_iter()
+            .map(|&p| {
+                let (motion, counts) = smoother.patch(p);
+                bar.advance(1);
+                (
+                    crowd_core::trajectories::encode_patch_bytes(&motion),
+                    counts,
+                )
+            })
+            .collect();
+        for (&p, (bytes, c)) in run.iter().zip(done) {
+            part.write(p as u32, &bytes)?;
+            counts.push(c);
+        }
+    }
+    let header = crowd_smooth::shard::header(hash);
+    let (side, ron) = part.finish(header, shard, counts)?;
+    Ok(Ran {
+        streamed: vec![side],
+        ..Ran::files(vec![ron])
+    })
 }
 
 /// Stage 6 put together from the shards' parts: their patch bytes one after another make the

@@ -166,6 +166,68 @@ pub fn encode_part<R: Serialize>(
     vec![(side, bytes), (path, ron)]
 }
 
+/// One shard's part of a stage written a patch at a time, as [`encode_part`] writes it whole:
+/// its side file streamed to its temporary name (`files::Streamed`, put in place by the
+/// build's commit), so that a shard never holds its part's motion, decoded or encoded (the
+/// million's stage 6 part: 0.5 GB of bytes, and more decoded).
+pub struct PartWriter {
+    path: PathBuf,
+    side: crate::files::Streamed,
+    patches: Vec<u32>,
+    count: usize,
+}
+
+impl PartWriter {
+    /// The part of `stage` for `shard` in `dir/shards` (which must exist), of `count` patches.
+    pub fn create(dir: &Path, stage: &str, shard: Shard, count: usize) -> Result<PartWriter> {
+        let path = part_path(dir, stage, shard);
+        let (side_path, _) = SideFile::beside(&path, &[]);
+        let mut side = crate::files::Streamed::create(&side_path)?;
+        side.write(&encoded_head(count))?;
+        Ok(PartWriter {
+            path,
+            side,
+            patches: Vec::with_capacity(count),
+            count,
+        })
+    }
+
+    /// The next patch, `p` (in patch order), its bytes as
+    /// [`crate::trajectories::encode_patch_bytes`] makes them.
+    pub fn write(&mut self, p: u32, encoded: &[u8]) -> Result<()> {
+        self.patches.push(p);
+        self.side.write(encoded)
+    }
+
+    /// The side file (at its temporary name) and the part's file (path and bytes), whose
+    /// `header` names the stage, with every patch's report.
+    pub fn finish<R: Serialize>(
+        self,
+        header: Header,
+        shard: Shard,
+        reports: Vec<R>,
+    ) -> Result<(crate::files::StreamedFile, (PathBuf, Vec<u8>))> {
+        assert_eq!(
+            self.patches.len(),
+            self.count,
+            "every patch of the part written"
+        );
+        assert_eq!(reports.len(), self.count, "a report for every patch");
+        let side = self.side.finish()?;
+        let (_, mut motion) = SideFile::beside(&self.path, &[]);
+        (motion.bytes, motion.hash) = (side.bytes, side.hash);
+        let file = Part {
+            header,
+            shard,
+            patches: self.patches,
+            reports,
+            motion,
+        };
+        let ron = crate::files::to_ron(&file).into_bytes();
+        Ok((side, (self.path, ron)))
+    }
+}
+
 /// Every patch's motion and report, put together from the parts of the stage `header` names
 /// in `dir/shards`: all N parts of one count, each made for `header` and holding exactly the
 /// patches its shard's run of `costs` ([`costs`]) gives it (refused, naming the file, when one
@@ -368,6 +430,56 @@ fn part_count(dir: &Path, stage: &str) -> Result<u32> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A part written a patch at a time is the part [`encode_part`] writes whole: the same
+    /// side file and the same `.ron`, once the build's commit puts the side file in place.
+    #[test]
+    fn a_part_written_a_patch_at_a_time_is_the_part_written_whole() {
+        use crate::trajectories::{ControlPoint, PointKind, Trajectory, encode_patch_bytes};
+        use glam::DVec2;
+        let patch = |k: u32| PatchMotion {
+            standers: (0..k % 3).map(|i| DVec2::new(f64::from(i), 0.5)).collect(),
+            trajectories: (0..k % 4)
+                .map(|i| Trajectory {
+                    entry: k + i,
+                    exit: k * 2 + i,
+                    points: (0..2 + i)
+                        .map(|j| ControlPoint {
+                            pos: DVec2::new(f64::from(j) * 1.5, f64::from(k)),
+                            t: f64::from(j) + 0.25,
+                            kind: PointKind::Sample,
+                        })
+                        .collect(),
+                })
+                .collect(),
+        };
+        let motion: Vec<PatchMotion> = (0..7).map(patch).collect();
+        let shard = Shard::new(1, 3).unwrap();
+        let header = Header::new("smooth", 4, crate::Hash::of(b"made from"));
+        let whole = tempfile::tempdir().unwrap();
+        std::fs::create_dir(whole.path().join(SHARDS_DIR)).unwrap();
+        let parts = (motion.iter().enumerate())
+            .map(|(p, m)| (p as u32 + 10, m, [p as u64; 3]))
+            .collect();
+        let writes = encode_part(whole.path(), header.clone(), shard, parts);
+        let streamed = tempfile::tempdir().unwrap();
+        std::fs::create_dir(streamed.path().join(SHARDS_DIR)).unwrap();
+        let mut part = PartWriter::create(streamed.path(), "smooth", shard, motion.len()).unwrap();
+        for (p, m) in motion.iter().enumerate() {
+            part.write(p as u32 + 10, &encode_patch_bytes(m)).unwrap();
+        }
+        let reports: Vec<[u64; 3]> = (0..motion.len()).map(|p| [p as u64; 3]).collect();
+        let (side, ron) = part.finish(header, shard, reports).unwrap();
+        let mut staging = crate::files::Staging::new();
+        staging.stage_streamed(side);
+        staging.stage(vec![ron]);
+        staging.commit().unwrap();
+        for (path, bytes) in writes {
+            let name = path.strip_prefix(whole.path()).unwrap();
+            let written = std::fs::read(streamed.path().join(name)).unwrap();
+            assert!(written == bytes, "{} differs", name.display());
+        }
+    }
 
     #[test]
     fn shards_read_as_written_and_refuse_what_is_not_one() {

@@ -198,6 +198,14 @@ pub fn encoded_head(patches: usize) -> [u8; HEAD_BYTES] {
     head
 }
 
+/// One patch's bytes as [`encode_motion`] writes them among the others: a side file is
+/// [`encoded_head`] and its patches' bytes one after another.
+pub fn encode_patch_bytes(p: &PatchMotion) -> Vec<u8> {
+    let mut out = vec![0u8; encoded_size(p)];
+    encode_patch(p, &mut out);
+    out
+}
+
 /// The patches' bytes of [`encode_motion`]'s `bytes`: all but the head.
 pub fn encoded_patches(bytes: &[u8]) -> &[u8] {
     &bytes[HEAD_BYTES.min(bytes.len())..]

@@ -178,8 +178,15 @@ pub fn optimize(
     seed: u64,
     progress: &dyn Progress,
 ) -> Outcome {
-    let known = Known::new();
-    optimize_reusing(graph, settings, matching, period_s, seed, &known, progress)
+    optimize_reusing(
+        graph,
+        settings,
+        matching,
+        period_s,
+        seed,
+        Known::new(),
+        progress,
+    )
 }
 
 /// Regions solved by an earlier build, by their [`Region::hash`].
@@ -187,13 +194,15 @@ pub type Known = std::collections::HashMap<crowd_core::Hash, Solved>;
 
 /// [`optimize`], taking every region whose hash is in `known` from there instead of solving it
 /// again: the same result, since a region's hash holds everything its result depends on.
+/// Each result taken is moved out of `known`, not copied: the million's regions, decoded,
+/// are 0.2 GB.
 pub fn optimize_reusing(
     graph: &PatchGraph,
     settings: &OptimizeSettings,
     matching: &MatchSettings,
     period_s: f64,
     seed: u64,
-    known: &Known,
+    known: Known,
     progress: &dyn Progress,
 ) -> Outcome {
     let world = World::new(graph, settings, matching, period_s, seed);
@@ -224,7 +233,7 @@ pub fn solve_part(
     matching: &MatchSettings,
     (period_s, seed): (f64, u64),
     part: std::ops::Range<usize>,
-    known: &Known,
+    known: Known,
     progress: &dyn Progress,
 ) -> Vec<(Solved, bool)> {
     let world = World::new(graph, settings, matching, period_s, seed);
@@ -232,6 +241,14 @@ pub fn solve_part(
     (world.solve(part, known, progress).into_iter())
         .map(|(_, solved, reused)| (solved, reused))
         .collect()
+}
+
+/// Where a solved region lies in the world: [`Region`]'s numbering of its patches and borders,
+/// and which patches are its own.
+struct Placed {
+    own: Vec<bool>,
+    patches: Vec<usize>,
+    borders: Vec<usize>,
 }
 
 /// What every region of a world is solved against: the density regression, the cut into
@@ -282,13 +299,16 @@ impl<'a> World<'a> {
         }
     }
 
-    /// The regions `part` of the cut, each from `known` (then `true`) or solved, in order.
+    /// The regions `part` of the cut, each from `known` (then `true`) or solved, in order;
+    /// each with where it lies in the world (its problem, a copy of its part of the graph, let
+    /// go as soon as it is solved).
     fn solve(
         &self,
         part: std::ops::Range<usize>,
-        known: &Known,
+        known: Known,
         progress: &dyn Progress,
-    ) -> Vec<(Region, Solved, bool)> {
+    ) -> Vec<(Placed, Solved, bool)> {
+        let known = std::sync::Mutex::new(known);
         let inputs = RegionInputs {
             settings: self.settings,
             matching: self.matching,
@@ -302,12 +322,27 @@ impl<'a> World<'a> {
             .map(|r| {
                 let region = Region::new(self.graph, r, &self.standers, &self.seams, self.cut.side);
                 let hash = region.hash(&inputs);
-                let (solved, reused) = match known.get(&hash) {
-                    Some(s) => (s.clone(), true),
+                let taken = known
+                    .lock()
+                    .expect("no thread panics holding it")
+                    .remove(&hash);
+                let (solved, reused) = match taken {
+                    Some(s) => (s, true),
                     None => (solve(&region, hash, &inputs), false),
                 };
                 progress.advance(1);
-                (region, solved, reused)
+                let Region {
+                    own,
+                    patches,
+                    borders,
+                    ..
+                } = region;
+                let placed = Placed {
+                    own,
+                    patches,
+                    borders,
+                };
+                (placed, solved, reused)
             })
             .collect()
     }
@@ -359,7 +394,7 @@ fn gather(
     regression: Regression,
     standers: &[u32],
     seams: Vec<Vec<Crossing>>,
-    regions: Vec<(Region, Solved, bool)>,
+    regions: Vec<(Placed, Solved, bool)>,
 ) -> Outcome {
     let unmeasured = Measured {
         density: 0.0,

@@ -198,7 +198,7 @@ fn a_change_inside_a_region_moves_no_crossing_outside_it_and_reuse_is_exact() {
         .expect("the inner patch of the first region");
     changed.patches[inner].walker_density *= 2.0;
     let known: Known = before.solved.iter().map(|s| (s.hash, s.clone())).collect();
-    let after = optimize_reusing(&changed, &settings, &matching, 20.0, 5, &known, &());
+    let after = optimize_reusing(&changed, &settings, &matching, 20.0, 5, known, &());
     let scratch = optimize(&changed, &settings, &matching, 20.0, 5, &());
     assert_eq!(
         after.reused, 3,
@@ -257,7 +257,7 @@ fn regions_solved_in_shards_and_read_from_their_files_are_the_world_solved_whole
                 &matching,
                 (20.0, 9),
                 run.clone(),
-                &Known::new(),
+                Known::new(),
                 &(),
             );
             assert_eq!(part.len(), run.len());
@@ -272,7 +272,7 @@ fn regions_solved_in_shards_and_read_from_their_files_are_the_world_solved_whole
         );
         let (known, parts) = shard::read_parts(dir.path(), hash).unwrap();
         assert_eq!(parts, count as usize);
-        let gathered = optimize_reusing(&graph, &settings, &matching, 20.0, 9, &known, &());
+        let gathered = optimize_reusing(&graph, &settings, &matching, 20.0, 9, known, &());
         assert_eq!(
             gathered.reused, whole.regions,
             "{count} shards: nothing solved again"

@@ -145,40 +145,73 @@ pub fn smooth_patches(
     patches: &[usize],
 ) -> Vec<(PatchMotion, [u64; 3])> {
     progress.begin("smooth", patches.len() as u64);
-    let s = &inputs.settings;
-    let limits = curve::Limits {
-        side_m: graph.world.patch_side_m,
-        period_s: inputs.period_s,
-        tack_spacing_s: s.tack_spacing_s,
-        max_displacement_m: s.max_displacement_m.unwrap_or(2.0 * graph.radius_m),
-        tolerance_m: s.tolerance_m,
-        blend: 1.0,
-        band_m: graph.radius_m,
-    };
-    let velocities = crossing_velocities(crossings.len(), motion);
+    let smoother = Smoother::new(graph, crossings, motion, inputs);
     patches
         .par_iter()
         .map(|&p| {
-            let m = &motion[p];
-            let obstacles = crowd_geometry::obstacles_near(graph, p);
-            let patch = Patch {
-                side_m: limits.side_m,
-                period_s: limits.period_s,
-                radius_m: graph.radius_m + inputs.margin_m,
-                obstacles: &obstacles,
-                standers: &m.standers,
-            };
-            let out = smooth_patch(
-                &m.trajectories,
-                &velocities,
-                &limits,
-                inputs.max_speed,
-                &patch,
-            );
+            let out = smoother.patch(p);
             progress.advance(1);
             out
         })
         .collect()
+}
+
+/// Stage 6 of one patch at a time, for a caller that keeps each patch in its own way (a shard
+/// encodes it at once and lets the curves go). `motion` needs the patches asked for and their
+/// neighbours; the others may be empty.
+pub struct Smoother<'a> {
+    graph: &'a PatchGraph,
+    motion: &'a [PatchMotion],
+    inputs: &'a Inputs,
+    limits: curve::Limits,
+    velocities: Vec<DVec2>,
+}
+
+impl<'a> Smoother<'a> {
+    pub fn new(
+        graph: &'a PatchGraph,
+        crossings: &[Crossing],
+        motion: &'a [PatchMotion],
+        inputs: &'a Inputs,
+    ) -> Smoother<'a> {
+        let s = &inputs.settings;
+        let limits = curve::Limits {
+            side_m: graph.world.patch_side_m,
+            period_s: inputs.period_s,
+            tack_spacing_s: s.tack_spacing_s,
+            max_displacement_m: s.max_displacement_m.unwrap_or(2.0 * graph.radius_m),
+            tolerance_m: s.tolerance_m,
+            blend: 1.0,
+            band_m: graph.radius_m,
+        };
+        Smoother {
+            graph,
+            motion,
+            inputs,
+            limits,
+            velocities: crossing_velocities(crossings.len(), motion),
+        }
+    }
+
+    /// Patch `p` smoothed, with its counts (smoothed, kept straight, dropped points).
+    pub fn patch(&self, p: usize) -> (PatchMotion, [u64; 3]) {
+        let m = &self.motion[p];
+        let obstacles = crowd_geometry::obstacles_near(self.graph, p);
+        let patch = Patch {
+            side_m: self.limits.side_m,
+            period_s: self.limits.period_s,
+            radius_m: self.graph.radius_m + self.inputs.margin_m,
+            obstacles: &obstacles,
+            standers: &m.standers,
+        };
+        smooth_patch(
+            &m.trajectories,
+            &self.velocities,
+            &self.limits,
+            self.inputs.max_speed,
+            &patch,
+        )
+    }
 }
 
 /// The stage's summary from each patch's counts (smoothed, kept straight, dropped points).

@@ -1,14 +1,15 @@
 //! Stage 6 split over processes: a shard smooths the patches it owns (its run, as in stage
-//! 5), from the collided motion of those patches and their neighbours,
-//! and writes them with their counts to `shards/smooth-I-of-N.ron` (and `.bin`). Its header
+//! 5), from the collided motion of those patches and their neighbours ([`crate::Smoother`]),
+//! and writes them with their counts to `shards/smooth-I-of-N.ron` (and `.bin`) a patch at a
+//! time (`crowd_core::shard::PartWriter`). Its header
 //! carries [`part_hash`]: what stage 5's part is made from, the patterns and stage 6's
 //! settings, which the gathering build, holding all of these, checks.
 
 use crate::Inputs;
-use crowd_core::files::{Header, Writes};
-use crowd_core::shard::{encode_part, gather_encoded};
+use crowd_core::files::Header;
+use crowd_core::shard::gather_encoded;
 use crowd_core::trajectories::PatchMotion;
-use crowd_core::{Hash, Hasher, Result, Shard};
+use crowd_core::{Hash, Hasher, Result};
 use std::path::Path;
 
 /// What a shard's part of stage 6 is made from: what stage 5's part is made from
@@ -22,20 +23,9 @@ pub fn part_hash(collide_part_hash: Hash, patterns: &[u8], inputs: &Inputs) -> H
         .finish()
 }
 
-/// The files of `shard`'s part: `parts` its own patches (index, motion, counts), in patch
-/// order.
-pub fn encode_shard(
-    dir: &Path,
-    shard: Shard,
-    hash: Hash,
-    parts: Vec<(u32, &PatchMotion, [u64; 3])>,
-) -> Writes {
-    encode_part(
-        dir,
-        Header::new(crate::STAGE, crate::VERSION, hash),
-        shard,
-        parts,
-    )
+/// The header of stage 6's parts made from `hash` ([`part_hash`]).
+pub fn header(hash: Hash) -> Header {
+    Header::new(crate::STAGE, crate::VERSION, hash)
 }
 
 /// Stage 6's motion for every patch left in the parts, from every shard's part in
@@ -49,6 +39,5 @@ pub fn gather_bytes(
     each: impl FnMut(&PatchMotion),
     side: &Path,
 ) -> Result<crowd_core::shard::Gathered<[u64; 3]>> {
-    let header = Header::new(crate::STAGE, crate::VERSION, hash);
-    gather_encoded(dir, &header, costs, each, side)
+    gather_encoded(dir, &header(hash), costs, each, side)
 }
