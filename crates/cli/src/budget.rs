@@ -15,18 +15,21 @@
 //! | painting | 95,000 | 20 s | 2.81-3.39 GB | 3.37 GB |
 //! | bands, period 600 s | 1,100 | 600 s | 313 MB | 336 MB |
 //!
-//! A build split over processes is sized by its part (2026-12-06, `/usr/bin/time`, release):
-//! a shard holds the world's motion of stage 4 and a little more of every walker (600 bytes),
-//! and its own patches' stages 5 and 6 (12 kB a walker); a gather holds what its check judges.
+//! A build split over processes is sized by its part (2026-12-06, the largest stage peak of
+//! `timings.ron`, release; not `/usr/bin/time`'s, which is the last stage's since the build
+//! resets the peak at each stage): a shard holds its stage 3 of the world, the regions put
+//! together (900 bytes a walker) or, with the world one region, solved (6.3 kB a walker), and
+//! a little of its own patches (500 bytes a walker: it matches, clears and smooths them a
+//! patch at a time, and streams its parts); a gather holds what its check judges.
 //! Its check takes a large world a strip and a part at a time (about 3 kB a walker), but one
 //! whose stage 6 side file is under a gibibyte (about 244,000 walkers) in its three forms at
 //! once, for speed (12.5 kB a walker).
 //!
 //! | build | walkers | peak measured | estimate |
 //! | --- | ---: | ---: | ---: |
-//! | painting, a shard of 4 (`--threads 1`) | 95,000 | 358-364 MB | 382 MB |
-//! | painting, a shard of 8 | 95,000 | 196-227 MB | 239 MB |
-//! | the million, a shard of 8 | 1,016,000 | 1.63-1.65 GB | 2.17 GB |
+//! | painting (one region), a shard of 4 (`--threads 1`) | 95,000 | 599 MB | 650 MB |
+//! | painting (one region), a shard of 8 | 95,000 | 596-599 MB | 644 MB |
+//! | the million (regions of 16), a shard of 8 | 1,016,000 | 661-775 MB | 1.02 GB |
 //! | painting, the gather of 4 shards | 95,000 | 1.14-1.17 GB | 1.23 GB |
 //! | the million, the gather of 8 shards | 1,016,000 | 2.52-2.66 GB | 3.09 GB |
 //!
@@ -36,8 +39,9 @@
 //! | last stage | peak measured | estimate |
 //! | --- | ---: | ---: |
 //! | merge or graph (the graph) | 331 MB | 345 MB |
-//! | optimize, whole (every region's result) | 0.76-0.91 GB | 0.95 GB |
-//! | optimize, a shard's regions | 0.28-0.33 GB | 0.95 GB |
+//! | optimize, whole (every region's result) | 0.73-0.91 GB | 0.95 GB |
+//! | optimize, a shard's regions | 0.23-0.33 GB | 0.95 GB |
+//! | optimize, painting as one region, one thread | 598 MB | 638 MB |
 //! | match, whole (every patch's lines) | 1.23 GB | 1.31 GB |
 
 use crate::driver::Split;
@@ -53,12 +57,14 @@ const PERIOD_POWER: f64 = 0.6;
 /// Peak bytes per walker of a build that stops after stage 2 (the graph), stage 3 (the
 /// patterns, every region's result) or stage 4 (every patch's lines and standers).
 const UNTIL_GRAPH_PER_WALKER: f64 = 300.0;
-const UNTIL_OPTIMIZE_PER_WALKER: f64 = 900.0;
 const UNTIL_MATCH_PER_WALKER: f64 = 1250.0;
-/// A shard's peak bytes per walker of the world (stage 4's motion of every one).
-const SHARD_PER_WALKER: f64 = 600.0;
-/// A shard's peak bytes per walker of its own (its patches' stages 5 and 6).
-const SHARD_PER_OWN_WALKER: f64 = 12e3;
+/// Stage 3's peak bytes per walker of the world: cut into regions (`optimize.region_patches`:
+/// every region's result put together, the regions solved a few at a time), or one region
+/// (the world's problem solved at once).
+const STAGE3_REGIONS_PER_WALKER: f64 = 900.0;
+const STAGE3_ONE_REGION_PER_WALKER: f64 = 6.3e3;
+/// A shard's peak bytes per walker of its own (its patches' stages 4 to 6), beside its stage 3.
+const SHARD_PER_OWN_WALKER: f64 = 500.0;
 /// A gather's peak bytes per walker, when its check takes the world a strip at a time.
 const GATHER_PER_WALKER: f64 = 3e3;
 /// A gather's peak bytes per walker, when its check judges the world's three forms at once.
@@ -73,14 +79,16 @@ pub fn estimate(pipeline: &PipelineFile, split: Split, last: u8) -> f64 {
     let p = &pipeline.pipeline;
     let w = characters(pipeline);
     let per_period = (p.period_s / 20.0).powf(PERIOD_POWER);
+    let stage3 = w * match p.optimize.region_patches {
+        Some(_) => STAGE3_REGIONS_PER_WALKER,
+        None => STAGE3_ONE_REGION_PER_WALKER,
+    };
     let held = match (split, last) {
         (_, ..=2) => w * UNTIL_GRAPH_PER_WALKER,
-        (_, 3) => w * UNTIL_OPTIMIZE_PER_WALKER,
-        (Split::Whole, 4) => w * UNTIL_MATCH_PER_WALKER,
+        (_, 3) => stage3,
+        (Split::Whole, 4) => stage3.max(w * UNTIL_MATCH_PER_WALKER),
         (Split::Whole, _) => w * PER_WALKER,
-        (Split::Shard(shard), _) => {
-            w * SHARD_PER_WALKER + w / f64::from(shard.count()) * SHARD_PER_OWN_WALKER
-        }
+        (Split::Shard(shard), _) => stage3 + w / f64::from(shard.count()) * SHARD_PER_OWN_WALKER,
         (Split::Gather, _) => {
             (w.min(AT_ONCE_WALKERS) * GATHER_PER_WALKER_AT_ONCE).max(w * GATHER_PER_WALKER)
         }
@@ -271,28 +279,34 @@ mod tests {
         }
     }
 
+    /// A pipeline of `walkers` over a 20 s period, its stage 3 in regions of `regions` patches.
+    fn pipeline(walkers: u32, regions: Option<u32>) -> PipelineFile {
+        let optimize = regions.map_or(String::new(), |r| {
+            format!("optimize: (region_patches: Some({r})), ")
+        });
+        let text = format!(
+            "(scene: (meters_per_pixel: 1.0, layers: [(kind: Density, path: \"d.png\")]), \
+             walkers: {walkers}, standers: 0, patch_side_m: 8.0, period_s: 20.0, \
+             radius_m: 0.3, seed: 1, {optimize}output: \"out\")"
+        );
+        PipelineFile::parse(std::path::Path::new("p.ron"), text).unwrap_or_else(|e| panic!("{e}"))
+    }
+
     /// A shard or a gather is sized by its part, never below what it was measured to take,
     /// and well under the whole build (the million's: 35 GB).
     #[test]
     fn a_split_build_is_sized_by_its_part() {
-        let file = |walkers: u32| {
-            let text = format!(
-                "(scene: (meters_per_pixel: 1.0, layers: [(kind: Density, path: \"d.png\")]), \
-                 walkers: {walkers}, standers: 0, patch_side_m: 8.0, period_s: 20.0, \
-                 radius_m: 0.3, seed: 1, output: \"out\")"
-            );
-            PipelineFile::parse(std::path::Path::new("p.ron"), text)
-                .unwrap_or_else(|e| panic!("{e}"))
-        };
         let shard = |i, n| Split::Shard(crowd_core::Shard::new(i, n).unwrap());
+        // painting is one region; the million, regions of 16 patches.
         for (walkers, split, measured) in [
-            (95_000, shard(0, 4), 364e6),
-            (95_000, shard(7, 8), 227e6),
-            (1_016_000, shard(3, 8), 1.65e9),
+            (95_000, shard(0, 4), 599e6),
+            (95_000, shard(7, 8), 599e6),
+            (1_016_000, shard(3, 8), 775e6),
             (95_000, Split::Gather, 1.17e9),
-            (1_016_000, Split::Gather, 2.66e9),
+            (1_016_000, Split::Gather, 2.71e9),
         ] {
-            let f = file(walkers);
+            let f = pipeline(walkers, (walkers > 100_000).then_some(16));
+
             let e = estimate(&f, split, 8);
             assert!(
                 e >= measured && e < 1.4 * measured,
@@ -304,7 +318,7 @@ mod tests {
             );
         }
         // The million's shards and gather fit a machine of 8 GB; the whole build does not.
-        let million = file(1_016_000);
+        let million = pipeline(1_016_000, Some(16));
         let limit = Some(8_000_000_000);
         assert!(check(&million, (shard(0, 8), 8), limit).is_ok());
         assert!(check(&million, (Split::Gather, 8), limit).is_ok());
@@ -339,11 +353,7 @@ mod tests {
     /// GB); its whole build, or any that goes past stage 4 in one process, does not.
     #[test]
     fn a_build_that_stops_early_is_sized_by_its_last_stage() {
-        let text = "(scene: (meters_per_pixel: 1.0, layers: [(kind: Density, path: \"d.png\")]), \
-                    walkers: 1016000, standers: 0, patch_side_m: 8.0, period_s: 20.0, \
-                    radius_m: 0.3, seed: 1, output: \"out\")";
-        let million = PipelineFile::parse(std::path::Path::new("p.ron"), text.to_string())
-            .unwrap_or_else(|e| panic!("{e}"));
+        let million = pipeline(1_016_000, Some(16));
         let limit = Some(4_000_000_000);
         let regions = Split::Shard(crowd_core::Shard::new(0, 8).unwrap());
         for (split, last, measured) in [
@@ -369,5 +379,9 @@ mod tests {
                 "{last}"
             );
         }
+        // painting, one region: its stage 3 solves the world at once.
+        let painting = pipeline(95_000, None);
+        let e = estimate(&painting, Split::Whole, 3);
+        assert!((598e6..1.4 * 598e6).contains(&e), "{e}");
     }
 }
