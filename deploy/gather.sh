@@ -1,6 +1,6 @@
 #!/bin/sh
-# The gather of a sharded crowd build: every shard's files from "$SHARED/shards", then stages 5
-# and 6 put together and stages 7-8 and the check, into OUTPUT: the bytes one process would write.
+# The gather of a sharded crowd build: every shard's files from "$SHARED/shards", then stages 4
+# to 6 put together and stages 7-8 and the check, into OUTPUT: the bytes one process would write.
 #
 #   PIPELINE  the pipeline file
 #   SHARED    the folder the shards wrote to
@@ -17,7 +17,7 @@ if ! ls "$SHARED"/shards/*-of-*.ron >/dev/null 2>&1; then
   exit 1
 fi
 mkdir -p "$OUTPUT/shards"
-# Stages 1-4 as shard 0 made them, where it left them (checked again, not trusted).
+# Stages 1-3 as shard 0 made them, where it left them (checked again, not trusted).
 if [ -d "$SHARED/stages" ]; then
   cp "$SHARED"/stages/* "$OUTPUT/"
 fi

@@ -2,9 +2,9 @@
 # One shard of a crowd build, on any job runner, in two steps (each an array job of its own):
 #   STEP=regions  this shard's run of stage 3's regions (stages 1-2 first), its files copied to
 #                 "$SHARED/shards" (`optimize-I-of-N`): so that no shard solves stage 3 whole;
-#   STEP=patches  (the default) stages 1-4, taking every region from the region files in
+#   STEP=patches  (the default) stages 1-3, taking every region from the region files in
 #                 "$SHARED/shards" (any missing is solved here), then this shard's patches of
-#                 stages 5-6, copied to "$SHARED/shards" (a volume, or a folder the runner
+#                 stages 4-6, copied to "$SHARED/shards" (a volume, or a folder the runner
 #                 uploads). Without a regions step first every shard solves stage 3 whole.
 #
 #   PIPELINE  the pipeline file (its layers beside it, as on a workstation)
@@ -63,7 +63,7 @@ if [ "$step" = regions ]; then
   echo "shard $index/$SHARDS regions -> $SHARED/shards"
   exit 0
 fi
-# Shard 0 also leaves its stage 1-4 files (the same in every shard) for the gather, which then
+# Shard 0 also leaves its stage 1-3 files (the same in every shard) for the gather, which then
 # need not make them again (it checks them against its inputs, and remakes any that differ).
 if [ "$index" = 0 ]; then
   mkdir -p "$SHARED/stages"

@@ -316,6 +316,13 @@ fn a_shard_is_named_i_of_n() {
         assert_eq!(out.status.code(), Some(2), "{bad}: {stderr}");
         assert!(stderr.contains("expected I/N"), "{bad}: {stderr}");
     }
+    // A shard stops after its regions (stage 3) or its part of stage 6, nowhere else.
+    let args = ["build", "--pipeline", s(&pipeline), "--output", s(&out)];
+    let out_of_place = crowd(&[&args[..], &["--shard", "1/4", "--until", "match"]].concat());
+    let stderr = String::from_utf8_lossy(&out_of_place.stderr);
+    assert_eq!(out_of_place.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("--until optimize"), "{stderr}");
+    assert!(!out.exists(), "a refused shard leaves no folder");
 }
 
 /// The job-runner examples of `deploy/` run as each runner runs them: shard 0 given by hand

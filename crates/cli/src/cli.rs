@@ -76,9 +76,9 @@ pub enum Command {
         /// pipeline estimated to need more is refused before any stage runs.
         #[arg(long, value_name = "SIZE", value_parser = crate::budget::parse_size)]
         max_memory: Option<u64>,
-        /// Do shard I of N (0 <= I < N) of the stages that split: stages 1-4 here, then this
-        /// shard's patches of stages 5 and 6 into `shards/` (`collide-I-of-N.ron`,
-        /// `smooth-I-of-N.ron` and their `.bin`), and no more. Copy every shard's `shards/`
+        /// Do shard I of N (0 <= I < N) of the stages that split: stages 1-3 here, then this
+        /// shard's patches of stages 4 to 6 into `shards/` (`match-I-of-N.ron`,
+        /// `collide-I-of-N.ron`, `smooth-I-of-N.ron` and their `.bin`), and no more. Copy every shard's `shards/`
         /// into one folder and `--gather` there. With `--until optimize`, only this shard's
         /// regions of stage 3 (`optimize-I-of-N.ron`): run that for every I first and put every
         /// shard's `optimize-*` files in each shard's `shards/`, and no shard solves stage 3
@@ -86,9 +86,9 @@ pub enum Command {
         #[arg(long, value_name = "I/N", value_parser = |s: &str| s.parse::<crowd_core::Shard>(),
               conflicts_with_all = ["gather", "force"])]
         shard: Option<crowd_core::Shard>,
-        /// Put stages 5 and 6 together from the shard files in `shards/` (every shard of one count,
-        /// made from this painting and settings), then build the rest: the same bytes as one
-        /// process's build.
+        /// Put stages 4 to 6 (and 3, from its region files, if not made) together from the shard
+        /// files in `shards/` (every shard of one count, made from this painting and settings),
+        /// then build the rest: the same bytes as one process's build.
         #[arg(long)]
         gather: bool,
     },
@@ -426,12 +426,15 @@ pub fn run(cli: Cli) -> Result<()> {
             let file = PipelineFile::load(&pipeline)?;
             let out = output.clone().unwrap_or_else(|| file.output_dir());
             if shard.is_some() && until.is_some_and(|u| *u != stages::OPTIMIZE) {
-                return Err(Broken(
-                    "--shard takes --until optimize (this shard's regions of stage 3) or no \
-                     --until (its part of stages 5 and 6)"
-                        .to_string(),
-                )
-                .into());
+                // The command line is wrong: clap's message and exit code 2, nothing made.
+                use clap::CommandFactory;
+                Cli::command()
+                    .error(
+                        clap::error::ErrorKind::ArgumentConflict,
+                        "--shard takes --until optimize (this shard's regions of stage 3) or \
+                         no --until (its part of stages 4 to 6)",
+                    )
+                    .exit();
             }
             let split = match (shard, gather) {
                 (Some(shard), _) => driver::Split::Shard(shard),

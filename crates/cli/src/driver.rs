@@ -46,10 +46,10 @@ pub enum Split {
     /// All of it here.
     #[default]
     Whole,
-    /// Stages 1-4, then this shard's patches of stages 5 and 6 into `shards/` (and nothing
+    /// Stages 1-3, then this shard's patches of stages 4 to 6 into `shards/` (and nothing
     /// after); or, told to stop at stage 3, stages 1-2 and this shard's regions of stage 3.
     Shard(crowd_core::Shard),
-    /// Stages 5 and 6 (and 3, if not made) put together from every shard's files in
+    /// Stages 4 to 6 (and 3, if not made) put together from every shard's files in
     /// `shards/`, then the rest.
     Gather,
 }
