@@ -538,14 +538,34 @@ fn matching_gathered(
         crowd_match::encode(out, Streamed(&side, summing.finish()), &graph, inputs, hash);
     let extra = vec![Vec::new(); keys.len()];
     let writes = with_keys(out, writes, file.motion.hash, keys, &seen.tables, extra);
+    let note = "gathered".to_string();
+    Ok(gathered_ran(
+        a,
+        &MATCH,
+        (file, writes),
+        (side, gathered.motion),
+        note,
+    ))
+}
+
+/// What a stage put together from the shards' parts hands on: its files, its side file
+/// (streamed to its temporary name already) and its motion, left in the parts and read a
+/// patch at a time by the stages after.
+fn gathered_ran(
+    a: &mut Artifacts,
+    stage: &'static Stage,
+    (file, writes): (TrajectoriesFile, files::Writes),
+    (side, motion): (files::StreamedFile, LazyMotion),
+    note: String,
+) -> Ran {
     let known = (side.path.clone(), side.hash);
-    a.made_lazy_motion(&MATCH, (file, gathered.motion));
-    Ok(Ran {
-        note: Some("gathered".to_string()),
+    a.made_lazy_motion(stage, (file, motion));
+    Ran {
+        note: Some(note),
         streamed: vec![side],
         ..Ran::files(writes)
     }
-    .knowing(known.0, known.1))
+    .knowing(known.0, known.1)
 }
 
 fn collide(a: &mut Artifacts, out: &Path, hash: Hash, ui: &Ui) -> Result<Ran> {
@@ -668,14 +688,14 @@ fn collide_gathered(
         .map(|r| ron::to_string(r).map(String::into_bytes))
         .collect::<std::result::Result<Vec<_>, _>>()?;
     let writes = with_keys(out, writes, file.motion.hash, keys, &seen.tables, extra);
-    let known = (side.path.clone(), side.hash);
-    a.made_lazy_motion(&COLLIDE, (file, gathered.motion));
-    Ok(Ran {
-        note: Some("gathered".to_string()),
-        streamed: vec![side],
-        ..Ran::files(writes)
-    }
-    .knowing(known.0, known.1))
+    let note = "gathered".to_string();
+    Ok(gathered_ran(
+        a,
+        &COLLIDE,
+        (file, writes),
+        (side, gathered.motion),
+        note,
+    ))
 }
 
 /// Stage 5's files from every patch's motion and report, with the keys of each patch.
@@ -876,14 +896,14 @@ fn smooth_gathered(
         hash,
     );
     let writes = with_keys(out, writes, file.motion.hash, keys, &seen.tables, extra);
-    let known = (side.path.clone(), side.hash);
-    a.made_lazy_motion(&SMOOTH, (file, gathered.motion));
-    Ok(Ran {
-        note: Some(reuse::note(counts.len(), counts.len())),
-        streamed: vec![side],
-        ..Ran::files(writes)
-    }
-    .knowing(known.0, known.1))
+    let note = reuse::note(counts.len(), counts.len());
+    Ok(gathered_ran(
+        a,
+        &SMOOTH,
+        (file, writes),
+        (side, gathered.motion),
+        note,
+    ))
 }
 
 /// A stage's writes with its keys file put before its stage file (which comes last).
