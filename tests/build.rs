@@ -485,3 +485,28 @@ fn an_up_to_date_build_writes_nothing_and_succeeds_in_a_read_only_folder() {
     );
     assert!(stamped(out) == before);
 }
+
+/// A reader of stderr gone (`crowd build 2>&1 | head -1`) loses the build's lines, not the
+/// build: it runs to the end, exit 0, and writes its files.
+#[test]
+fn a_build_whose_stderr_is_closed_still_builds() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_crowd"))
+        .args([
+            "build",
+            "--no-check",
+            "--pipeline",
+            s(&scene_pipeline("bands")),
+            "--output",
+        ])
+        .arg(&out)
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("crowd runs");
+    drop(child.stderr.take());
+    let status = child.wait().expect("crowd ends");
+    assert_eq!(status.code(), Some(0), "a closed stderr ended the build");
+    assert!(out.join("library.crowd").exists() && out.join("world.glb").exists());
+}

@@ -113,10 +113,10 @@ pub fn command(
         bail!("{}: no such build folder", dir.display());
     }
     let _lock = files::FolderLock::acquire(dir, || {
-        eprintln!(
+        crate::ui::say(format!(
             "waiting: another build or check is writing in {}",
             dir.display()
-        )
+        ))
     })?;
     let mut options = CheckOptions {
         stage,

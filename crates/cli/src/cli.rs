@@ -403,7 +403,9 @@ pub fn run(cli: Cli) -> Result<()> {
         let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
         let n = asked.clamp(1, cores);
         if n != asked && !cli.quiet {
-            eprintln!("note: --threads {asked}: using {n} (this machine has {cores} cores)");
+            crate::ui::say(format!(
+                "note: --threads {asked}: using {n} (this machine has {cores} cores)"
+            ));
         }
         rayon::ThreadPoolBuilder::new()
             .num_threads(n)
@@ -477,7 +479,7 @@ pub fn run(cli: Cli) -> Result<()> {
             ui.say(format!("  report: {}", report.display()));
             let warnings = crate::warnings::gather(&out)?;
             for w in &warnings {
-                eprintln!("warning: {}", w.text);
+                crate::ui::say(format!("warning: {}", w.text));
             }
             if deny_warnings && !warnings.is_empty() {
                 return Err(Broken(format!(

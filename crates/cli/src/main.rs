@@ -51,9 +51,9 @@ fn main() -> ExitCode {
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(err) => {
-            eprintln!("error: {err}");
+            crowd::ui::say(format!("error: {err}"));
             for cause in err.chain().skip(1) {
-                eprintln!("  caused by: {cause}");
+                crowd::ui::say(format!("  caused by: {cause}"));
             }
             // What the codes mean: `crowd::cli::EXIT_CODES`.
             if err.downcast_ref::<crowd::cli::Broken>().is_some() {

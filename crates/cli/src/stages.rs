@@ -286,12 +286,12 @@ fn header_matches(stage: &Stage, path: &Path, hash: Hash) -> bool {
 fn sealed(name: &str, path: &Path) -> bool {
     let holds = files::seal_holds(path);
     if !holds {
-        eprintln!(
+        crate::ui::say(format!(
             "note: {} is not as stage {name} wrote it (cut short, damaged or edited by hand); \
              rebuilding it: hand edits of stage files are not kept, edit pipeline.ron or the \
              layers instead",
             path.display()
-        );
+        ));
     }
     holds
 }

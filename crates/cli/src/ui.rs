@@ -14,7 +14,7 @@ impl Ui {
     /// A line for a person, on stderr (stdout is kept for reports and JSON).
     pub fn say(&self, message: impl AsRef<str>) {
         if !self.quiet {
-            eprintln!("{}", message.as_ref());
+            say(message);
         }
     }
 
@@ -70,4 +70,11 @@ pub fn out(text: impl AsRef<str>) -> std::io::Result<()> {
         Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(()),
         other => other,
     }
+}
+
+/// A line on stderr. A reader gone (`crowd build 2>&1 | head -1`) loses the lines, not the
+/// build: `eprintln!` would panic halfway through it.
+pub fn say(message: impl AsRef<str>) {
+    use std::io::Write;
+    let _ = writeln!(std::io::stderr(), "{}", message.as_ref());
 }
