@@ -1,6 +1,7 @@
 #!/bin/sh
 # The gather of a sharded crowd build: every shard's files from "$SHARED/shards", then stages 4
-# to 6 put together and stages 7-8 and the check, into OUTPUT: the bytes one process would write.
+# to 6 put together and stages 7-8 and the check (taking what the shards judged of it), into
+# OUTPUT: the bytes one process would write.
 #
 #   PIPELINE  the pipeline file
 #   SHARED    the folder the shards wrote to
@@ -22,6 +23,10 @@ if [ -d "$SHARED/stages" ]; then
   cp "$SHARED"/stages/* "$OUTPUT/"
 fi
 cp "$SHARED"/shards/*-of-*.bin "$SHARED"/shards/*-of-*.ron "$OUTPUT/shards/"
+# What the shards judged of the check, taken by the gather's check instead of judged again.
+for f in "$SHARED"/shards/check-*-of-*.memo; do
+  if [ -f "$f" ]; then cp "$f" "$OUTPUT/shards/"; fi
+done
 set -- build --quiet --pipeline "$PIPELINE" --output "$OUTPUT" --gather
 if [ -n "${MAX_MEMORY:-}" ]; then set -- "$@" --max-memory "$MAX_MEMORY"; fi
 "$crowd" "$@"

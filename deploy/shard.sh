@@ -53,7 +53,9 @@ if [ -n "${MAX_MEMORY:-}" ]; then set -- "$@" --max-memory "$MAX_MEMORY"; fi
 "$crowd" "$@"
 mkdir -p "$SHARED/shards"
 # Side file first, then the file that names it: a gather never reads a half-copied shard as whole.
-for f in "$out"/shards/$mine.bin "$out"/shards/$mine.ron; do
+# The patches step also leaves its share of the check (`check-I-of-N.memo`, a cache).
+for f in "$out"/shards/$mine.bin "$out"/shards/$mine.memo "$out"/shards/$mine.ron; do
+  [ -f "$f" ] || continue
   name="$(basename "$f")"
   case "$step-$name" in patches-optimize-*) continue ;; esac
   cp "$f" "$SHARED/shards/.$name.part"

@@ -76,9 +76,16 @@ fn four_shards_gathered_write_what_one_process_writes() {
         run_shards(&pipeline, dir.path(), 4, 2, &gathered);
         let shard_files = std::fs::read_dir(gathered.join("shards")).unwrap().count();
         assert_eq!(
-            shard_files, 24,
-            "{name}: four shards, a .ron and a .bin of stages 4, 5 and 6 each"
+            shard_files, 28,
+            "{name}: four shards, a .ron and a .bin of stages 4, 5 and 6 each, and a check memo"
         );
+        // A share of the check lost on the way (cut short) is only work the gather does.
+        let damaged = name == "ring";
+        if damaged {
+            let memo = gathered.join("shards/check-1-of-4.memo");
+            let bytes = std::fs::read(&memo).unwrap();
+            std::fs::write(&memo, &bytes[..bytes.len() / 2]).unwrap();
+        }
         let said = crowd_ok(&[
             "build",
             "--pipeline",
@@ -91,8 +98,33 @@ fn four_shards_gathered_write_what_one_process_writes() {
         for stage in ["collide", "smooth"] {
             assert!(said.contains(&format!("{stage}: built")), "{name}: {said}");
         }
+        // The shards judged their patches of the check: the gather, only the pairs along
+        // their edges (and the damaged part's patches).
+        let (own, pairs) = (
+            judged_again(&said, "patches"),
+            judged_again(&said, "their pairs"),
+        );
+        assert_eq!(own.1, pairs.1, "{name}: {said}");
+        if damaged {
+            assert!(own.0 > own.1 / 8 && own.0 < own.1 / 2, "{name}: {own:?}");
+        } else {
+            assert_eq!(own.0, 0, "{name}: {said}");
+            assert!(pairs.0 > 0 && pairs.0 < pairs.1 / 4, "{name}: {pairs:?}");
+        }
         assert_same_files(whole, &gathered, name);
     }
+}
+
+/// "WHAT X of Y" in a check's "judged again: ..." line, as (X, Y).
+fn judged_again(said: &str, what: &str) -> (usize, usize) {
+    let line = said
+        .lines()
+        .find(|l| l.contains("judged again:"))
+        .unwrap_or_else(|| panic!("no check line judged again: {said}"));
+    let at = line.find(&format!("{what} ")).expect(what) + what.len() + 1;
+    let words: Vec<&str> = line[at..].split_whitespace().take(3).collect();
+    let number = |w: &str| w.trim_end_matches([',', ')']).parse::<usize>().unwrap();
+    (number(words[0]), number(words[2]))
 }
 
 /// `city` read in regions of 8 patches (the million's way: stage 3 by region).
@@ -389,8 +421,8 @@ fn the_deploy_scripts_shard_and_gather_as_each_job_runner_runs_them() {
     }
     let files = std::fs::read_dir(shared.join("shards")).unwrap().count();
     assert_eq!(
-        files, 24,
-        "three shards, a .ron and a .bin of stages 3-6 each, no partial copies"
+        files, 27,
+        "three shards, a .ron and a .bin of stages 3-6 each and a check memo, no partial copies"
     );
     // The patches step took every region from the regions step.
     for j in 0..3 {

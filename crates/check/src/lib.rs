@@ -14,6 +14,7 @@ pub mod glb;
 pub mod library;
 pub mod memo;
 pub mod motion;
+mod part;
 pub mod products;
 mod strips;
 mod world;
@@ -24,6 +25,7 @@ use crowd_core::{Hash, PatchGraph};
 use crowd_geometry::BoxGrid;
 use glam::DVec2;
 use memo::{Own, Recalled};
+pub use part::check_part;
 pub use products::{ProductFigures, Sampled};
 use rayon::prelude::*;
 use std::borrow::Cow;
@@ -218,21 +220,30 @@ fn own_shares(
     own_keys: Option<&[Hash]>,
     memo: &Recalled,
 ) -> crowd_core::Result<Vec<(Own, bool)>> {
-    let graph = w.graph;
-    in_order((0..graph.patches.len()).into_par_iter().map(|p| {
+    in_order((0..w.graph.patches.len()).into_par_iter().map(|p| {
         if let Some(o) = own_keys.and_then(|k| memo.own(&k[p])) {
             return Ok((o.clone(), false));
         }
-        let m = w.source.patch(p)?;
-        let tally = (w.crossings.zip(tables))
-            .map(|(c, t)| motion::patch_tally((graph, c, w.period_s), p, &m, &t[p]).pack());
-        let own = Own {
-            extent: strips::Extent::of(graph, p, &m),
-            walkers: m.trajectories.len() as u64,
-            tally,
-        };
-        Ok((own, true))
+        Ok((own_share(w, tables, p)?, true))
     }))
+}
+
+/// Patch `p`'s own share, measured: where its characters go, how many walk, and (with the
+/// crossings) its motion tally.
+fn own_share(
+    w: &World,
+    tables: Option<&[crowd_core::patch_keys::Table]>,
+    p: usize,
+) -> crowd_core::Result<Own> {
+    let graph = w.graph;
+    let m = w.source.patch(p)?;
+    let tally = (w.crossings.zip(tables))
+        .map(|(c, t)| motion::patch_tally((graph, c, w.period_s), p, &m, &t[p]).pack());
+    Ok(Own {
+        extent: strips::Extent::of(graph, p, &m),
+        walkers: m.trajectories.len() as u64,
+        tally,
+    })
 }
 
 /// Each patch's pairs key ([`memo::pairs_key`]).
@@ -368,7 +379,7 @@ pub(crate) mod tests {
     use crowd_core::{Grid, Hash, MergedMaps};
 
     /// `cols` x `rows` 8 m patches painted full, asking for `walkers`.
-    fn painted_full(cols: u32, rows: u32, walkers: u64) -> PatchGraph {
+    pub(crate) fn painted_full(cols: u32, rows: u32, walkers: u64) -> PatchGraph {
         let mut maps = MergedMaps::empty(8 * cols, 8 * rows, 1.0);
         maps.walkers = Grid::filled(8 * cols, 8 * rows, 1.0);
         let inputs = crowd_graph::GraphInputs::counted(walkers, 8.0);
@@ -403,7 +414,7 @@ pub(crate) mod tests {
 
     /// Random walkers and standers in every patch of `graph`, some straying a little past
     /// their patch's sides (a damaged or edited file may hold anything).
-    fn random_motion(graph: &PatchGraph, seed: u64) -> Vec<PatchMotion> {
+    pub(crate) fn random_motion(graph: &PatchGraph, seed: u64) -> Vec<PatchMotion> {
         let mut state = seed | 1;
         let mut next = move |lo: f64, hi: f64| {
             state ^= state << 13;
@@ -446,7 +457,7 @@ pub(crate) mod tests {
     }
 
     /// `motion` checked by strips of `budget` pieces, with `keys` and `memo`.
-    fn judged(
+    pub(crate) fn judged(
         graph: &PatchGraph,
         motion: &[PatchMotion],
         keys: Option<&[Hash]>,
@@ -463,7 +474,7 @@ pub(crate) mod tests {
     }
 
     /// Each patch's key: the hash of its motion's bytes.
-    fn content_keys(motion: &[PatchMotion]) -> Vec<Hash> {
+    pub(crate) fn content_keys(motion: &[PatchMotion]) -> Vec<Hash> {
         motion
             .iter()
             .map(|m| {

@@ -125,6 +125,22 @@ impl Memo {
 }
 
 impl Recalled {
+    /// Takes in `more`'s shares too (a shard's part of a check, `part.rs`): keys are content
+    /// hashes, so two memos that hold one key hold one share for it.
+    pub fn add(&mut self, more: Memo) {
+        self.own.extend(more.own);
+        self.pairs.extend(more.pairs);
+        self.library_pairs.extend(more.library_pairs);
+        self.played.extend(more.played);
+    }
+
+    /// Lets the stage file's shares go (once it is judged, the library's are all a check
+    /// looks up).
+    pub fn forget_stage(&mut self) {
+        self.own = HashMap::new();
+        self.pairs = HashMap::new();
+    }
+
     pub(crate) fn own(&self, key: &Hash) -> Option<&Own> {
         self.own.get(key.as_bytes())
     }
@@ -147,6 +163,13 @@ impl Recalled {
 pub struct StagePart {
     pub(crate) own: Vec<([u8; 32], Own)>,
     pub(crate) pairs: Vec<([u8; 32], Pairs)>,
+}
+
+impl StagePart {
+    /// How many patches' pairs it holds.
+    pub fn judged_pairs(&self) -> usize {
+        self.pairs.len()
+    }
 }
 
 /// The library's part of a memo: each patch's pairs by their key, and each walker's share of

@@ -254,17 +254,21 @@ fn measure(dir: &Path, options: &CheckOptions) -> Result<(CheckReport, Memo, Red
             rayon::join(
                 || StageFiles::open(dir, &graph, chosen),
                 || {
-                    std::fs::read(dir.join(MEMO_FILE))
+                    let mut memo = std::fs::read(dir.join(MEMO_FILE))
                         .ok()
                         .and_then(|b| Memo::from_bytes(&b))
                         .unwrap_or_default()
-                        .recall()
+                        .recall();
+                    // What the shards judged of their own patches, after a gathering build.
+                    crate::check_shard::take_parts(dir, &mut memo);
+                    memo
                 },
             )
         },
         || small.then(|| load_library(dir)),
     );
     let stage = stage?;
+    let mut memo = memo;
     let walls = crowd_check::walls(&graph);
     let limit = options.max_speed * crowd_check::products::SPEED_MARGIN;
     // The stage file and the products read different files and share nothing. On a small
@@ -274,18 +278,21 @@ fn measure(dir: &Path, options: &CheckOptions) -> Result<(CheckReport, Memo, Red
     // one after the other, as together they hold half as much memory again. Since the check
     // takes a strip of the world at a time, painting is small: 11.8 -> 10.8 s at once, 1.0 ->
     // 1.4 GB (it held 2.4 -> 3.5 GB when the stage file was one scene).
-    let library = || {
+    let library = |memo: &Recalled| {
         let lib = loaded.unwrap_or_else(|| load_library(dir))?;
-        Ok::<_, anyhow::Error>(lib.map(|lib| library(&lib, &walls, limit, &memo)))
+        Ok::<_, anyhow::Error>(lib.map(|lib| library(&lib, &walls, limit, memo)))
     };
     let gltf = || gltf(dir, &graph, &walls, limit);
     let (stage, (library, gltf)) = if small {
         rayon::join(
             || stage_figures(&graph, stage, &memo),
-            || rayon::join(library, gltf),
+            || rayon::join(|| library(&memo), gltf),
         )
     } else {
-        (stage_figures(&graph, stage, &memo), (library(), gltf()))
+        let stage = stage_figures(&graph, stage, &memo);
+        // The stage file's shares are looked up no more (the million's: 0.3 GB).
+        memo.forget_stage();
+        (stage, (library(&memo), gltf()))
     };
     drop(memo);
     let stage = stage?;

@@ -3,6 +3,7 @@
 pub mod artifacts;
 pub mod budget;
 pub mod check;
+pub mod check_shard;
 pub mod cli;
 pub mod driver;
 pub mod edit;

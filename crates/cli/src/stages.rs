@@ -755,7 +755,29 @@ fn smooth(a: &mut Artifacts, out: &Path, hash: Hash, ui: &Ui) -> Result<Ran> {
             let collided = a.shard_collided.take().expect("stage 5 ran in this shard");
             let own: Vec<usize> = shard.run(&a.shard_costs()?).collect();
             let smoother = crowd_smooth::Smoother::new(&graph, &patterns.1, &collided, &inputs);
-            return smooth_part(dir, (shard, hash), &smoother, &own, &bar);
+            let mut ran = smooth_part(dir, (shard, hash), &smoother, &own, &bar)?;
+            // Its share of the check, unless stage 7 edits what the check will judge.
+            if a.pipeline.pipeline.edits.is_empty() {
+                let started = std::time::Instant::now();
+                let part = (ran.writes[0].0.as_path(), &ran.streamed[0]);
+                let smoothed = crate::check_shard::Smoothed {
+                    graph: &graph,
+                    crossings: &patterns.1,
+                    collided: &collided,
+                    own: &own,
+                    part,
+                };
+                let (memo, whole) = crate::check_shard::judge(&smoothed, &inputs)?;
+                ran.writes
+                    .push((crate::check_shard::part_path(dir, shard), memo));
+                ran.parts
+                    .push(("check".to_string(), started.elapsed().as_secs_f64()));
+                ran.note = Some(format!(
+                    "its {} patches checked for the gather ({whole} with their pairs)",
+                    own.len()
+                ));
+            }
+            return Ok(ran);
         }
         Split::Gather => return smooth_gathered(a, out, hash, &inputs),
         Split::Whole => {}

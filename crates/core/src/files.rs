@@ -418,6 +418,13 @@ pub struct StreamedFile {
     pub hash: crate::Hash,
 }
 
+impl StreamedFile {
+    /// Where its bytes are now: at the temporary name until the build puts it in place.
+    pub fn on_disk(&self) -> &Path {
+        self.tmp.as_deref().unwrap_or(&self.path)
+    }
+}
+
 impl Drop for StreamedFile {
     fn drop(&mut self) {
         if let Some(tmp) = self.tmp.take() {

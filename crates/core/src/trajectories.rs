@@ -489,6 +489,13 @@ impl LazyMotion {
         })
     }
 
+    /// The motion of the one side file `side` (of the stage file or part `path`), its index
+    /// read from its counts without keeping its bytes.
+    pub fn of_side_file(path: &Path, side: &Path) -> Result<LazyMotion> {
+        let index = MotionIndex::of_file(side)?;
+        LazyMotion::of_parts(vec![(path.to_path_buf(), side.to_path_buf(), index)])
+    }
+
     pub fn patches(&self) -> usize {
         self.patches
     }

@@ -51,29 +51,54 @@ pub fn patch_keys<'a>(
     collided: impl Fn(usize) -> crowd_core::Result<std::borrow::Cow<'a, PatchMotion>> + Sync,
     inputs: &Inputs,
 ) -> crowd_core::Result<Vec<Hash>> {
+    let all: Vec<usize> = (0..seen.graph.patches.len()).collect();
+    patch_keys_of(seen, collided, inputs, &all)
+}
+
+/// [`patch_keys`] of `patches` alone (a shard's): `collided` is asked only for them and their
+/// neighbours.
+pub fn patch_keys_of<'a>(
+    seen: &crowd_core::patch_keys::Seen,
+    collided: impl Fn(usize) -> crowd_core::Result<std::borrow::Cow<'a, PatchMotion>> + Sync,
+    inputs: &Inputs,
+    patches: &[usize],
+) -> crowd_core::Result<Vec<Hash>> {
     use crowd_core::patch_keys::{local_bytes, neighbours};
-    use rayon::prelude::*;
-    let n = seen.graph.patches.len();
-    let own: Vec<crowd_core::Result<Hash>> = (0..n)
+    let graph = seen.graph;
+    let mut asked = vec![false; graph.patches.len()];
+    for &p in patches {
+        asked[p] = true;
+        neighbours(graph, p)
+            .into_iter()
+            .flatten()
+            .for_each(|q| asked[q] = true);
+    }
+    let own: Vec<crowd_core::Result<Option<Hash>>> = (0..asked.len())
         .into_par_iter()
         .map(|p| {
+            if !asked[p] {
+                return Ok(None);
+            }
             let mut h = crowd_core::Hasher::new("smooth patch part", VERSION);
             h.binary("surroundings", &seen.surroundings(p))
                 .part("motion", &local_bytes(&seen.tables[p], &*collided(p)?));
-            Ok(h.finish())
+            Ok(Some(h.finish()))
         })
         .collect();
-    let own = own.into_iter().collect::<crowd_core::Result<Vec<Hash>>>()?;
-    let keys = (0..n)
-        .into_par_iter()
-        .map(|p| {
+    let own = own
+        .into_iter()
+        .collect::<crowd_core::Result<Vec<Option<Hash>>>>()?;
+    let part = |p: usize| own[p].expect("a patch asked for or a neighbour of one");
+    let keys = patches
+        .par_iter()
+        .map(|&p| {
             let mut h = crowd_core::Hasher::new("smooth patch", VERSION);
-            h.binary("world", &seen.graph.world)
-                .binary("radius", &seen.graph.radius_m)
+            h.binary("world", &graph.world)
+                .binary("radius", &graph.radius_m)
                 .binary("inputs", inputs)
-                .binary("own", &own[p]);
-            for q in neighbours(seen.graph, p) {
-                h.binary("neighbour", &q.map(|q| own[q]));
+                .binary("own", &part(p));
+            for q in neighbours(graph, p) {
+                h.binary("neighbour", &q.map(part));
             }
             h.finish()
         })

@@ -1,0 +1,97 @@
+//! A shard's share of the check (`crowd build --shard I/N`, after its stage 6): its own
+//! patches of the stage file judged where their motion is (`crowd_check::check_part`), into
+//! `shards/check-I-of-N.memo`, which the check after the gather takes in beside its own memo
+//! (`parts`). The million's stage file was half of its check, on the gathering machine alone.
+//!
+//! A cache, as `check.memo` is: each share is found by the hash of what it depends on, so a
+//! part of another build, damaged or missing, is only work the gathering check does itself.
+
+use anyhow::Result;
+use crowd_check::memo::{Memo, Recalled};
+use crowd_core::files::StreamedFile;
+use crowd_core::patterns::Crossing;
+use crowd_core::trajectories::{LazyMotion, PatchMotion};
+use crowd_core::{PatchGraph, Shard, shard::SHARDS_DIR};
+use std::borrow::Cow;
+use std::path::{Path, PathBuf};
+
+/// The file of shard `shard`'s share of the check, in build folder `dir`.
+pub fn part_path(dir: &Path, shard: Shard) -> PathBuf {
+    dir.join(SHARDS_DIR)
+        .join(format!("check-{}.memo", shard.tag()))
+}
+
+/// What a shard's stage 6 hands its check: the world, the shard's patches and its part.
+pub struct Smoothed<'a> {
+    pub graph: &'a PatchGraph,
+    pub crossings: &'a [Crossing],
+    /// Stage 5's motion of the shard's patches and their neighbours (the others empty).
+    pub collided: &'a [PatchMotion],
+    /// The shard's patches, in patch order.
+    pub own: &'a [usize],
+    /// The part's stage file (named in errors) and its side file, written.
+    pub part: (&'a Path, &'a StreamedFile),
+}
+
+/// The shard's share of the check of `smoothed`, as the bytes of `shards/check-I-of-N.memo`,
+/// with how many of its patches had their pairs judged (the others border another shard's).
+pub fn judge(s: &Smoothed, inputs: &crowd_smooth::Inputs) -> Result<(Vec<u8>, usize)> {
+    let seen = crowd_core::patch_keys::Seen::new(s.graph, s.crossings);
+    let collided = |p: usize| Ok(Cow::Borrowed(&s.collided[p]));
+    let keys = crowd_smooth::patch_keys_of(&seen, collided, inputs, s.own)?;
+    let (path, side) = s.part;
+    let source = Own {
+        path,
+        own: s.own,
+        motion: LazyMotion::of_side_file(path, side.on_disk())?,
+    };
+    let world = crowd_check::World {
+        graph: s.graph,
+        source: &source,
+        period_s: inputs.period_s,
+        crossings: Some(s.crossings),
+    };
+    let part = crowd_check::check_part(&world, s.own, &keys)?;
+    let whole = part.judged_pairs();
+    Ok((Memo::of(Some(part), None).to_bytes(), whole))
+}
+
+/// The shard's patches of the world, read from its part's side file.
+struct Own<'a> {
+    path: &'a Path,
+    own: &'a [usize],
+    motion: LazyMotion,
+}
+
+impl crowd_check::Source for Own<'_> {
+    fn patch(&self, p: usize) -> crowd_core::Result<Cow<'_, PatchMotion>> {
+        match self.own.binary_search(&p) {
+            Ok(i) => self.motion.patch(i).map(Cow::Owned),
+            Err(_) => Err(crowd_core::Error::stage_file(
+                self.path,
+                format!("holds no patch {p}: the shard's check asked for another's"),
+            )),
+        }
+    }
+}
+
+/// Takes every shard's share of the check in `dir/shards` into `memo` (a file that is not a
+/// whole memo of this check's version is passed over: it is a cache).
+pub fn take_parts(dir: &Path, memo: &mut Recalled) {
+    let Ok(entries) = std::fs::read_dir(dir.join(SHARDS_DIR)) else {
+        return;
+    };
+    let mut parts: Vec<PathBuf> = entries
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| {
+            let name = p.file_name().and_then(|n| n.to_str()).unwrap_or_default();
+            name.starts_with("check-") && name.ends_with(".memo")
+        })
+        .collect();
+    parts.sort();
+    for path in parts {
+        if let Some(part) = std::fs::read(&path).ok().and_then(|b| Memo::from_bytes(&b)) {
+            memo.add(part);
+        }
+    }
+}
