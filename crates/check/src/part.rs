@@ -13,15 +13,23 @@ use crate::memo::{Own, StagePart};
 use crate::strips::{self, Extent};
 use crate::world::Pairs;
 use crate::{World, in_order, own_keys, own_share, owned_pairs, pair_keys, walls};
+use crowd_core::patch_keys::Table;
 use crowd_core::{Cell, Hash, PatchGraph};
 use rayon::prelude::*;
+
+/// Pieces a shard's strip holds at most: a quarter of the whole check's, for a shard holds its
+/// world's graph and stage 3 beside it (the million's shard's stage 6 with strips of 4 million
+/// pieces, and stage 5's motion still held: 1.19 GB; so, 0.61 GB).
+const PART_STRIP_PIECES: u64 = strips::STRIP_PIECES / 4;
 
 /// The memo the check that gathers may take from one shard: the own share of each of
 /// `patches` (in patch order, with `keys` their stage keys, `world.source` giving their motion)
 /// and the pairs of each of them whose eight neighbours are all among `patches` (the pairs of
-/// the others need motion the shard has not).
+/// the others need motion the shard has not). `tables` are where each patch's crossings are
+/// among the world's (`patch_keys::Seen`), when the caller has them; else they are found.
 pub fn check_part(
     world: &World,
+    tables: Option<&[Table]>,
     patches: &[usize],
     keys: &[Hash],
 ) -> crowd_core::Result<StagePart> {
@@ -35,14 +43,17 @@ pub fn check_part(
         .zip(keys)
         .for_each(|(&p, k)| stage_keys[p] = *k);
     let own_keys = own_keys(world, &stage_keys);
-    let tables = world
-        .crossings
-        .map(|c| crowd_core::patch_keys::Seen::new(graph, c).tables);
-    let own: Vec<Own> = in_order(
-        patches
-            .par_iter()
-            .map(|&p| own_share(world, tables.as_deref(), p)),
-    )?;
+    // The tables go with the crossings: where each patch's are among the world's.
+    let seen;
+    let tables = match (tables, world.crossings) {
+        (Some(t), _) => Some(t),
+        (None, Some(c)) => {
+            seen = crowd_core::patch_keys::Seen::new(graph, c);
+            Some(&seen.tables[..])
+        }
+        (None, None) => None,
+    };
+    let own: Vec<Own> = in_order(patches.par_iter().map(|&p| own_share(world, tables, p)))?;
     let mut extents = vec![Extent::EMPTY; n];
     patches
         .iter()
@@ -55,13 +66,7 @@ pub fn check_part(
     let pair_keys = pair_keys(graph, &own_keys, (&extents, &near), (&walls, reach));
     // Only the whole patches are judged: the others count as known (and are not handed on).
     let known = whole.iter().map(|&w| (!w).then(Pairs::default)).collect();
-    let (pairs, _) = owned_pairs(
-        world,
-        (&extents, &near),
-        &walls,
-        known,
-        strips::STRIP_PIECES,
-    )?;
+    let (pairs, _) = owned_pairs(world, (&extents, &near), &walls, known, PART_STRIP_PIECES)?;
     Ok(StagePart {
         own: patches
             .iter()
@@ -146,7 +151,7 @@ mod tests {
                 let source = OnlyMine { motion: &motion, mine: mine.clone() };
                 let world = World { graph: &graph, source: &source, period_s: 20.0, crossings: Some(&[]) };
                 let patches: Vec<usize> = mine.clone().collect();
-                let part = check_part(&world, &patches, &keys[mine]).unwrap();
+                let part = check_part(&world, None, &patches, &keys[mine]).unwrap();
                 edges += patches.len() - part.pairs.len();
                 let bytes = Memo::of(Some(part), None).to_bytes();
                 memo.add(Memo::from_bytes(&bytes).unwrap());

@@ -9,9 +9,10 @@
 use anyhow::Result;
 use crowd_check::memo::{Memo, Recalled};
 use crowd_core::files::StreamedFile;
+use crowd_core::patch_keys::Table;
 use crowd_core::patterns::Crossing;
 use crowd_core::trajectories::{LazyMotion, PatchMotion};
-use crowd_core::{PatchGraph, Shard, shard::SHARDS_DIR};
+use crowd_core::{Hash, PatchGraph, Shard, shard::SHARDS_DIR};
 use std::borrow::Cow;
 use std::path::{Path, PathBuf};
 
@@ -25,20 +26,19 @@ pub fn part_path(dir: &Path, shard: Shard) -> PathBuf {
 pub struct Smoothed<'a> {
     pub graph: &'a PatchGraph,
     pub crossings: &'a [Crossing],
-    /// Stage 5's motion of the shard's patches and their neighbours (the others empty).
-    pub collided: &'a [PatchMotion],
-    /// The shard's patches, in patch order.
+    /// Where each patch's crossings are in the world's (`patch_keys::Seen`).
+    pub tables: &'a [Table],
+    /// The shard's patches, in patch order, and their stage 6 keys (`crowd_smooth::patch_keys_of`).
     pub own: &'a [usize],
+    pub keys: &'a [Hash],
     /// The part's stage file (named in errors) and its side file, written.
     pub part: (&'a Path, &'a StreamedFile),
 }
 
-/// The shard's share of the check of `smoothed`, as the bytes of `shards/check-I-of-N.memo`,
-/// with how many of its patches had their pairs judged (the others border another shard's).
-pub fn judge(s: &Smoothed, inputs: &crowd_smooth::Inputs) -> Result<(Vec<u8>, usize)> {
-    let seen = crowd_core::patch_keys::Seen::new(s.graph, s.crossings);
-    let collided = |p: usize| Ok(Cow::Borrowed(&s.collided[p]));
-    let keys = crowd_smooth::patch_keys_of(&seen, collided, inputs, s.own)?;
+/// The shard's share of the check of `smoothed` (played over `period_s`), as the bytes of
+/// `shards/check-I-of-N.memo`, with how many of its patches had their pairs judged (the others
+/// border another shard's).
+pub fn judge(s: &Smoothed, period_s: f64) -> Result<(Vec<u8>, usize)> {
     let (path, side) = s.part;
     let source = Own {
         path,
@@ -48,10 +48,10 @@ pub fn judge(s: &Smoothed, inputs: &crowd_smooth::Inputs) -> Result<(Vec<u8>, us
     let world = crowd_check::World {
         graph: s.graph,
         source: &source,
-        period_s: inputs.period_s,
+        period_s,
         crossings: Some(s.crossings),
     };
-    let part = crowd_check::check_part(&world, s.own, &keys)?;
+    let part = crowd_check::check_part(&world, Some(s.tables), s.own, s.keys)?;
     let whole = part.judged_pairs();
     Ok((Memo::of(Some(part), None).to_bytes(), whole))
 }

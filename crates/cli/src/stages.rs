@@ -751,34 +751,7 @@ fn smooth(a: &mut Artifacts, out: &Path, hash: Hash, ui: &Ui) -> Result<Ran> {
     let inputs = crowd_smooth::inputs(a.pipeline);
     let dir = out.parent().unwrap_or(Path::new("."));
     match a.split {
-        Split::Shard(shard) => {
-            let collided = a.shard_collided.take().expect("stage 5 ran in this shard");
-            let own: Vec<usize> = shard.run(&a.shard_costs()?).collect();
-            let smoother = crowd_smooth::Smoother::new(&graph, &patterns.1, &collided, &inputs);
-            let mut ran = smooth_part(dir, (shard, hash), &smoother, &own, &bar)?;
-            // Its share of the check, unless stage 7 edits what the check will judge.
-            if a.pipeline.pipeline.edits.is_empty() {
-                let started = std::time::Instant::now();
-                let part = (ran.writes[0].0.as_path(), &ran.streamed[0]);
-                let smoothed = crate::check_shard::Smoothed {
-                    graph: &graph,
-                    crossings: &patterns.1,
-                    collided: &collided,
-                    own: &own,
-                    part,
-                };
-                let (memo, whole) = crate::check_shard::judge(&smoothed, &inputs)?;
-                ran.writes
-                    .push((crate::check_shard::part_path(dir, shard), memo));
-                ran.parts
-                    .push(("check".to_string(), started.elapsed().as_secs_f64()));
-                ran.note = Some(format!(
-                    "its {} patches checked for the gather ({whole} with their pairs)",
-                    own.len()
-                ));
-            }
-            return Ok(ran);
-        }
+        Split::Shard(shard) => return smooth_shard(a, (dir, shard, hash), &inputs, &bar),
         Split::Gather => return smooth_gathered(a, out, hash, &inputs),
         Split::Whole => {}
     }
@@ -829,6 +802,54 @@ fn smooth(a: &mut Artifacts, out: &Path, hash: Hash, ui: &Ui) -> Result<Ran> {
         ..Ran::files(writes)
     }
     .knowing(side.0, side.1))
+}
+
+/// A shard's stage 6: its part ([`smooth_part`]), then its share of the check
+/// (`check_shard.rs`), unless stage 7 edits what the check will judge.
+fn smooth_shard(
+    a: &mut Artifacts,
+    (dir, shard, hash): (&Path, crowd_core::Shard, Hash),
+    inputs: &crowd_smooth::Inputs,
+    bar: &dyn crowd_core::Progress,
+) -> Result<Ran> {
+    let (graph, patterns) = (a.graph()?, a.patterns()?);
+    let collided = a.shard_collided.take().expect("stage 5 ran in this shard");
+    let own: Vec<usize> = shard.run(&a.shard_costs()?).collect();
+    let checked = a.pipeline.pipeline.edits.is_empty();
+    let seen = Seen::new(&graph, &patterns.1);
+    let keys = if checked {
+        let motion = |p: usize| Ok(Cow::Borrowed(&collided[p]));
+        Some(crowd_smooth::patch_keys_of(&seen, motion, inputs, &own)?)
+    } else {
+        None
+    };
+    let smoother = crowd_smooth::Smoother::new(&graph, &patterns.1, &collided, inputs);
+    let mut ran = smooth_part(dir, (shard, hash), &smoother, &own, bar)?;
+    // Stage 5's motion is read no more: let it go before the check's strips.
+    drop(smoother);
+    drop(collided);
+    let Some(keys) = keys else {
+        return Ok(ran);
+    };
+    let started = std::time::Instant::now();
+    let smoothed = crate::check_shard::Smoothed {
+        graph: &graph,
+        crossings: &patterns.1,
+        tables: &seen.tables,
+        own: &own,
+        keys: &keys,
+        part: (ran.writes[0].0.as_path(), &ran.streamed[0]),
+    };
+    let (memo, whole) = crate::check_shard::judge(&smoothed, inputs.period_s)?;
+    ran.writes
+        .push((crate::check_shard::part_path(dir, shard), memo));
+    ran.parts
+        .push(("check".to_string(), started.elapsed().as_secs_f64()));
+    ran.note = Some(format!(
+        "its {} patches checked for the gather ({whole} with their pairs)",
+        own.len()
+    ));
+    Ok(ran)
 }
 
 /// A shard's part of stage 6, its `own` patches smoothed a run at a time (in parallel) and
