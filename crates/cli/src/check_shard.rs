@@ -1,7 +1,7 @@
 //! A shard's share of the check (`crowd build --shard I/N`, after its stage 6): its own
 //! patches of the stage file judged where their motion is (`crowd_check::check_part`), into
 //! `shards/check-I-of-N.memo`, which the check after the gather takes in beside its own memo
-//! (`parts`). The million's stage file was half of its check, on the gathering machine alone.
+//! (`take_parts`). The million's stage file was half of its check, on the gathering machine alone.
 //!
 //! A cache, as `check.memo` is: each share is found by the hash of what it depends on, so a
 //! part of another build, damaged or missing, is only work the gathering check does itself.

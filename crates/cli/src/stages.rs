@@ -815,27 +815,27 @@ fn smooth_shard(
     let (graph, patterns) = (a.graph()?, a.patterns()?);
     let collided = a.shard_collided.take().expect("stage 5 ran in this shard");
     let own: Vec<usize> = shard.run(&a.shard_costs()?).collect();
-    let checked = a.pipeline.pipeline.edits.is_empty();
-    let seen = Seen::new(&graph, &patterns.1);
-    let keys = if checked {
+    // The keys of its patches' check are made from stage 5's motion, so before it goes.
+    let checked = a.pipeline.pipeline.edits.is_empty().then(|| {
+        let seen = Seen::new(&graph, &patterns.1);
         let motion = |p: usize| Ok(Cow::Borrowed(&collided[p]));
-        Some(crowd_smooth::patch_keys_of(&seen, motion, inputs, &own)?)
-    } else {
-        None
-    };
+        let keys = crowd_smooth::patch_keys_of(&seen, motion, inputs, &own);
+        keys.map(|k| (seen.tables, k))
+    });
+    let checked = checked.transpose()?;
     let smoother = crowd_smooth::Smoother::new(&graph, &patterns.1, &collided, inputs);
     let mut ran = smooth_part(dir, (shard, hash), &smoother, &own, bar)?;
     // Stage 5's motion is read no more: let it go before the check's strips.
     drop(smoother);
     drop(collided);
-    let Some(keys) = keys else {
+    let Some((tables, keys)) = checked else {
         return Ok(ran);
     };
     let started = std::time::Instant::now();
     let smoothed = crate::check_shard::Smoothed {
         graph: &graph,
         crossings: &patterns.1,
-        tables: &seen.tables,
+        tables: &tables,
         own: &own,
         keys: &keys,
         part: (ran.writes[0].0.as_path(), &ran.streamed[0]),
@@ -939,7 +939,8 @@ fn smooth_gathered(
         hash,
     );
     let writes = with_keys(out, writes, file.motion.hash, keys, &seen.tables, extra);
-    let note = reuse::note(counts.len(), counts.len());
+    // Put together, not reused (stages 4 and 5 say so too).
+    let note = "gathered".to_string();
     Ok(gathered_ran(
         a,
         &SMOOTH,
