@@ -448,3 +448,27 @@ fn the_deploy_scripts_shard_and_gather_as_each_job_runner_runs_them() {
         assert!(timings.contains(&format!("\"{stage}\"")), "{timings}");
     }
 }
+
+/// A regions step with fewer regions than shards says which shards have nothing to solve and
+/// which setting splits stage 3 further, instead of leaving it to be found in the timings.
+#[test]
+fn a_world_of_fewer_regions_than_shards_says_how_to_split_it() {
+    let pipeline = scene_pipeline("bands");
+    let dir = tempfile::tempdir().unwrap();
+    let said = crowd_ok(&[
+        "build",
+        "--pipeline",
+        s(&pipeline),
+        "--output",
+        s(&dir.path().join("one")),
+        "--shard",
+        "1/4",
+        "--until",
+        "optimize",
+    ]);
+    let said = String::from_utf8_lossy(&said.stderr);
+    assert!(
+        said.contains("one region for 4 shards (no `optimize.region_patches`): only shard 0"),
+        "{said}"
+    );
+}

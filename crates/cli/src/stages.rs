@@ -428,13 +428,28 @@ fn optimize_part(
     );
     let reused = part.iter().filter(|(_, reused)| *reused).count();
     let solved: Vec<_> = part.into_iter().map(|(solved, _)| solved).collect();
-    let note = format!(
+    let mut note = format!(
         "regions {}..{} of {}: {} optimised ({reused} reused)",
         run.start,
         run.end,
         costs.len(),
         solved.len() - reused
     );
+    // Fewer regions than shards leave shards with nothing to solve: say how to split more.
+    let shards = shard.count() as usize;
+    if costs.len() < shards {
+        note += &match s.settings.region_patches {
+            None => format!(
+                "; one region for {shards} shards (no `optimize.region_patches`): only shard 0 \
+                 solves stage 3; set it to split stage 3 over the shards"
+            ),
+            Some(n) => format!(
+                "; {} regions for {shards} shards: an `optimize.region_patches` under {n} \
+                 splits stage 3 further",
+                costs.len()
+            ),
+        };
+    }
     let writes = shard_writes(dir, || {
         crowd_optimize::shard::encode_part(dir, shard, hash, run, &solved)
     })?;
