@@ -51,6 +51,8 @@ pub struct Recalled {
     pairs: HashMap<[u8; 32], Pairs>,
     library_pairs: HashMap<[u8; 32], Pairs>,
     played: HashMap<[u8; 32], Played>,
+    /// Memos taken in besides the one recalled (`add`).
+    added: usize,
 }
 
 impl Memo {
@@ -107,6 +109,7 @@ impl Memo {
             pairs: self.pairs.into_iter().collect(),
             library_pairs: self.library_pairs.into_iter().collect(),
             played: self.played.into_iter().collect(),
+            added: 0,
         }
     }
 
@@ -128,10 +131,16 @@ impl Recalled {
     /// Takes in `more`'s shares too (a shard's part of a check, `part.rs`): keys are content
     /// hashes, so two memos that hold one key hold one share for it.
     pub fn add(&mut self, more: Memo) {
+        self.added += 1;
         self.own.extend(more.own);
         self.pairs.extend(more.pairs);
         self.library_pairs.extend(more.library_pairs);
         self.played.extend(more.played);
+    }
+
+    /// How many memos [`Recalled::add`] took in.
+    pub fn parts_taken(&self) -> usize {
+        self.added
     }
 
     /// Lets the stage file's shares go (once it is judged, the library's are all a check

@@ -260,7 +260,7 @@ fn measure(dir: &Path, options: &CheckOptions) -> Result<(CheckReport, Memo, Red
                         .unwrap_or_default()
                         .recall();
                     // What the shards judged of their own patches, after a gathering build.
-                    crate::check_shard::take_parts(dir, &mut memo);
+                    crate::check_shard::take_parts(dir, &dir.join(MEMO_FILE), &mut memo);
                     memo
                 },
             )

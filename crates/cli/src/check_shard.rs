@@ -75,17 +75,26 @@ impl crowd_check::Source for Own<'_> {
     }
 }
 
-/// Takes every shard's share of the check in `dir/shards` into `memo` (a file that is not a
-/// whole memo of this check's version is passed over: it is a cache).
-pub fn take_parts(dir: &Path, memo: &mut Recalled) {
+/// Takes into `memo` every shard's share of the check in `dir/shards` that is not older than
+/// the folder's `check.memo` (`memo_file`): a check after the shards wrote theirs kept in its
+/// own memo all of them that the world still had, so a later check (a brush stroke's rebuild
+/// in a gathered folder) need not read them again (the million's: 0.3 GB). A file that is not
+/// a whole memo of this check's version is passed over: it is a cache.
+pub fn take_parts(dir: &Path, memo_file: &Path, memo: &mut Recalled) {
     let Ok(entries) = std::fs::read_dir(dir.join(SHARDS_DIR)) else {
         return;
     };
+    let changed = |p: &Path| std::fs::metadata(p).and_then(|m| m.modified()).ok();
+    let last_check = changed(memo_file);
     let mut parts: Vec<PathBuf> = entries
         .filter_map(|e| e.ok().map(|e| e.path()))
         .filter(|p| {
             let name = p.file_name().and_then(|n| n.to_str()).unwrap_or_default();
             name.starts_with("check-") && name.ends_with(".memo")
+        })
+        .filter(|p| match (changed(p), last_check) {
+            (Some(part), Some(check)) => part >= check,
+            _ => true,
         })
         .collect();
     parts.sort();
@@ -93,5 +102,52 @@ pub fn take_parts(dir: &Path, memo: &mut Recalled) {
         if let Some(part) = std::fs::read(&path).ok().and_then(|b| Memo::from_bytes(&b)) {
             memo.add(part);
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::time::{Duration, SystemTime};
+
+    fn set_changed(path: &Path, at: SystemTime) {
+        let file = std::fs::File::options().write(true).open(path).unwrap();
+        file.set_modified(at).unwrap();
+    }
+
+    /// A share written after the last check is taken in; one the last check already saw is
+    /// not read again; without a memo of the folder, every share is.
+    #[test]
+    fn shares_older_than_the_last_check_are_not_read_again() {
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::create_dir(dir.path().join(SHARDS_DIR)).unwrap();
+        let share = |i: u32| {
+            let path = part_path(dir.path(), Shard::new(i, 2).unwrap());
+            // An empty memo, in its file's form: a whole memo, holding nothing.
+            std::fs::write(&path, Memo::default().to_bytes()).unwrap();
+            path
+        };
+        let (old, new) = (share(0), share(1));
+        let memo_file = dir.path().join("check.memo");
+        std::fs::write(&memo_file, b"the last check's").unwrap();
+        let now = SystemTime::now();
+        set_changed(&old, now - Duration::from_secs(60));
+        set_changed(&memo_file, now - Duration::from_secs(30));
+        set_changed(&new, now);
+        let taken = |memo_file: &Path| {
+            let mut memo = Recalled::default();
+            take_parts(dir.path(), memo_file, &mut memo);
+            memo.parts_taken()
+        };
+        assert_eq!(
+            taken(&memo_file),
+            1,
+            "only the share newer than the last check"
+        );
+        assert_eq!(
+            taken(&dir.path().join("none.memo")),
+            2,
+            "no last check: every share"
+        );
     }
 }
