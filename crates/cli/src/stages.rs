@@ -553,30 +553,27 @@ fn matching_gathered(
         crowd_match::encode(out, Streamed(&side, summing.finish()), &graph, inputs, hash);
     let extra = vec![Vec::new(); keys.len()];
     let writes = with_keys(out, writes, file.motion.hash, keys, &seen.tables, extra);
-    let note = "gathered".to_string();
     Ok(gathered_ran(
         a,
         &MATCH,
         (file, writes),
         (side, gathered.motion),
-        note,
     ))
 }
 
 /// What a stage put together from the shards' parts hands on: its files, its side file
 /// (streamed to its temporary name already) and its motion, left in the parts and read a
-/// patch at a time by the stages after.
+/// patch at a time by the stages after. Its line says "gathered": nothing was reused.
 fn gathered_ran(
     a: &mut Artifacts,
     stage: &'static Stage,
     (file, writes): (TrajectoriesFile, files::Writes),
     (side, motion): (files::StreamedFile, LazyMotion),
-    note: String,
 ) -> Ran {
     let known = (side.path.clone(), side.hash);
     a.made_lazy_motion(stage, (file, motion));
     Ran {
-        note: Some(note),
+        note: Some("gathered".to_string()),
         streamed: vec![side],
         ..Ran::files(writes)
     }
@@ -703,13 +700,11 @@ fn collide_gathered(
         .map(|r| ron::to_string(r).map(String::into_bytes))
         .collect::<std::result::Result<Vec<_>, _>>()?;
     let writes = with_keys(out, writes, file.motion.hash, keys, &seen.tables, extra);
-    let note = "gathered".to_string();
     Ok(gathered_ran(
         a,
         &COLLIDE,
         (file, writes),
         (side, gathered.motion),
-        note,
     ))
 }
 
@@ -954,14 +949,11 @@ fn smooth_gathered(
         hash,
     );
     let writes = with_keys(out, writes, file.motion.hash, keys, &seen.tables, extra);
-    // Put together, not reused (stages 4 and 5 say so too).
-    let note = "gathered".to_string();
     Ok(gathered_ran(
         a,
         &SMOOTH,
         (file, writes),
         (side, gathered.motion),
-        note,
     ))
 }
 
