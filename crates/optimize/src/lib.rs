@@ -837,8 +837,9 @@ pub fn input_hash(graph_file_bytes: &[u8], inputs: &Inputs) -> crowd_core::Hash 
 /// The cache of every region's result, beside `patterns.ron` ([`known`]).
 pub const REGIONS_FILE: &str = "regions.bin";
 
-/// Stage 3's files, encoded: the crossings side file, `patterns.ron`, the per-step figures
-/// as CSV (`optimize.csv`) and the regions' cache (`regions.bin`), all beside `out`.
+/// Stage 3's files, encoded: the crossings side file, `patterns.ron` and the per-step
+/// figures as CSV (`optimize.csv`), all beside `out`. The regions' cache is
+/// [`encode_regions`]'s.
 pub fn encode(
     out: &std::path::Path,
     outcome: &Outcome,
@@ -876,14 +877,15 @@ pub fn encode(
     let ron = crowd_core::files::to_stage_ron(&patterns).into_bytes();
     let writes = vec![
         (side, bytes),
-        (
-            out.with_file_name(REGIONS_FILE),
-            known::encode(&outcome.solved),
-        ),
         (out.with_file_name("optimize.csv"), csv.into_bytes()),
         (out.to_path_buf(), ron),
     ];
     (patterns, writes)
+}
+
+/// `regions.bin` beside `out`: every region's result, for the next build in this folder.
+pub fn encode_regions(out: &std::path::Path, solved: &[Solved]) -> (std::path::PathBuf, Vec<u8>) {
+    (out.with_file_name(REGIONS_FILE), known::encode(solved))
 }
 
 #[cfg(test)]
