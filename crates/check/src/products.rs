@@ -177,7 +177,12 @@ pub(crate) fn pieces(
 ) -> impl DoubleEndedIterator<Item = ((DVec2, f64), (DVec2, f64))> + '_ {
     pts.windows(2)
         .map(|w| (w[0], w[1]))
-        .filter(|(a, b)| a.1 < b.1 || a.0 != b.0)
+        .filter(|&(a, b)| shown(a, b))
+}
+
+/// Whether the piece from `a` to `b` is one an engine shows ([`pieces`]).
+pub(crate) fn shown(a: (DVec2, f64), b: (DVec2, f64)) -> bool {
+    a.1 < b.1 || a.0 != b.0
 }
 
 /// The velocities a path starts and ends with (its first and last pieces that are shown;
@@ -312,6 +317,13 @@ impl Seams {
         self.max_gap = self.max_gap.max(gap);
         self.max_jump = self.max_jump.max(jump);
         self.max_heading = self.max_heading.max(heading);
+    }
+
+    /// Both `self`'s handovers and `o`'s (maxima and a count: the same in any grouping).
+    pub fn merge(mut self, o: Seams) -> Seams {
+        self.note_with_heading(o.max_gap, o.max_jump, o.max_heading);
+        self.open += o.open;
+        self
     }
 }
 

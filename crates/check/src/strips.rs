@@ -53,13 +53,6 @@ impl Extent {
         self.hi = self.hi.max(q);
     }
 
-    /// Takes in `o`: its box and its pieces.
-    pub fn take_in(&mut self, o: &Extent) {
-        self.lo = self.lo.min(o.lo);
-        self.hi = self.hi.max(o.hi);
-        self.pieces += o.pieces;
-    }
-
     pub fn is_empty(&self) -> bool {
         self.lo.x > self.hi.x
     }
@@ -72,27 +65,55 @@ impl Extent {
     }
 }
 
-/// The strips that judge patches `todo` (in order): runs of its patches of about `budget`
-/// pieces (a run of one patch however many it holds). A strip owns only its patches of `todo`,
-/// wherever they are: the few hundred a brush stroke reaches are one scene with the patches
-/// around them, not one scene per row of the world each with its own (3.4 times as many
-/// pieces on painting's stroke).
-pub(crate) fn runs(todo: &[usize], extents: &[Extent], budget: u64) -> Vec<Vec<usize>> {
+/// The strips that judge patches `todo` (in order): runs of its patches whose scenes hold
+/// about `budget` pieces, counting the patches within reach that each holds besides its own
+/// (`near`: [`held`]); a run of one patch however many it holds. A strip owns only its
+/// patches of `todo`, wherever they are: the few hundred a brush stroke reaches are one scene
+/// with the patches around them, not one scene per row of the world each with its own (3.4
+/// times as many pieces on painting's stroke). Counting only its own pieces, a strip of the
+/// patches along the shards' edges held several times its budget (the million's gather: 2.1
+/// GB at its check of the stage file).
+pub(crate) fn runs(
+    todo: &[usize],
+    extents: &[Extent],
+    near: &[Vec<u32>],
+    budget: u64,
+) -> Vec<Vec<usize>> {
     let mut strips: Vec<Vec<usize>> = Vec::new();
+    // The strip that holds each patch (its number), and how many pieces the last one holds.
+    let mut holder = vec![usize::MAX; extents.len()];
     let mut pieces = 0u64;
     for &p in todo {
-        let more = extents[p].pieces;
-        match strips.last_mut() {
-            Some(last) if last.last().is_some_and(|&q| p <= q) => {} // a repeat
-            Some(last) if pieces + more <= budget => {
-                pieces += more;
-                last.push(p);
-            }
-            _ => {
-                strips.push(vec![p]);
-                pieces = more;
-            }
+        if strips
+            .last()
+            .and_then(|s| s.last())
+            .is_some_and(|&q| p <= q)
+        {
+            continue; // a repeat
         }
+        let now = strips.len().wrapping_sub(1);
+        let adds = |of: usize| {
+            let mut patches = near[p]
+                .iter()
+                .map(|&q| q as usize)
+                .chain([p])
+                .collect::<Vec<_>>();
+            patches.sort_unstable();
+            patches.dedup();
+            patches.retain(|&q| holder[q] != of);
+            patches
+        };
+        let mut more = adds(now);
+        let count = |patches: &[usize]| patches.iter().map(|&q| extents[q].pieces).sum::<u64>();
+        if strips.is_empty() || pieces + count(&more) > budget {
+            strips.push(Vec::new());
+            more = adds(strips.len() - 1);
+            pieces = 0;
+        }
+        pieces += count(&more);
+        let at = strips.len() - 1;
+        more.iter().for_each(|&q| holder[q] = at);
+        strips[at].push(p);
     }
     strips
 }
@@ -107,7 +128,7 @@ pub(crate) fn judge_pairs(
     mut scene_of: impl FnMut(&[usize], &[usize]) -> crowd_core::Result<Scene>,
 ) -> crowd_core::Result<(Vec<Pairs>, usize)> {
     let todo: Vec<usize> = (0..known.len()).filter(|&p| known[p].is_none()).collect();
-    for strip in runs(&todo, extents, budget) {
+    for strip in runs(&todo, extents, near, budget) {
         let scene = scene_of(&strip, &held(&strip, near))?;
         strip
             .iter()
@@ -175,26 +196,35 @@ mod tests {
     }
 
     #[test]
-    fn runs_cover_every_patch_to_judge_once_in_order() {
+    fn runs_cover_every_patch_to_judge_once_in_order_within_their_budget() {
         let extents: Vec<Extent> = (0..1000).map(|i| at(0.0, 0.0, i % 7)).collect();
+        // Alone, or with the patches either side within reach.
+        let alone: Vec<Vec<u32>> = (0..1000).map(|i| vec![i]).collect();
+        let row: Vec<Vec<u32>> = (0..1000u32)
+            .map(|i| (i.saturating_sub(1)..(i + 2).min(1000)).collect())
+            .collect();
         let every: Vec<usize> = (0..1000).collect();
         let some: Vec<usize> = (0..1000)
             .filter(|i| i % 97 < 3 || (400..420).contains(i))
             .collect();
-        for todo in [&every, &some] {
-            for budget in [0, 1, 100, 500, 2_000, u64::MAX] {
-                let strips = runs(todo, &extents, budget);
-                let walked: Vec<usize> = strips.iter().flatten().copied().collect();
-                assert_eq!(&walked, todo, "each patch once, in order");
-                for s in &strips {
-                    let pieces: u64 = s.iter().map(|&p| extents[p].pieces).sum();
-                    assert!(s.len() == 1 || pieces <= budget, "{s:?} {pieces} {budget}");
+        for near in [&alone, &row] {
+            for todo in [&every, &some] {
+                for budget in [0, 1, 100, 500, 2_000, u64::MAX] {
+                    let strips = runs(todo, &extents, near, budget);
+                    let walked: Vec<usize> = strips.iter().flatten().copied().collect();
+                    assert_eq!(&walked, todo, "each patch once, in order");
+                    for s in &strips {
+                        let pieces: u64 = held(s, near).iter().map(|&p| extents[p].pieces).sum();
+                        assert!(s.len() == 1 || pieces <= budget, "{s:?} {pieces} {budget}");
+                    }
                 }
+                assert_eq!(runs(todo, &extents, near, u64::MAX), vec![todo.clone()]);
             }
+            assert!(runs(&[], &extents, near, 10).is_empty());
         }
-        assert_eq!(runs(&every, &extents, u64::MAX), vec![every.clone()]);
-        assert_eq!(runs(&some, &extents, u64::MAX), vec![some.clone()]);
-        assert!(runs(&[], &extents, 10).is_empty());
+        // The strips of scattered patches are fewer when only their own pieces count.
+        let scattered = |near| runs(&some, &extents, near, 100).len();
+        assert!(scattered(&alone) < scattered(&row));
     }
 
     #[test]

@@ -12,7 +12,7 @@ pub(crate) use sampled::Played;
 pub use sampled::sample;
 
 use crate::memo::{self, Recalled};
-use crate::products::{OPEN_GAP_M, ProductFigures, Seams, Tally, end_velocities};
+use crate::products::{OPEN_GAP_M, ProductFigures, Seams, Tally, shown, velocity};
 use crate::strips::{self, Extent};
 use crate::world::{Clearance, Ends, Pairs, Repeat, Scene};
 use crowd_core::Hash;
@@ -36,16 +36,18 @@ pub struct Inputs<'a> {
 /// start (the trajectory's `start` plus the point's ticks). Made when asked, never all at
 /// once (a million walkers' were 2.3 GB).
 pub fn path(lib: &Library, i: usize) -> Vec<(DVec2, f64)> {
-    let t = &lib.trajectories[i];
-    let patch = &lib.patches[t.patch as usize];
-    lib.points_of(t)
-        .iter()
-        .map(|p| {
-            let [x, y] = lib.world_position(patch, *p);
-            let ticks = u64::from(t.start) + u64::from(p.t);
-            (DVec2::new(x, y), ticks as f64 * TICK_S)
-        })
+    (0..lib.trajectories[i].points as usize)
+        .map(|k| point(lib, i, k))
         .collect()
+}
+
+/// Point `k` of trajectory `i`, as [`path`] makes it.
+fn point(lib: &Library, i: usize, k: usize) -> (DVec2, f64) {
+    let t = &lib.trajectories[i];
+    let p = lib.points_of(t)[k];
+    let [x, y] = lib.world_position(&lib.patches[t.patch as usize], p);
+    let ticks = u64::from(t.start) + u64::from(p.t);
+    (DVec2::new(x, y), ticks as f64 * TICK_S)
 }
 
 /// Libraries of fewer points than this have their pairs judged and their walkers played at
@@ -76,18 +78,18 @@ pub fn figures_memo(lib: &Library, inputs: &Inputs, memo: &Recalled) -> Judged {
     let path = |i| std::borrow::Cow::Owned(path(lib, i));
     let n = lib.trajectories.len();
     let tally = Tally::of_made(n, path, inputs.speed_limit_m_s, (TICK_S, false), period);
-    let walked = walked(lib);
+    let extents = extents(lib);
     // The world's pairs and the played frames at once: the pairs' serial parts (the pieces,
     // the grid) left a core idle, and the sampler holds little (painting's check -1 s). But
     // one after the other for a large library: the sampler holds every point's packed heading
     // and makes a run of loops' headings at a time (the million's: 0.2 GB, and 0.3 GB more for
     // its longest loop), beside a strip's pairs.
-    let pairs = || clearance(lib, &walked, inputs.walls, memo);
+    let pairs = || clearance(lib, &extents, inputs.walls, memo);
     let played = || {
         let sampled = inputs
             .sample_step_s
             .map(|step| sampled::sample_memo(lib, step, memo));
-        (handovers(lib, &walked), sampled)
+        (handovers(lib), sampled)
     };
     let ((clearance, kept, redone), ((borders, seams), sampled)) =
         if lib.points.len() < POINTS_PLAYED_BESIDE_PAIRS {
@@ -102,7 +104,7 @@ pub fn figures_memo(lib: &Library, inputs: &Inputs, memo: &Recalled) -> Judged {
     let counts = (
         lib.walkers(),
         lib.standers.len() as u64,
-        walked.iter().map(|w| w.extent.pieces).sum(),
+        extents.iter().map(|e| e.pieces).sum(),
         lib.characters.len() as u64,
     );
     let figures = ProductFigures {
@@ -130,30 +132,44 @@ pub fn figures_memo(lib: &Library, inputs: &Inputs, memo: &Recalled) -> Judged {
     }
 }
 
-/// What the figures need of each trajectory's path, made once for all of them in parallel:
-/// where it goes and its pieces, and its first and last place and velocity.
-struct Walked {
-    extent: Extent,
-    first: (DVec2, DVec2),
-    last: (DVec2, DVec2),
-}
-
-fn walked(lib: &Library) -> Vec<Walked> {
-    (0..lib.trajectories.len())
+/// Each library patch's extent: where its trajectories go and its standers stand, and its
+/// pieces. Made a patch at a time, each trajectory's path let go as soon as it is measured:
+/// every trajectory's ends and box held at once were 0.6 GB of the million's check.
+fn extents(lib: &Library) -> Vec<Extent> {
+    (0..lib.patches.len())
         .into_par_iter()
-        .map(|i| {
-            let p = path(lib, i);
-            let mut extent = Extent::EMPTY;
-            p.iter().for_each(|q| extent.grow(q.0));
-            extent.pieces = p.len().saturating_sub(1) as u64;
-            let (first, last) = end_velocities(&p, TICK_S);
-            Walked {
-                extent,
-                first: (p[0].0, first),
-                last: (p[p.len() - 1].0, last),
+        .map(|p| {
+            let patch = &lib.patches[p];
+            let first = patch.first_trajectory as usize;
+            let mut e = Extent::EMPTY;
+            for i in first..first + patch.trajectories as usize {
+                let path = path(lib, i);
+                path.iter().for_each(|q| e.grow(q.0));
+                e.pieces += path.len().saturating_sub(1) as u64;
             }
+            standers(lib, p).for_each(|q| e.grow(q));
+            e
         })
         .collect()
+}
+
+/// Where trajectory `i` starts and the velocity of its first piece an engine shows
+/// (standing when it has none), or with `last`, where it ends and its last's: what
+/// [`crate::products::end_velocities`] finds on its whole path, from the points at that end alone.
+fn end_of(lib: &Library, i: usize, last: bool) -> (DVec2, DVec2) {
+    let n = lib.trajectories[i].points as usize;
+    let at = |k: usize| point(lib, i, if last { n - 1 - k } else { k });
+    let end = at(0);
+    let mut a = end;
+    for k in 1..n {
+        let b = at(k);
+        let (from, to) = if last { (b, a) } else { (a, b) };
+        if shown(from, to) {
+            return (end.0, velocity(from, to, TICK_S));
+        }
+        a = b;
+    }
+    (end.0, DVec2::ZERO)
 }
 
 /// Collisions over the whole tiled world: each trajectory a walker with its copies a period
@@ -163,26 +179,18 @@ fn walked(lib: &Library) -> Vec<Walked> {
 /// many patches were judged again.
 fn clearance(
     lib: &Library,
-    walked: &[Walked],
+    extents: &[Extent],
     walls: &[crate::Wall],
     memo: &Recalled,
 ) -> (Clearance, Vec<([u8; 32], Pairs)>, usize) {
     let radius = f64::from(lib.world.radius_m);
-    let n = lib.patches.len();
-    let mut extents = vec![Extent::EMPTY; n];
-    for (t, w) in lib.trajectories.iter().zip(walked) {
-        extents[t.patch as usize].take_in(&w.extent);
-    }
-    for (p, e) in extents.iter_mut().enumerate() {
-        standers(lib, p).for_each(|q| e.grow(q));
-    }
     let reach = 2.0 * radius + 1.0 + 1e-6;
-    let near = strips::within_reach(&extents, reach, f64::from(lib.world.patch_side_m));
-    let keys = pair_keys(lib, (&extents, &near), walls, reach);
+    let near = strips::within_reach(extents, reach, f64::from(lib.world.patch_side_m));
+    let keys = pair_keys(lib, (extents, &near), walls, reach);
     let known = keys.iter().map(|k| memo.library_pairs(k)).collect();
     let (pairs, judged) = strips::judge_pairs(
         known,
-        (&extents, &near, strips::STRIP_PIECES),
+        (extents, &near, strips::STRIP_PIECES),
         |strip, held| Ok(strip_scene(lib, held, strip, walls)),
     )
     .expect("a library in memory is always at hand");
@@ -316,8 +324,9 @@ fn standers(lib: &Library, p: usize) -> impl Iterator<Item = DVec2> + '_ {
 }
 
 /// Every trajectory's handover to its `next`: at a border, or at its loop's seam (the last
-/// trajectory of a loop, walked from its `first_trajectory`, to the first).
-fn handovers(lib: &Library, walked: &[Walked]) -> (Seams, Seams) {
+/// trajectory of a loop, walked from its `first_trajectory`, to the first). In parallel, each
+/// end found from the points there ([`end_of`]).
+fn handovers(lib: &Library) -> (Seams, Seams) {
     let mut last_of_loop = vec![false; lib.trajectories.len()];
     for c in &lib.characters {
         let mut at = c.first_trajectory as usize;
@@ -326,17 +335,21 @@ fn handovers(lib: &Library, walked: &[Walked]) -> (Seams, Seams) {
         }
         last_of_loop[at] = true;
     }
-    let (mut borders, mut seams) = (Seams::default(), Seams::default());
-    for (i, t) in lib.trajectories.iter().enumerate() {
-        let (end, start) = (walked[i].last, walked[t.next as usize].first);
-        if last_of_loop[i] {
-            seams.note(end, start);
-            seams.open += u64::from(end.0.distance(start.0) > OPEN_GAP_M);
-        } else {
-            borders.note(end, start);
-        }
-    }
-    (borders, seams)
+    let none = || (Seams::default(), Seams::default());
+    (0..lib.trajectories.len())
+        .into_par_iter()
+        .fold(none, |(mut borders, mut seams), i| {
+            let next = lib.trajectories[i].next as usize;
+            let (end, start) = (end_of(lib, i, true), end_of(lib, next, false));
+            if last_of_loop[i] {
+                seams.note(end, start);
+                seams.open += u64::from(end.0.distance(start.0) > OPEN_GAP_M);
+            } else {
+                borders.note(end, start);
+            }
+            (borders, seams)
+        })
+        .reduce(none, |a, b| (a.0.merge(b.0), a.1.merge(b.1)))
 }
 
 #[cfg(test)]

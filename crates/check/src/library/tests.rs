@@ -355,3 +355,51 @@ fn a_slow_walker_s_small_jump_is_a_jump_whoever_else_runs() {
     assert!((s.max_speed_m_s - 2.0).abs() < 1e-2, "{s:?}");
     assert_eq!(s.jumps, 1, "{s:?}");
 }
+
+/// A trajectory's ends read from the points there are its whole path's: the first and last
+/// pieces an engine shows, past points repeated at the same time and place (a split point
+/// on an entry), and standing for a trajectory that never moves.
+#[test]
+fn a_trajectory_s_ends_from_its_end_points_are_its_whole_path_s() {
+    let repeated = vec![
+        (4.0, 1.0, 0.0),
+        (4.0, 1.0, 0.0),
+        (7.0, 1.0, 2.5),
+        (7.0, 7.0, 7.5),
+        (1.0, 7.0, 12.5),
+        (4.0, 1.0, 20.0),
+        (4.0, 1.0, 20.0),
+    ];
+    let standing = vec![(2.0, 2.0, 0.0), (2.0, 2.0, 20.0)];
+    let still = vec![(5.0, 5.0, 0.0), (5.0, 5.0, 0.0), (5.0, 5.0, 20.0)];
+    let ways = [
+        round(0, 0, repeated),
+        round(1, 1, square(17.5)),
+        round(2, 2, standing),
+        round(3, 3, still),
+    ];
+    let lib = library(1, &ways, &[]);
+    for i in 0..lib.trajectories.len() {
+        let p = path(&lib, i);
+        let (first, last) = crate::products::end_velocities(&p, TICK_S);
+        assert_eq!(
+            end_of(&lib, i, false),
+            (p[0].0, first),
+            "trajectory {i}'s first end"
+        );
+        assert_eq!(
+            end_of(&lib, i, true),
+            (p[p.len() - 1].0, last),
+            "trajectory {i}'s last end"
+        );
+    }
+    assert!(
+        end_of(&lib, 0, false).1.length() > 1.0,
+        "past the repeated entry, it walks"
+    );
+    assert_eq!(
+        end_of(&lib, 3, true).1,
+        DVec2::ZERO,
+        "standing where it entered"
+    );
+}

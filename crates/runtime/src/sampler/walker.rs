@@ -202,20 +202,48 @@ impl PackedHeadings {
     /// Takes in character `ch`'s share, `one` ([`crate::turn::character_headings`]), at its
     /// points, as [`crate::turn::PointHeadings::take`] does.
     pub fn take(&mut self, lib: &Library, ch: &crate::Character, one: &crate::turn::PointHeadings) {
+        self.take_packed(lib, ch, &Self::character(lib, ch, one));
+    }
+
+    /// Character `ch`'s share, `one`, packed in its walking order (its loop's trajectories
+    /// from `first_trajectory`, each trajectory's points): two bytes a point, not nine, for a
+    /// reader that makes many characters' at once before it takes them in
+    /// ([`PackedHeadings::take_packed`]).
+    pub fn character(
+        lib: &Library,
+        ch: &crate::Character,
+        one: &crate::turn::PointHeadings,
+    ) -> Vec<u16> {
         let (mut heading, mut walks) = (one.heading.iter(), one.walks.iter());
-        let mut at = ch.first_trajectory;
-        for _ in 0..ch.trajectories {
-            let tr = &lib.trajectories[at as usize];
-            let first = tr.first_point as usize;
-            let n = tr.points as usize;
+        let mut packed = Vec::with_capacity(one.heading.len());
+        each_leg(lib, ch, |_, n| {
             for i in 0..n {
                 let h = *heading.next().expect("a heading per point");
                 // Whether the piece from point i walks (none from the last).
                 let w = i + 1 < n && *walks.next().expect("one per piece");
-                self.packed[first + i] = packed_heading(h, w);
+                packed.push(packed_heading(h, w));
             }
-            at = tr.next;
-        }
+        });
+        packed
+    }
+
+    /// Takes in character `ch`'s share packed by [`PackedHeadings::character`], at its points.
+    pub fn take_packed(&mut self, lib: &Library, ch: &crate::Character, packed: &[u16]) {
+        let mut from = 0;
+        each_leg(lib, ch, |first, n| {
+            self.packed[first..first + n].copy_from_slice(&packed[from..from + n]);
+            from += n;
+        });
+    }
+}
+
+/// Each trajectory of `ch`'s loop in walking order, as (its first point, its points).
+fn each_leg(lib: &Library, ch: &crate::Character, mut leg: impl FnMut(usize, usize)) {
+    let mut at = ch.first_trajectory;
+    for _ in 0..ch.trajectories {
+        let tr = &lib.trajectories[at as usize];
+        leg(tr.first_point as usize, tr.points as usize);
+        at = tr.next;
     }
 }
 
