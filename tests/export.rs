@@ -292,7 +292,8 @@ proptest! {
     #![proptest_config(ProptestConfig::with_cases(256))]
 
     /// A corrupt or cut library is refused with an error, or (where the change is one the
-    /// format cannot see, such as a position) plays: never a panic.
+    /// format cannot see, such as a position) plays: never a panic. Read from a file a piece
+    /// at a time, it is the same library or the same error.
     #[test]
     fn flipped_or_truncated_bytes_never_panic(
         flips in proptest::collection::vec((any::<prop::sample::Index>(), 1u8..=255), 0..8),
@@ -311,7 +312,11 @@ proptest! {
             // Corruption that checksums cannot catch: the checks behind them must.
             bytes = with_fresh_checksums(bytes);
         }
-        if let Ok(lib) = Library::from_bytes(&bytes) {
+        let loaded = Library::from_bytes(&bytes);
+        // Read from a file a piece at a time: the same library, or the same error.
+        let read = Library::read_from(std::io::Cursor::new(&bytes));
+        prop_assert_eq!(&read, &loaded);
+        if let Ok(lib) = loaded {
             let mut s = Sampler::new(&lib);
             let mut out = Vec::new();
             for t in [0.0, 7.5, -3.0, 1e6] {
@@ -627,4 +632,37 @@ fn export_made_patch_by_patch_writes_what_export_of_the_held_motion_writes() {
             }
         }
     }
+}
+
+/// A library read from a file a piece at a time is the library of its bytes, and a file that
+/// fails as it is read says so instead of loading part of it.
+#[test]
+fn a_library_read_from_a_file_is_the_library_of_its_bytes() {
+    let bytes = bands_library();
+    let whole = Library::from_bytes(bytes).expect("bands' library loads");
+    let path = scene("bands").join("library.crowd");
+    let file = std::fs::File::open(&path).expect("bands' library");
+    assert_eq!(Library::read_from(file), Ok(whole));
+    /// A file whose reads fail after `good` bytes.
+    struct Failing<'a>(std::io::Cursor<&'a [u8]>, u64);
+    impl std::io::Read for Failing<'_> {
+        fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+            if self.0.position() >= self.1 {
+                return Err(std::io::Error::other("the disk went away"));
+            }
+            self.0.read(buf)
+        }
+    }
+    impl std::io::Seek for Failing<'_> {
+        fn seek(&mut self, to: std::io::SeekFrom) -> std::io::Result<u64> {
+            self.0.seek(to)
+        }
+    }
+    let failing = Failing(std::io::Cursor::new(bytes), bytes.len() as u64 / 2);
+    let err = Library::read_from(failing).expect_err("half a file is no library");
+    assert_eq!(
+        err,
+        crowd_runtime::LoadError::Read(std::io::ErrorKind::Other)
+    );
+    assert!(err.to_string().contains("cannot be read"), "{err}");
 }

@@ -331,14 +331,18 @@ fn version(stage: &str) -> u32 {
         .version
 }
 
-/// The runtime's loader and sampler. The sections' checksums are made right again, so that
-/// the mutations reach the checks behind them.
+/// The runtime's loaders and sampler. The sections' checksums are made right again, so that
+/// the mutations reach the checks behind them. Read from a file a piece at a time, a library
+/// is the one of its bytes, or refused with the same error.
 #[test]
 fn any_library_is_loaded_or_refused_without_a_panic() {
     let (dir, _) = bands();
     fuzz("library.crowd", &[read(dir, "library.crowd")], |_, b| {
         let b = crate::export::with_fresh_checksums(b.to_vec());
-        if let Ok(lib) = crowd_runtime::Library::from_bytes(&b) {
+        let loaded = crowd_runtime::Library::from_bytes(&b);
+        let read = crowd_runtime::Library::read_from(std::io::Cursor::new(&b));
+        assert_eq!(read, loaded, "read from a file, as from its bytes");
+        if let Ok(lib) = loaded {
             let mut sampler = crowd_runtime::Sampler::new(&lib);
             let mut out = Vec::new();
             sampler.sample(3.0, [-1e9, -1e9, 1e9, 1e9], &mut out);

@@ -89,11 +89,11 @@ fn inspect_export(path: &Path) -> Result<String> {
         crowd_export::VERSION,
     )?;
     let library_path = path.with_file_name(&file.library);
-    let bytes = std::fs::read(&library_path)
+    let opened = std::fs::File::open(&library_path)
         .map_err(|e| anyhow::anyhow!("{}: {e}", library_path.display()))?;
     // What the runtime says of a damaged library first (it names the section), then whether
     // both files are the ones the manifest names.
-    let lib = crowd_runtime::Library::from_bytes(&bytes)
+    let lib = crowd_runtime::Library::read_from(opened)
         .map_err(|e| anyhow::anyhow!("{}: {e}", library_path.display()))?;
     for (name, differs) in [
         (&file.library, file.library_differs(path)),

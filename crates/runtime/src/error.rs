@@ -18,12 +18,20 @@ pub enum LoadError {
     Checksum {
         section: &'static str,
     },
+    /// The file could not be read ([`crate::Library::read_from`]), for this reason.
+    Read(std::io::ErrorKind),
     /// A value that breaks the format's rules: which section, which record, what is wrong.
     Invalid {
         section: &'static str,
         index: u64,
         expected: &'static str,
     },
+}
+
+impl LoadError {
+    pub(crate) fn read(e: std::io::Error) -> LoadError {
+        LoadError::Read(e.kind())
+    }
 }
 
 impl fmt::Display for LoadError {
@@ -48,6 +56,7 @@ impl fmt::Display for LoadError {
                     crate::VERSION
                 )
             }
+            LoadError::Read(kind) => write!(f, "cannot be read: {kind}"),
             LoadError::MissingSection(s) => write!(f, "the section table has no '{s}' section"),
             LoadError::Checksum { section } => {
                 write!(f, "section '{section}' does not match its checksum")

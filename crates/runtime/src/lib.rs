@@ -2,7 +2,9 @@
 //!
 //! [`Library::from_bytes`] checks untrusted bytes completely (section table, checksums, every
 //! index and count, every character's loop) and never panics, reads out of bounds or
-//! allocates more than the bytes can hold. [`Sampler::sample`] then yields every character in
+//! allocates more than the bytes can hold; [`Library::read_from`] does the same reading a
+//! file a piece at a time, so that loading never holds the file's bytes beside the library.
+//! [`Sampler::sample`] then yields every character in
 //! a view rectangle at a time: per-character cursors make a frame O(characters), with no
 //! search while time moves forward. `FORMAT.md` at the repository root documents the bytes.
 

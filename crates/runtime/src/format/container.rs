@@ -1,28 +1,24 @@
 //! The container: a 16-byte header (magic, version, section count), a table of 24-byte
 //! entries (tag, CRC-32, offset, length), then each section's packed little-endian records.
-//! Writing lays them out; reading bounds every slice by the bytes there, checks each
-//! checksum and reads as many whole records as a section holds, then hands the library to the
-//! rules.
+//! Writing lays them out; `read.rs` reads them back.
 
-use super::records::{Character, Crossing, Library, Patch, Point, Trajectory, World};
-use super::rules::invalid;
+use super::records::Library;
 use super::{MAGIC, VERSION};
 use crate::crc::crc32;
-use crate::error::LoadError;
 use std::ops::Range;
 
-const HEADER_LEN: usize = 16;
-const ENTRY_LEN: usize = 24;
+pub(super) const HEADER_LEN: usize = 16;
+pub(super) const ENTRY_LEN: usize = 24;
 /// Sections, in the order they are written. A reader ignores tags it does not know.
-const WORLD: [u8; 4] = *b"WRLD";
-const PATCHES: [u8; 4] = *b"PTCH";
-const STANDERS: [u8; 4] = *b"STND";
-const CROSSINGS: [u8; 4] = *b"CROS";
-const TRAJECTORIES: [u8; 4] = *b"TRAJ";
-const POINTS: [u8; 4] = *b"PNTS";
-const CHARACTERS: [u8; 4] = *b"CHAR";
+pub(super) const WORLD: [u8; 4] = *b"WRLD";
+pub(super) const PATCHES: [u8; 4] = *b"PTCH";
+pub(super) const STANDERS: [u8; 4] = *b"STND";
+pub(super) const CROSSINGS: [u8; 4] = *b"CROS";
+pub(super) const TRAJECTORIES: [u8; 4] = *b"TRAJ";
+pub(super) const POINTS: [u8; 4] = *b"PNTS";
+pub(super) const CHARACTERS: [u8; 4] = *b"CHAR";
 /// Optional: how fast characters turn (one `f32`, degrees a second).
-const TURN: [u8; 4] = *b"TURN";
+pub(super) const TURN: [u8; 4] = *b"TURN";
 /// The turn rates a library may ask for, degrees a second (`export.turn_rate_deg_s`'s range).
 pub const TURN_RATES_DEG_S: std::ops::RangeInclusive<f32> = 30.0..=3600.0;
 
@@ -170,157 +166,6 @@ impl Library {
         }
         Ok(())
     }
-
-    /// Reads and checks a library. Nothing in `bytes` is trusted: every count is bounded by
-    /// the bytes that hold it, every index is checked, every character's loop is walked.
-    pub fn from_bytes(bytes: &[u8]) -> Result<Library, LoadError> {
-        let header = slice(bytes, 0, HEADER_LEN as u64, "the header")?;
-        if header[..8] != MAGIC {
-            return Err(LoadError::BadMagic);
-        }
-        let version = le_u32(&header[8..12]);
-        if version != VERSION {
-            return Err(LoadError::UnsupportedVersion(version));
-        }
-        let count = u64::from(le_u32(&header[12..16]));
-        let table = slice(
-            bytes,
-            HEADER_LEN as u64,
-            count * ENTRY_LEN as u64,
-            "the section table",
-        )?;
-        let section = |tag: [u8; 4], name: &'static str| -> Result<&[u8], LoadError> {
-            let entry = table
-                .chunks_exact(ENTRY_LEN)
-                .find(|e| e[..4] == tag)
-                .ok_or(LoadError::MissingSection(name))?;
-            let crc = le_u32(&entry[4..8]);
-            let offset = le_u64(&entry[8..16]);
-            let len = le_u64(&entry[16..24]);
-            let body = slice(bytes, offset, len, name)?;
-            // Fuzzing builds skip the checksum, so that mutated bytes reach the checks behind
-            // it (a corrupted file must be refused by those too; the property test in
-            // tests/export.rs recomputes checksums for the same reason).
-            if cfg!(not(fuzzing)) && crc32(body) != crc {
-                return Err(LoadError::Checksum { section: name });
-            }
-            Ok(body)
-        };
-        let w = section(WORLD, "WRLD")?;
-        if w.len() != 36 {
-            return Err(invalid("WRLD", 0, "36 bytes"));
-        }
-        let world = World {
-            patch_side_m: le_f32(&w[0..4]),
-            period_ticks: le_u32(&w[4..8]),
-            radius_m: le_f32(&w[8..12]),
-            cols: le_u32(&w[12..16]),
-            rows: le_u32(&w[16..20]),
-            seed: le_u64(&w[20..28]),
-            input_hash: w[28..36].try_into().expect("8 bytes"),
-            turn_rate_deg_s: turn_rate(table, &section)?,
-        };
-        let finite_positive = |v: f32| v.is_finite() && v > 0.0;
-        if !finite_positive(world.patch_side_m) || !finite_positive(world.radius_m) {
-            return Err(invalid(
-                "WRLD",
-                0,
-                "a finite, positive patch side and radius",
-            ));
-        }
-        if world.period_ticks == 0 {
-            return Err(invalid("WRLD", 0, "a period of at least one tick"));
-        }
-        let patches: Vec<Patch> = records(section(PATCHES, "PTCH")?, 24, "PTCH", |r| Patch {
-            col: le_u32(&r[0..4]),
-            row: le_u32(&r[4..8]),
-            first_trajectory: le_u32(&r[8..12]),
-            trajectories: le_u32(&r[12..16]),
-            first_stander: le_u32(&r[16..20]),
-            standers: le_u32(&r[20..24]),
-        })?;
-        let standers: Vec<Point> = records(section(STANDERS, "STND")?, 4, "STND", |r| Point {
-            x: le_u16(&r[0..2]),
-            y: le_u16(&r[2..4]),
-            t: 0,
-        })?;
-        let crossings: Vec<Crossing> =
-            records(section(CROSSINGS, "CROS")?, 28, "CROS", |r| Crossing {
-                from_patch: le_u32(&r[0..4]),
-                to_patch: le_u32(&r[4..8]),
-                x: le_f32(&r[8..12]),
-                y: le_f32(&r[12..16]),
-                t: le_u32(&r[16..20]),
-                vx: le_f32(&r[20..24]),
-                vy: le_f32(&r[24..28]),
-            })?;
-        let trajectories: Vec<Trajectory> =
-            records(section(TRAJECTORIES, "TRAJ")?, 28, "TRAJ", |r| Trajectory {
-                patch: le_u32(&r[0..4]),
-                entry: le_u32(&r[4..8]),
-                exit: le_u32(&r[8..12]),
-                next: le_u32(&r[12..16]),
-                first_point: le_u32(&r[16..20]),
-                points: le_u32(&r[20..24]),
-                start: le_u32(&r[24..28]),
-            })?;
-        let points: Vec<Point> = records(section(POINTS, "PNTS")?, 8, "PNTS", |r| Point {
-            x: le_u16(&r[0..2]),
-            y: le_u16(&r[2..4]),
-            t: le_u32(&r[4..8]),
-        })?;
-        let characters: Vec<Character> =
-            records(section(CHARACTERS, "CHAR")?, 12, "CHAR", |r| Character {
-                first_trajectory: le_u32(&r[0..4]),
-                trajectories: le_u32(&r[4..8]),
-                laps: le_u32(&r[8..12]),
-            })?;
-        let lib = Library {
-            world,
-            patches,
-            standers,
-            crossings,
-            trajectories,
-            points,
-            characters,
-        };
-        lib.validate()?;
-        Ok(lib)
-    }
-}
-
-fn slice<'a>(
-    bytes: &'a [u8],
-    offset: u64,
-    len: u64,
-    what: &'static str,
-) -> Result<&'a [u8], LoadError> {
-    let end = offset.checked_add(len);
-    match end {
-        Some(end) if end <= bytes.len() as u64 => Ok(&bytes[offset as usize..end as usize]),
-        _ => Err(LoadError::Truncated {
-            what,
-            offset,
-            needed: len,
-        }),
-    }
-}
-
-/// Fixed-size records: as many as the bytes hold, never more.
-fn records<T>(
-    body: &[u8],
-    size: usize,
-    section: &'static str,
-    read: impl Fn(&[u8]) -> T,
-) -> Result<Vec<T>, LoadError> {
-    if !body.len().is_multiple_of(size) {
-        return Err(invalid(
-            section,
-            (body.len() / size) as u64,
-            "whole records",
-        ));
-    }
-    Ok(body.chunks_exact(size).map(read).collect())
 }
 
 fn put_u32(out: &mut Vec<u8>, v: u32) {
@@ -406,43 +251,4 @@ fn write_characters(lib: &Library, run: Range<usize>, w: &mut Vec<u8>) {
 
 fn put_f32(out: &mut Vec<u8>, v: f32) {
     out.extend_from_slice(&v.to_le_bytes());
-}
-
-fn le_u16(b: &[u8]) -> u16 {
-    u16::from_le_bytes([b[0], b[1]])
-}
-
-fn le_u32(b: &[u8]) -> u32 {
-    u32::from_le_bytes([b[0], b[1], b[2], b[3]])
-}
-
-fn le_u64(b: &[u8]) -> u64 {
-    let mut a = [0u8; 8];
-    a.copy_from_slice(&b[..8]);
-    u64::from_le_bytes(a)
-}
-
-fn le_f32(b: &[u8]) -> f32 {
-    f32::from_bits(le_u32(b))
-}
-
-/// The `TURN` section's rate, or the default when the library has none (it is optional:
-/// libraries written before it play with the default).
-fn turn_rate<'a>(
-    table: &[u8],
-    section: &impl Fn([u8; 4], &'static str) -> Result<&'a [u8], LoadError>,
-) -> Result<f32, LoadError> {
-    if !table.chunks_exact(ENTRY_LEN).any(|e| e[..4] == TURN) {
-        return Ok(crate::turn::DEFAULT_TURN_RATE_DEG_S as f32);
-    }
-    let body = section(TURN, "TURN")?;
-    let rate = (body.len() == 4).then(|| le_f32(body));
-    match rate {
-        Some(r) if TURN_RATES_DEG_S.contains(&r) => Ok(r),
-        _ => Err(invalid(
-            "TURN",
-            0,
-            "4 bytes: a turn rate in degrees a second from 30 to 3600",
-        )),
-    }
 }

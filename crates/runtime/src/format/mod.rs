@@ -1,12 +1,16 @@
 //! The library's bytes (`FORMAT.md`): a header, a section table, packed little-endian records.
 //! [`Library::to_bytes`] writes them (stage 8 calls it); [`Library::from_bytes`] reads and
-//! checks them without trusting anything.
+//! checks them without trusting anything, and [`Library::read_from`] reads a file so, a piece
+//! at a time.
 //!
 //! - `records.rs`: the records (`World`, `Patch`, `Point`, ...) and `Library`, what they mean;
 //! - `container.rs`: the header, the section table with its checksums, each record's bytes;
+//! - `read.rs`: those read back from bytes or from a file, every slice bounded and checksum
+//!   checked;
 //! - `rules.rs`: every rule a loaded library must keep, which the sampler relies on.
 
 mod container;
+mod read;
 mod records;
 mod rules;
 
