@@ -298,22 +298,23 @@ pub fn decode_crossings(path: &std::path::Path, bytes: &[u8]) -> Result<Vec<Cros
     if bytes.len() != 12 + n * RECORD {
         return Err(bad(format!("{} bytes for {n} crossings", bytes.len())));
     }
-    bytes[12..]
-        .chunks_exact(RECORD)
-        .map(|r| {
-            let f = |k: usize| f64::from_le_bytes(r[5 + 8 * k..13 + 8 * k].try_into().unwrap());
-            let way = match r[4] {
-                0 => Way::AToB,
-                1 => Way::BToA,
-                w => return Err(bad(format!("way {w}"))),
-            };
-            Ok(Crossing {
-                border: u32::from_le_bytes(r[..4].try_into().unwrap()),
-                way,
-                s: f(0),
-                t: f(1),
-                velocity: DVec2::new(f(2), f(3)),
-            })
-        })
-        .collect()
+    // At its size (the count was checked against the bytes above): collected from results,
+    // the list grew by doubling, 0.17 GB for the million's 0.1 GB of crossings.
+    let mut crossings = Vec::with_capacity(n);
+    for r in bytes[12..].chunks_exact(RECORD) {
+        let f = |k: usize| f64::from_le_bytes(r[5 + 8 * k..13 + 8 * k].try_into().unwrap());
+        let way = match r[4] {
+            0 => Way::AToB,
+            1 => Way::BToA,
+            w => return Err(bad(format!("way {w}"))),
+        };
+        crossings.push(Crossing {
+            border: u32::from_le_bytes(r[..4].try_into().unwrap()),
+            way,
+            s: f(0),
+            t: f(1),
+            velocity: DVec2::new(f(2), f(3)),
+        });
+    }
+    Ok(crossings)
 }

@@ -327,8 +327,17 @@ pub fn character_headings(lib: &crate::Library, ch: &crate::Character) -> PointH
         (headings_from(&times, &directions, rate), walking)
     } else {
         // A long loop's keys made a window of runs at a time, each lap (the million's longest
-        // has 36 million keys: its lists held 25 bytes a key beside the headings).
-        streamed_headings(lib, &legs, (&runs, keys, pieces), rate, WINDOW_RUNS)
+        // has 36 million keys: its lists held 25 bytes a key beside the headings); its
+        // headings made with room for every point, which they are spread to below (grown
+        // there, the longest loop's were copied, 0.29 GB twice over).
+        let points = legs.iter().map(|l| l.points as usize).sum();
+        streamed_headings(
+            lib,
+            &legs,
+            (&runs, keys, pieces),
+            (rate, points),
+            WINDOW_RUNS,
+        )
     };
     PointHeadings {
         heading: key_headings_at_points(h, &legs),
@@ -529,12 +538,13 @@ fn each_run_keys(
 /// [`headings_from`] of a loop's keys made a window of runs at a time, never all at once: a
 /// first walk through finds where each run first walks (what a standing piece turns towards
 /// may be runs ahead) and the walk flags, then each lap makes the keys again. The same bits
-/// as [`headings_from`] of [`loop_keys`], with the walk flags.
+/// as [`headings_from`] of [`loop_keys`], with the walk flags; the headings' list has room
+/// for `room` of them.
 fn streamed_headings(
     lib: &crate::Library,
     legs: &[Leg],
     runs: (&[Run], usize, usize),
-    rate: f64,
+    (rate, room): (f64, usize),
     window: usize,
 ) -> (Vec<f64>, Vec<bool>) {
     let (list, n, pieces) = runs;
@@ -572,7 +582,8 @@ fn streamed_headings(
             first_walk_t + length,
         ))
     };
-    let mut h = vec![0.0; n];
+    let mut h = Vec::with_capacity(room.max(n));
+    h.resize(n, 0.0);
     // A lap as `headings_from`'s, piece by piece through the runs' keys.
     let lap = |h: &mut [f64], h0: f64, again: bool| {
         h[0] = h0;
@@ -1078,7 +1089,8 @@ mod tests {
             let h = headings_from(&at_once.times, &at_once.directions, rate);
             let bits = |v: &[f64]| v.iter().map(|a| a.to_bits()).collect::<Vec<u64>>();
             for window in [1, 2, 3, 64] {
-                let (streamed, walking) = streamed_headings(&lib, &legs_of, runs, rate, window);
+                let (streamed, walking) =
+                    streamed_headings(&lib, &legs_of, runs, (rate, 0), window);
                 let case = format!("{legs} legs, {still} still, rate {rate}, window {window}");
                 assert_eq!(walking, at_once.walking, "{case}");
                 assert_eq!(bits(&streamed), bits(&h), "{case}");
