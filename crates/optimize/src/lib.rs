@@ -402,8 +402,12 @@ fn gather(
         standers: 0,
     };
     let mut measured = vec![unmeasured; graph.patches.len()];
-    let mut crossings: Vec<Crossing> = seams.into_iter().flatten().collect();
-    let seam_count = crossings.len() as u64;
+    // At its size: grown by doubling, the million's 0.1 GB of crossings took 0.17 GB.
+    let seam_count: usize = seams.iter().map(Vec::len).sum();
+    let total = seam_count + regions.iter().map(|r| r.1.crossings.len()).sum::<usize>();
+    let mut crossings: Vec<Crossing> = Vec::with_capacity(total);
+    crossings.extend(seams.into_iter().flatten());
+    let seam_count = seam_count as u64;
     let steps = regions.iter().map(|r| r.1.log.len()).max().unwrap_or(1);
     let mut log = vec![Sums::default(); steps];
     let (mut iterations, mut converged, mut reused) = (0, true, 0);
