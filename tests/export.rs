@@ -666,3 +666,31 @@ fn a_library_read_from_a_file_is_the_library_of_its_bytes() {
     );
     assert!(err.to_string().contains("cannot be read"), "{err}");
 }
+
+/// A section one byte short of whole records is refused for its checksum first, then (with the
+/// checksum made right) for its records, whichever way the library is read.
+#[test]
+fn a_section_of_part_of_a_record_is_refused_the_same_way_from_a_file() {
+    let mut bytes = bands_library().clone();
+    let count = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
+    let entry = (0..count)
+        .map(|e| 16 + 24 * e)
+        .find(|&at| &bytes[at..at + 4] == b"PNTS")
+        .expect("a PNTS entry");
+    let len = u64::from_le_bytes(bytes[entry + 16..entry + 24].try_into().unwrap());
+    bytes[entry + 16..entry + 24].copy_from_slice(&(len - 1).to_le_bytes());
+    let both = |bytes: &[u8]| {
+        let loaded = Library::from_bytes(bytes);
+        assert_eq!(Library::read_from(std::io::Cursor::new(bytes)), loaded);
+        loaded.expect_err("part of a record is no library")
+    };
+    use crowd_runtime::LoadError;
+    assert_eq!(both(&bytes), LoadError::Checksum { section: "PNTS" });
+    let whole = len / 8 - 1;
+    let invalid = LoadError::Invalid {
+        section: "PNTS",
+        index: whole,
+        expected: "whole records",
+    };
+    assert_eq!(both(&with_fresh_checksums(bytes)), invalid);
+}
