@@ -387,7 +387,7 @@ fn optimize(a: &mut Artifacts, out: &Path, hash: Hash, ui: &Ui) -> Result<Ran> {
         crate::warnings::no_walker(&graph, a.pipeline)?;
     }
     // The regions' cache first, then the regions let go before the patterns are encoded:
-    // the million's shard held both at stage 3's peak (0.6 GB; 0.5 GB so).
+    // the million's shard held both at stage 3's peak (0.69 GB; 0.62-0.66 GB so).
     let regions = crowd_optimize::encode_regions(out, &outcome.solved);
     drop(std::mem::take(&mut outcome.solved));
     let (patterns, mut writes) = crowd_optimize::encode(out, &outcome, &s, hash);
