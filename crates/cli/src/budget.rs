@@ -17,21 +17,22 @@
 //!
 //! A build split over processes is sized by its part (2026-12-06, the largest stage peak of
 //! `timings.ron`, release; not `/usr/bin/time`'s, which is the last stage's since the build
-//! resets the peak at each stage): a shard holds its stage 3 of the world, the regions put
-//! together (900 bytes a walker) or, with the world one region, solved (6.3 kB a walker), and
-//! a little of its own patches (500 bytes a walker: it matches, clears and smooths them a
-//! patch at a time, and streams its parts); a gather holds what its check judges.
-//! Its check takes a large world a strip and a part at a time (about 3 kB a walker), but one
-//! whose stage 6 side file is under a gibibyte (about 244,000 walkers) in its three forms at
-//! once, for speed (12.5 kB a walker).
+//! resets the peak at each stage): a shard holds its stage 3 of the world, the regions taken
+//! from the shards' parts and put together (700 bytes a walker) or, with the world one region,
+//! solved (6.3 kB a walker), and a little of its own patches (500 bytes a walker: it matches,
+//! clears and smooths them a patch at a time, and streams its parts); a gather holds what its
+//! export and check do: the library and as much again (about 2.3 kB a walker), but a world
+//! whose stage 6 side file is under a gibibyte (about 244,000 walkers) is checked in its three
+//! forms at once, for speed (12.5 kB a walker). The million's rows were measured again after
+//! issue 20's twelfth part (BENCHMARKS.md).
 //!
 //! | build | walkers | peak measured | estimate |
 //! | --- | ---: | ---: | ---: |
 //! | painting (one region), a shard of 4 (`--threads 1`) | 95,000 | 599 MB | 650 MB |
 //! | painting (one region), a shard of 8 | 95,000 | 596-599 MB | 644 MB |
-//! | the million (regions of 16), a shard of 8 | 1,016,000 | 661-775 MB | 1.02 GB |
+//! | the million (regions of 16), a shard of 8 | 1,016,000 | 681-693 MB | 0.82 GB |
 //! | painting, the gather of 4 shards | 95,000 | 1.14-1.17 GB | 1.23 GB |
-//! | the million, the gather of 8 shards | 1,016,000 | 2.52-2.66 GB | 3.09 GB |
+//! | the million, the gather of 8 shards | 1,016,000 | 2.05-2.11 GB | 2.38 GB |
 //!
 //! A build that stops early (`--until`, or a shard's regions step) holds only what its last
 //! stage does of the world (the million's stages on one thread, `timings.ron`, 2026-12-06):
@@ -63,10 +64,13 @@ const UNTIL_MATCH_PER_WALKER: f64 = 1250.0;
 /// (the world's problem solved at once).
 const STAGE3_REGIONS_PER_WALKER: f64 = 900.0;
 const STAGE3_ONE_REGION_PER_WALKER: f64 = 6.3e3;
+/// A shard's stage 3 in its patches' step, bytes per walker of the world: every region taken
+/// from the shards' parts and put together.
+const SHARD_STAGE3_PER_WALKER: f64 = 700.0;
 /// A shard's peak bytes per walker of its own (its patches' stages 4 to 6), beside its stage 3.
 const SHARD_PER_OWN_WALKER: f64 = 500.0;
 /// A gather's peak bytes per walker, when its check takes the world a strip at a time.
-const GATHER_PER_WALKER: f64 = 3e3;
+const GATHER_PER_WALKER: f64 = 2.3e3;
 /// A gather's peak bytes per walker, when its check judges the world's three forms at once.
 const GATHER_PER_WALKER_AT_ONCE: f64 = 12.5e3;
 /// The walkers of the largest world whose check judges its three forms at once (its stage 6
@@ -88,10 +92,18 @@ pub fn estimate(pipeline: &PipelineFile, split: Split, last: u8) -> f64 {
         (_, 3) => stage3,
         (Split::Whole, 4) => stage3.max(w * UNTIL_MATCH_PER_WALKER),
         (Split::Whole, _) => w * PER_WALKER,
-        (Split::Shard(shard), _) => stage3 + w / f64::from(shard.count()) * SHARD_PER_OWN_WALKER,
-        (Split::Gather, _) => {
-            (w.min(AT_ONCE_WALKERS) * GATHER_PER_WALKER_AT_ONCE).max(w * GATHER_PER_WALKER)
+        (Split::Shard(shard), _) => {
+            let stage3 = match p.optimize.region_patches {
+                Some(_) => w * SHARD_STAGE3_PER_WALKER,
+                None => stage3,
+            };
+            stage3 + w / f64::from(shard.count()) * SHARD_PER_OWN_WALKER
         }
+        // A larger world's check goes a strip at a time, and holds less than the largest one
+        // judged at once: the million's gather took 2.1 GB, under the 3.05 GB estimated for a
+        // world of 244,000 walkers checked at once.
+        (Split::Gather, _) if w <= AT_ONCE_WALKERS => w * GATHER_PER_WALKER_AT_ONCE,
+        (Split::Gather, _) => w * GATHER_PER_WALKER,
     };
     BASE + held * per_period
 }
@@ -301,9 +313,9 @@ mod tests {
         for (walkers, split, measured) in [
             (95_000, shard(0, 4), 599e6),
             (95_000, shard(7, 8), 599e6),
-            (1_016_000, shard(3, 8), 775e6),
+            (1_016_000, shard(3, 8), 693e6),
             (95_000, Split::Gather, 1.17e9),
-            (1_016_000, Split::Gather, 2.71e9),
+            (1_016_000, Split::Gather, 2.11e9),
         ] {
             let f = pipeline(walkers, (walkers > 100_000).then_some(16));
 
