@@ -361,15 +361,10 @@ fn a_slow_walker_s_small_jump_is_a_jump_whoever_else_runs() {
 /// on an entry), and standing for a trajectory that never moves.
 #[test]
 fn a_trajectory_s_ends_from_its_end_points_are_its_whole_path_s() {
-    let repeated = vec![
-        (4.0, 1.0, 0.0),
-        (4.0, 1.0, 0.0),
-        (7.0, 1.0, 2.5),
-        (7.0, 7.0, 7.5),
-        (1.0, 7.0, 12.5),
-        (4.0, 1.0, 20.0),
-        (4.0, 1.0, 20.0),
-    ];
+    // The square walked from a split point at its entry to one at its exit.
+    let mut repeated = square(17.5);
+    repeated.insert(0, repeated[0]);
+    repeated.push(repeated[repeated.len() - 1]);
     let standing = vec![(2.0, 2.0, 0.0), (2.0, 2.0, 20.0)];
     let still = vec![(5.0, 5.0, 0.0), (5.0, 5.0, 0.0), (5.0, 5.0, 20.0)];
     let ways = [
