@@ -176,3 +176,47 @@ fn a_product_changed_after_the_build_fails_check_and_inspect() {
         "{err}"
     );
 }
+
+/// The library judged from its file a part at a time (runs of trajectories, patches and loops
+/// of a few thousand points, `crowd check` of a large library) comes to the same figures and
+/// the same memo as the library judged whole in memory; and judged again from the file with
+/// that memo, it plays and pairs nothing again.
+#[test]
+fn a_library_judged_from_its_file_a_part_at_a_time_is_judged_as_in_memory() {
+    use crowd_check::library::{InFile, Inputs, Source, figures_memo, judge};
+    use crowd_check::memo::{Memo, Recalled};
+    for name in ["city", "ring"] {
+        let dir = scene(name);
+        let path = dir.join("library.crowd");
+        let lib = crowd_runtime::Library::from_bytes(&std::fs::read(&path).unwrap()).unwrap();
+        let graph = crowd_core::PatchGraph::load(&dir.join("graph.ron")).unwrap();
+        let walls = crowd_check::walls(&graph);
+        let inputs = Inputs {
+            walls: &walls,
+            speed_limit_m_s: 1.8 * 1.05,
+            sample_step_s: Some(0.02),
+        };
+        let whole = figures_memo(&lib, &inputs, &Recalled::default());
+        let memo_bytes = |part| Memo::of(None, Some(part)).to_bytes();
+        let (figures, memo) = (whole.figures, memo_bytes(whole.memo));
+        for budget in [1 << 12, 1 << 15] {
+            let file = crowd_runtime::LibraryFile::open(std::fs::File::open(&path).unwrap());
+            let src = InFile {
+                file: file.unwrap(),
+                budget,
+            };
+            assert!(src.points() > 4 * budget, "{name}: more than a few parts");
+            let parts = judge(&src, &inputs, &Recalled::default()).unwrap();
+            assert_eq!(parts.figures, figures, "{name}, {budget} points at a time");
+            assert_eq!(
+                memo_bytes(parts.memo),
+                memo,
+                "{name}, {budget} points at a time"
+            );
+            let recalled = Memo::from_bytes(&memo).unwrap().recall();
+            let again = judge(&src, &inputs, &recalled).unwrap();
+            assert_eq!((again.redone, again.replayed), (0, 0), "{name}");
+            assert_eq!(again.figures, figures, "{name}");
+        }
+    }
+}

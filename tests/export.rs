@@ -3,7 +3,7 @@
 
 use crate::util::*;
 use crowd_core::trajectories::TrajectoriesFile;
-use crowd_runtime::{Library, Sample, Sampler, TICK_S};
+use crowd_runtime::{Library, LibraryFile, Sample, Sampler, TICK_S};
 use proptest::prelude::*;
 use std::path::Path;
 use std::sync::OnceLock;
@@ -185,6 +185,94 @@ fn a_frame_is_the_same_whether_time_ran_forward_to_it_or_jumped_there() {
     assert!(a.iter().zip(&b).all(|(x, y)| x == y), "the same samples");
 }
 
+/// A library opened on its file plays a run of its loops, read alone ([`LibraryFile::loops`]),
+/// to the bit as the whole library plays those walkers; and that run is a library the runtime
+/// loads as it is.
+#[test]
+fn a_run_of_loops_read_from_the_file_plays_as_the_whole_library_plays_them() {
+    let lib = library(scene("city"));
+    let bytes = std::fs::read(scene("city").join("library.crowd")).unwrap();
+    let file = LibraryFile::open(std::io::Cursor::new(&bytes)).expect("city's library opens");
+    let n = lib.characters.len();
+    let firsts: Vec<u32> = (lib.characters.iter())
+        .scan(0, |next, ch| {
+            let first = *next;
+            *next += ch.laps;
+            Some(first)
+        })
+        .collect();
+    let mut all = Sampler::new(&lib);
+    let (mut a, mut b) = (Vec::new(), Vec::new());
+    for run in [0..n / 3, n / 3..n / 3 + 1, n / 3 + 1..n] {
+        let part = file.loops(run.clone()).expect("city's loops read");
+        assert_eq!(
+            part,
+            lib.loops(run.clone()),
+            "read from the file as from memory"
+        );
+        assert_eq!(Library::from_bytes(&part.to_bytes()).as_ref(), Ok(&part));
+        assert_eq!(
+            part.walkers(),
+            lib.characters[run.clone()]
+                .iter()
+                .map(|c| u64::from(c.laps))
+                .sum::<u64>()
+        );
+        let first = firsts[run.start];
+        let mut played = Sampler::new(&part);
+        for t in (0..300).map(|f| f as f64 / 10.0).chain([1e3]) {
+            all.sample(t, EVERYWHERE, &mut a);
+            played.sample(t, EVERYWHERE, &mut b);
+            assert_eq!(b.len() as u64, part.walkers(), "no standers: t = {t}");
+            for s in &b {
+                let whole = a[(first + s.id) as usize];
+                assert_eq!(
+                    (s.x, s.y, s.heading),
+                    (whole.x, whole.y, whole.heading),
+                    "t = {t}"
+                );
+            }
+        }
+    }
+}
+
+/// A library opened on its file ([`LibraryFile::open`]) holds the records of the library of
+/// its bytes but the points, and reads each trajectory's points as they are there; or it is
+/// refused with the same error.
+pub(crate) fn assert_opened_alike(
+    bytes: &[u8],
+    loaded: &Result<Library, crowd_runtime::LoadError>,
+) {
+    match (LibraryFile::open(std::io::Cursor::new(bytes)), loaded) {
+        (Err(e), Err(l)) => assert_eq!(&e, l),
+        (Ok(file), Ok(lib)) => {
+            let index = Library {
+                points: Vec::new(),
+                ..lib.clone()
+            };
+            assert_eq!(file.index(), &index);
+            let n = lib.trajectories.len();
+            let window = file.window(0..n).expect("its points read");
+            for (i, t) in lib.trajectories.iter().enumerate() {
+                assert_eq!(window.points_of(i, t), Some(lib.points_of(t)));
+            }
+            let half = file.window(n / 2..n).expect("half its points read");
+            assert_eq!(
+                half.points_of(0, &lib.trajectories[0]),
+                None.filter(|_| n > 1)
+            );
+            let part = file.loops(0..lib.characters.len()).expect("its loops read");
+            assert_eq!(part.walkers(), lib.walkers());
+            assert_eq!(Library::from_bytes(&part.to_bytes()).as_ref(), Ok(&part));
+        }
+        (opened, loaded) => panic!(
+            "opened {:?}, loaded {:?}",
+            opened.map(|_| ()),
+            loaded.as_ref().map(|_| ())
+        ),
+    }
+}
+
 /// `Sampler::playing` (what `crowd check` plays again after a brush stroke) places each of its
 /// walkers to the bit where `Sampler::new` places it, frame after frame and after a jump.
 #[test]
@@ -316,6 +404,7 @@ proptest! {
         // Read from a file a piece at a time: the same library, or the same error.
         let read = Library::read_from(std::io::Cursor::new(&bytes));
         prop_assert_eq!(&read, &loaded);
+        assert_opened_alike(&bytes, &loaded);
         if let Ok(lib) = loaded {
             let mut s = Sampler::new(&lib);
             let mut out = Vec::new();
@@ -659,12 +748,59 @@ fn a_library_read_from_a_file_is_the_library_of_its_bytes() {
         }
     }
     let failing = Failing(std::io::Cursor::new(bytes), bytes.len() as u64 / 2);
+    let opened = LibraryFile::open(Failing(std::io::Cursor::new(bytes), bytes.len() as u64 / 2));
+    assert_eq!(
+        opened.map(|_| ()),
+        Err(crowd_runtime::LoadError::Read(std::io::ErrorKind::Other))
+    );
     let err = Library::read_from(failing).expect_err("half a file is no library");
     assert_eq!(
         err,
         crowd_runtime::LoadError::Read(std::io::ErrorKind::Other)
     );
     assert!(err.to_string().contains("cannot be read"), "{err}");
+}
+
+/// A library opened on its file reads its points when asked: if the file changed meanwhile
+/// under a trajectory, that trajectory's points are refused by name, never played.
+#[test]
+fn points_changed_in_the_file_after_it_was_opened_are_refused() {
+    use std::io::{Seek, SeekFrom, Write};
+    let bytes = bands_library();
+    let lib = Library::from_bytes(bytes).expect("bands' library loads");
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("library.crowd");
+    std::fs::write(&path, bytes).unwrap();
+    let file = LibraryFile::open(std::fs::File::open(&path).unwrap()).expect("it opens");
+    let n = lib.trajectories.len();
+    assert!(file.window(0..n).is_ok());
+    // Trajectory 1's last point made earlier than the one before it.
+    let count = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
+    let entry = (0..count)
+        .map(|e| 16 + 24 * e)
+        .find(|&at| &bytes[at..at + 4] == b"PNTS")
+        .expect("a PNTS entry");
+    let at = u64::from_le_bytes(bytes[entry + 8..entry + 16].try_into().unwrap());
+    let t = &lib.trajectories[1];
+    let last = u64::from(t.first_point + t.points - 1);
+    let mut f = std::fs::OpenOptions::new().write(true).open(&path).unwrap();
+    f.seek(SeekFrom::Start(at + last * 8 + 4)).unwrap();
+    f.write_all(&0u32.to_le_bytes()).unwrap();
+    drop(f);
+    let refused = crowd_runtime::LoadError::Invalid {
+        section: "PNTS",
+        index: 1,
+        expected: "the points its trajectory had when the library was opened",
+    };
+    assert_eq!(file.window(0..n), Err(refused.clone()));
+    assert_eq!(
+        file.loops(0..lib.characters.len()).map(|_| ()),
+        Err(refused)
+    );
+    assert!(
+        file.window(2..n).is_ok(),
+        "the other trajectories read as before"
+    );
 }
 
 /// A section one byte short of whole records is refused for its checksum first, then (with the
@@ -682,6 +818,7 @@ fn a_section_of_part_of_a_record_is_refused_the_same_way_from_a_file() {
     let both = |bytes: &[u8]| {
         let loaded = Library::from_bytes(bytes);
         assert_eq!(Library::read_from(std::io::Cursor::new(bytes)), loaded);
+        assert_opened_alike(bytes, &loaded);
         loaded.expect_err("part of a record is no library")
     };
     use crowd_runtime::LoadError;

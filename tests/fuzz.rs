@@ -342,6 +342,7 @@ fn any_library_is_loaded_or_refused_without_a_panic() {
         let loaded = crowd_runtime::Library::from_bytes(&b);
         let read = crowd_runtime::Library::read_from(std::io::Cursor::new(&b));
         assert_eq!(read, loaded, "read from a file, as from its bytes");
+        crate::export::assert_opened_alike(&b, &loaded);
         if let Ok(lib) = loaded {
             let mut sampler = crowd_runtime::Sampler::new(&lib);
             let mut out = Vec::new();

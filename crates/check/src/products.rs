@@ -215,10 +215,23 @@ impl Tally {
         n: usize,
         path: impl Fn(usize) -> Cow<'p, [(DVec2, f64)]> + Sync,
         limit: f64,
+        timing: (f64, bool),
+        period: f64,
+    ) -> Tally {
+        Tally::default().then_made(n, path, limit, timing, period)
+    }
+
+    /// This tally, then [`Tally::of_made`]'s paths added one after another: the same sums as
+    /// all the paths of both in one tally.
+    pub fn then_made<'p>(
+        self,
+        n: usize,
+        path: impl Fn(usize) -> Cow<'p, [(DVec2, f64)]> + Sync,
+        limit: f64,
         (min_dt, float32): (f64, bool),
         period: f64,
     ) -> Tally {
-        let mut total = Tally::default();
+        let mut total = self;
         for start in (0..n).step_by(PATHS_AT_ONCE) {
             let run = start..(start + PATHS_AT_ONCE).min(n);
             let tallies: Vec<Tally> = run

@@ -122,11 +122,11 @@ pub(crate) fn runs(
 /// strip at a time ([`runs`] of about `budget` pieces) in the scene `scene_of` makes of a strip
 /// and the patches it holds ([`held`], from each patch's `near`: [`within_reach`]); with how
 /// many patches were judged. The stage files' check and the library's share it.
-pub(crate) fn judge_pairs(
+pub(crate) fn judge_pairs<E>(
     mut known: Vec<Option<Pairs>>,
     (extents, near, budget): (&[Extent], &[Vec<u32>], u64),
-    mut scene_of: impl FnMut(&[usize], &[usize]) -> crowd_core::Result<Scene>,
-) -> crowd_core::Result<(Vec<Pairs>, usize)> {
+    mut scene_of: impl FnMut(&[usize], &[usize]) -> Result<Scene, E>,
+) -> Result<(Vec<Pairs>, usize), E> {
     let todo: Vec<usize> = (0..known.len()).filter(|&p| known[p].is_none()).collect();
     for strip in runs(&todo, extents, near, budget) {
         let scene = scene_of(&strip, &held(&strip, near))?;

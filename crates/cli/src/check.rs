@@ -9,6 +9,7 @@ use crate::stage::Stage;
 use crate::stages::{self, GRAPH_FILE, PATTERNS_FILE};
 use crate::ui::Ui;
 use anyhow::{Context, Result, bail};
+use crowd_check::library::{InFile, Source};
 use crowd_check::memo::{Memo, Recalled};
 use crowd_check::{CheckReport, Judged, ProductFigures};
 use crowd_core::config::PipelineFile;
@@ -278,9 +279,13 @@ fn measure(dir: &Path, options: &CheckOptions) -> Result<(CheckReport, Memo, Red
     // one after the other, as together they hold half as much memory again. Since the check
     // takes a strip of the world at a time, painting is small: 11.8 -> 10.8 s at once, 1.0 ->
     // 1.4 GB (it held 2.4 -> 3.5 GB when the stage file was one scene).
+    // A large library is judged from its file, a part of its points at a time.
     let library = |memo: &Recalled| {
-        let lib = loaded.unwrap_or_else(|| load_library(dir))?;
-        Ok::<_, anyhow::Error>(lib.map(|lib| library(&lib, &walls, limit, memo)))
+        match loaded {
+            Some(lib) => lib?.map(|lib| library(dir, &lib, &walls, limit, memo)),
+            None => open_library(dir)?.map(|lib| library(dir, &lib, &walls, limit, memo)),
+        }
+        .transpose()
     };
     let gltf = || gltf(dir, &graph, &walls, limit);
     let (stage, (library, gltf)) = if small {
@@ -422,26 +427,47 @@ fn load_library(dir: &Path) -> Result<Option<crowd_runtime::Library>> {
     Ok(Some(lib))
 }
 
-/// The figures of a library ([`load_library`]).
+/// `library.crowd` opened as the runtime opens it, its points left in the file, when the
+/// folder holds one.
+fn open_library(dir: &Path) -> Result<Option<InFile<std::fs::File>>> {
+    let path = dir.join(LIBRARY_FILE);
+    if !path.exists() {
+        return Ok(None);
+    }
+    let file = std::fs::File::open(&path).with_context(|| format!("{}", path.display()))?;
+    let file = crowd_runtime::LibraryFile::open(file)
+        .with_context(|| format!("{}: the runtime refuses it", path.display()))?;
+    Ok(Some(InFile {
+        file,
+        budget: crowd_check::library::FILE_BUDGET,
+    }))
+}
+
+/// The figures of a library ([`load_library`], [`open_library`]).
 fn library(
-    lib: &crowd_runtime::Library,
+    dir: &Path,
+    src: &impl Source,
     walls: &[crowd_check::Wall],
     limit: f64,
     memo: &Recalled,
-) -> LibraryJudged {
+) -> Result<LibraryJudged> {
     let inputs = crowd_check::library::Inputs {
         walls,
         speed_limit_m_s: limit,
         sample_step_s: Some(SAMPLE_STEP_S),
     };
-    let judged = crowd_check::library::figures_memo(lib, &inputs, memo);
+    let judged = crowd_check::library::judge(src, &inputs, memo).with_context(|| {
+        let path = dir.join(LIBRARY_FILE);
+        format!("{}: the runtime refuses it", path.display())
+    })?;
+    let lib = src.lib();
     let redone = (judged.redone, lib.patches.len());
     let played = (judged.replayed, lib.walkers() as usize);
-    LibraryJudged {
+    Ok(LibraryJudged {
         judged,
         redone,
         played,
-    }
+    })
 }
 
 /// The figures of `world.glb`, when the folder holds one.

@@ -10,10 +10,11 @@
 //! and patch side. The figures are maxima and a count, so the walkers' shares give the same
 //! bits whichever were played again.
 
+use super::Source;
 use crate::memo::Recalled;
 use crate::products::Sampled;
 use crowd_core::Hash;
-use crowd_runtime::{Library, PackedHeadings, Sample, Sampler, TICK_S};
+use crowd_runtime::{Library, LoadError, PackedHeadings, Sample, Sampler, TICK_S};
 use rayon::prelude::*;
 
 /// One walker's share of the sampler's figures over the period.
@@ -59,13 +60,51 @@ const RUNS_PER_THREAD: u64 = 2;
 /// whoever else runs). The frames are played in runs ([`RUNS_PER_THREAD`]), each by its own
 /// sampler, in parallel (the same figures for any thread count: a maximum and a count).
 pub fn sample(lib: &Library, step: f64) -> Sampled {
-    sample_memo(lib, step, &Recalled::default()).sampled
+    let played = sample_memo(lib, step, &Recalled::default());
+    played.expect("a library in memory is at hand").sampled
 }
 
 /// [`sample`], taking from `memo` the share of every walker whose key ([`window_keys`]) it
-/// holds and playing only the others.
-pub(crate) fn sample_memo(lib: &Library, step: f64, memo: &Recalled) -> SampledShares {
-    let frames = (lib.period_s() / step).round().max(1.0) as u64;
+/// holds and playing only the others; a run of loops at a time (the library of those loops
+/// alone, [`Source::loops`]), each walker's share the same as played among all.
+pub(crate) fn sample_memo<S: Source>(
+    src: &S,
+    step: f64,
+    memo: &Recalled,
+) -> Result<SampledShares, LoadError> {
+    let frames = (src.lib().period_s() / step).round().max(1.0) as u64;
+    let mut whole = Played::default();
+    let mut kept = Vec::with_capacity(src.lib().walkers() as usize);
+    let mut replayed = 0;
+    for run in super::source::loop_runs(src.lib(), src.budget()) {
+        let lib = src.loops(run)?;
+        let (shares, played) = sample_loops(&lib, (step, frames), memo);
+        for (_, share) in &shares {
+            whole.merge(share);
+        }
+        kept.extend(shares);
+        replayed += played;
+    }
+    Ok(SampledShares {
+        sampled: Sampled {
+            step_s: step,
+            frames,
+            max_speed_m_s: whole.max_step2.sqrt() / step,
+            jumps: whole.jumps,
+            max_turn_rate_rad_s: Some(whole.max_turn),
+        },
+        kept,
+        replayed,
+    })
+}
+
+/// Each of `lib`'s walkers' share (by its key, in id order) over `frames` frames `step` apart,
+/// from `memo` or played; and how many were played.
+fn sample_loops(
+    lib: &Library,
+    (step, frames): (f64, u64),
+    memo: &Recalled,
+) -> (Vec<([u8; 32], Played)>, usize) {
     let headings = headings(lib);
     let (keys, fastest) = window_keys(lib, &headings, (step, frames));
     let known: Vec<Option<Played>> = keys.iter().map(|k| memo.played(k)).collect();
@@ -84,7 +123,6 @@ pub(crate) fn sample_memo(lib: &Library, step: f64, memo: &Recalled) -> SampledS
         play_all(&sampler, step, &jump2, frames)
     };
     let mut fresh = todo.iter().zip(played);
-    let mut whole = Played::default();
     let kept: Vec<([u8; 32], Played)> = (keys.into_iter().zip(known).enumerate())
         .map(|(w, (key, known))| {
             let share = known.unwrap_or_else(|| {
@@ -92,21 +130,10 @@ pub(crate) fn sample_memo(lib: &Library, step: f64, memo: &Recalled) -> SampledS
                 debug_assert_eq!(id as usize, w);
                 p
             });
-            whole.merge(&share);
             (key, share)
         })
         .collect();
-    SampledShares {
-        sampled: Sampled {
-            step_s: step,
-            frames,
-            max_speed_m_s: whole.max_step2.sqrt() / step,
-            jumps: whole.jumps,
-            max_turn_rate_rad_s: Some(whole.max_turn),
-        },
-        kept,
-        replayed: todo.len(),
-    }
+    (kept, todo.len())
 }
 
 /// The library's headings as the sampler keeps them, made a character per thread (serially

@@ -318,15 +318,15 @@ proptest::proptest! {
         bend in 0.05f64..2.5,
     ) {
         let before = long_loop(12, (0, 0.0));
-        let first = sampled::sample_memo(&before, 0.02, &Recalled::default());
+        let first = sampled::sample_memo(&before, 0.02, &Recalled::default()).unwrap();
         proptest::prop_assert_eq!(first.replayed, 7);
         let memo = memo_of(first.kept);
-        let again = sampled::sample_memo(&before, 0.02, &memo);
+        let again = sampled::sample_memo(&before, 0.02, &memo).unwrap();
         proptest::prop_assert_eq!(again.replayed, 0);
         proptest::prop_assert_eq!(&again.sampled, &first.sampled);
 
         let after = long_loop(12, (at, bend));
-        let played = sampled::sample_memo(&after, 0.02, &memo);
+        let played = sampled::sample_memo(&after, 0.02, &memo).unwrap();
         proptest::prop_assert_eq!(&played.sampled, &sample(&after, 0.02));
         // A lap's 20 s (and the trajectory after) are 4 of the 12 trajectories, 2 on from the
         // lap before's: the bent one and the next (whose first headings it may turn) are in
@@ -374,27 +374,24 @@ fn a_trajectory_s_ends_from_its_end_points_are_its_whole_path_s() {
         round(3, 3, still),
     ];
     let lib = library(1, &ways, &[]);
+    let end_of = |i: usize, last| end_of(&lib, i, lib.points_of(&lib.trajectories[i]), last);
     for i in 0..lib.trajectories.len() {
         let p = path(&lib, i);
         let (first, last) = crate::products::end_velocities(&p, TICK_S);
         assert_eq!(
-            end_of(&lib, i, false),
+            end_of(i, false),
             (p[0].0, first),
             "trajectory {i}'s first end"
         );
         assert_eq!(
-            end_of(&lib, i, true),
+            end_of(i, true),
             (p[p.len() - 1].0, last),
             "trajectory {i}'s last end"
         );
     }
     assert!(
-        end_of(&lib, 0, false).1.length() > 1.0,
+        end_of(0, false).1.length() > 1.0,
         "past the repeated entry, it walks"
     );
-    assert_eq!(
-        end_of(&lib, 3, true).1,
-        DVec2::ZERO,
-        "standing where it entered"
-    );
+    assert_eq!(end_of(3, true).1, DVec2::ZERO, "standing where it entered");
 }

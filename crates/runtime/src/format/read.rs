@@ -21,23 +21,28 @@ impl Library {
         let len = bytes.len() as u64;
         let header = at(bytes, bounded(0, HEADER_LEN as u64, len, "the header")?);
         let table = at(bytes, table_bounds(header, len)?);
-        decode(&mut InMemory { bytes, table })
+        let lib = decode(&mut InMemory { bytes, table }, |src| {
+            src.records((POINTS, "PNTS"), 8, point)
+        })?;
+        lib.validate()?;
+        Ok(lib)
     }
 
     /// [`Library::from_bytes`] of a file, read a section at a time and the large ones a piece
     /// at a time, so that loading holds the library and not its bytes as well (the million's:
     /// 0.9 GB of each). The same library, or the same error, as `from_bytes` of its bytes; a
     /// file that cannot be read is [`LoadError::Read`].
-    pub fn read_from(mut file: impl Read + Seek) -> Result<Library, LoadError> {
-        let len = file.seek(SeekFrom::End(0)).map_err(LoadError::read)?;
-        let header = read_at(&mut file, bounded(0, HEADER_LEN as u64, len, "the header")?)?;
-        let table = read_at(&mut file, table_bounds(&header, len)?)?;
-        decode(&mut FromFile { file, len, table })
+    pub fn read_from(file: impl Read + Seek) -> Result<Library, LoadError> {
+        let lib = decode(&mut FromFile::open(file)?, |src| {
+            src.records((POINTS, "PNTS"), 8, point)
+        })?;
+        lib.validate()?;
+        Ok(lib)
     }
 }
 
 /// Where a library's sections come from.
-trait Sections {
+pub(super) trait Sections {
     /// The section table's bytes.
     fn table(&self) -> &[u8];
 
@@ -79,14 +84,49 @@ impl Sections for InMemory<'_> {
 }
 
 /// A library's file, read as it is decoded.
-struct FromFile<F> {
-    file: F,
-    len: u64,
-    table: Vec<u8>,
+pub(super) struct FromFile<F> {
+    pub file: F,
+    pub len: u64,
+    pub table: Vec<u8>,
+}
+
+impl<F: Read + Seek> FromFile<F> {
+    /// `file`'s header and section table read, ready to decode.
+    pub fn open(mut file: F) -> Result<FromFile<F>, LoadError> {
+        let len = file.seek(SeekFrom::End(0)).map_err(LoadError::read)?;
+        let header = read_at(&mut file, bounded(0, HEADER_LEN as u64, len, "the header")?)?;
+        let table = read_at(&mut file, table_bounds(&header, len)?)?;
+        Ok(FromFile { file, len, table })
+    }
+
+    /// Section `tag` read through for its checksum and checked to hold whole records of
+    /// `size` bytes, as [`Sections::records`] checks it, but nothing kept: where it is.
+    pub fn check_through(
+        &mut self,
+        (tag, name): ([u8; 4], &'static str),
+        size: usize,
+    ) -> Result<std::ops::Range<usize>, LoadError> {
+        let (range, crc) = entry(&self.table, tag, name, self.len)?;
+        self.file
+            .seek(SeekFrom::Start(range.start as u64))
+            .map_err(LoadError::read)?;
+        let mut check = Crc32::new();
+        let mut piece = vec![0; size * PIECE_RECORDS.min(range.len() / size + 1)];
+        let mut left = range.len();
+        while left > 0 {
+            let piece = &mut piece[..left.min(size * PIECE_RECORDS)];
+            self.file.read_exact(piece).map_err(LoadError::read)?;
+            check.update(piece);
+            left -= piece.len();
+        }
+        checked(check, crc, name)?;
+        whole_records(range.len(), size, name)?;
+        Ok(range)
+    }
 }
 
 /// Records read from a file at a time (each piece a whole number of records).
-const PIECE_RECORDS: usize = 1 << 16;
+pub(super) const PIECE_RECORDS: usize = 1 << 16;
 
 impl<F: Read + Seek> Sections for FromFile<F> {
     fn table(&self) -> &[u8] {
@@ -122,8 +162,12 @@ impl<F: Read + Seek> Sections for FromFile<F> {
     }
 }
 
-/// The library in `src`'s sections, checked.
-fn decode(src: &mut impl Sections) -> Result<Library, LoadError> {
+/// The library in `src`'s sections, each checked as it is read (the rules are not: see
+/// [`Library::validate`]), its points as `points` reads them.
+pub(super) fn decode<S: Sections>(
+    src: &mut S,
+    points: impl FnOnce(&mut S) -> Result<Vec<Point>, LoadError>,
+) -> Result<Library, LoadError> {
     let w: Vec<u8> = src.records((WORLD, "WRLD"), 1, |b| b[0])?;
     if w.len() != 36 {
         return Err(invalid("WRLD", 0, "36 bytes"));
@@ -180,11 +224,7 @@ fn decode(src: &mut impl Sections) -> Result<Library, LoadError> {
         points: le_u32(&r[20..24]),
         start: le_u32(&r[24..28]),
     })?;
-    let points = src.records((POINTS, "PNTS"), 8, |r| Point {
-        x: le_u16(&r[0..2]),
-        y: le_u16(&r[2..4]),
-        t: le_u32(&r[4..8]),
-    })?;
+    let points = points(src)?;
     let characters = src.records((CHARACTERS, "CHAR"), 12, |r| Character {
         first_trajectory: le_u32(&r[0..4]),
         trajectories: le_u32(&r[4..8]),
@@ -199,8 +239,16 @@ fn decode(src: &mut impl Sections) -> Result<Library, LoadError> {
         points,
         characters,
     };
-    lib.validate()?;
     Ok(lib)
+}
+
+/// A PNTS record.
+pub(super) fn point(r: &[u8]) -> Point {
+    Point {
+        x: le_u16(&r[0..2]),
+        y: le_u16(&r[2..4]),
+        t: le_u32(&r[4..8]),
+    }
 }
 
 /// The section table's place, from the header: magic and version checked first.

@@ -2,13 +2,45 @@
 //! every index inside its section, every range inside its records, times inside the period,
 //! and every trajectory on exactly one character's loop that closes in its laps x the period.
 
-use super::records::Library;
+use super::records::{Library, Point};
 use super::{MAX_GRID, MAX_PERIODS_PER_TRAJECTORY};
 use crate::error::LoadError;
+
+/// What the rules read of a trajectory's points: whether their times start at 0 and never
+/// decrease, and the last one's.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub(super) struct Shape {
+    pub ordered: bool,
+    pub last: u32,
+}
+
+impl Shape {
+    /// The shape of a trajectory's points (at least one).
+    pub(super) fn of(points: &[Point]) -> Shape {
+        Shape {
+            ordered: points[0].t == 0 && points.windows(2).all(|w| w[1].t >= w[0].t),
+            last: points[points.len() - 1].t,
+        }
+    }
+}
 
 impl Library {
     /// Every rule a sampler relies on.
     pub(super) fn validate(&self) -> Result<(), LoadError> {
+        let shape = |i: usize| Shape::of(self.points_of(&self.trajectories[i]));
+        let last = |i: usize| self.duration_ticks(&self.trajectories[i]);
+        self.validate_with(self.points.len() as u64, shape, last)
+    }
+
+    /// [`Library::validate`] of a library whose `points` are elsewhere: `points` of them in
+    /// all, trajectory `i`'s `shape(i)` and last tick `last(i)` (asked only of a trajectory
+    /// whose points are inside them, and the same as [`Shape::of`] them).
+    pub(super) fn validate_with(
+        &self,
+        points: u64,
+        shape: impl Fn(usize) -> Shape,
+        last: impl Fn(usize) -> u32,
+    ) -> Result<(), LoadError> {
         let w = &self.world;
         if w.cols > MAX_GRID || w.rows > MAX_GRID {
             return Err(invalid("WRLD", 0, "at most 65536 patches across and up"));
@@ -56,25 +88,25 @@ impl Library {
             if !(first..first + u64::from(p.trajectories)).contains(&(i as u64)) {
                 return e("to lie in its patch's range of trajectories");
             }
-            if t.points < 2 || !in_range(t.first_point, t.points, self.points.len()) {
+            if t.points < 2 || u64::from(t.first_point) + u64::from(t.points) > points {
                 return e("at least two points inside PNTS");
             }
             if t.start >= w.period_ticks {
                 return e("a start in [0, period)");
             }
-            let pts = self.points_of(t);
-            if pts[0].t != 0 || pts.windows(2).any(|w| w[1].t < w[0].t) {
+            let shape = shape(i);
+            if !shape.ordered {
                 return e("point times from 0, never decreasing");
             }
             let periods = u64::from(MAX_PERIODS_PER_TRAJECTORY) * u64::from(w.period_ticks);
-            if u64::from(pts[pts.len() - 1].t) > periods {
+            if u64::from(shape.last) > periods {
                 return e("to last at most MAX_PERIODS_PER_TRAJECTORY (64) periods");
             }
             let next = &self.trajectories[t.next as usize];
             if next.entry != t.exit {
                 return e("its next trajectory to enter by its exit");
             }
-            let end = u64::from(t.start) + u64::from(pts[pts.len() - 1].t);
+            let end = u64::from(t.start) + u64::from(shape.last);
             if end % u64::from(w.period_ticks) != u64::from(next.start) {
                 return e("its end, modulo the period, to be its next trajectory's start");
             }
@@ -94,7 +126,7 @@ impl Library {
                 }
                 seen[at] = true;
                 let t = &self.trajectories[at];
-                ticks += u64::from(self.duration_ticks(t));
+                ticks += u64::from(last(at));
                 at = t.next as usize;
             }
             if at != c.first_trajectory as usize {
