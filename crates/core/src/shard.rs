@@ -5,6 +5,7 @@
 use crate::error::{Error, Result};
 use crate::files::{Header, SideFile, Writes};
 use crate::trajectories::{MotionIndex, PatchMotion, encode_motion, encoded_head, encoded_patches};
+use rayon::prelude::*;
 use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
 use std::fmt;
@@ -248,9 +249,18 @@ pub fn gather_encoded<R: DeserializeOwned + Clone>(
     let mut reports = Vec::with_capacity(costs.len());
     let mut parts = Vec::new();
     for_each_part(dir, header, costs, |part: Part<R>, read| {
-        (read.index.decode_all(&read.path, &read.bytes)?)
-            .iter()
-            .for_each(&mut each);
+        // A run of patches decoded at a time, in parallel: a part decoded whole was the
+        // million's smooth gather's peak (0.77 GB beside the part's 0.54 GB of bytes).
+        let patches = read.index.patches();
+        for run in (0..patches).step_by(DECODED_AT_ONCE) {
+            let decoded: Vec<Result<PatchMotion>> = (run..(run + DECODED_AT_ONCE).min(patches))
+                .into_par_iter()
+                .map(|p| read.index.decode(&read.path, &read.bytes, p))
+                .collect();
+            for m in decoded {
+                each(&m?);
+            }
+        }
         out.write(encoded_patches(&read.bytes))?;
         reports.extend(part.reports);
         let side = read.path.with_file_name(&part.motion.file);
@@ -264,6 +274,9 @@ pub fn gather_encoded<R: DeserializeOwned + Clone>(
         motion,
     })
 }
+
+/// Patches of a part [`gather_encoded`] decodes at once.
+const DECODED_AT_ONCE: usize = 256;
 
 /// What [`gather_encoded`] puts together.
 pub struct Gathered<R> {
