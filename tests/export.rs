@@ -317,6 +317,16 @@ fn bytes_of(library: crowd_export::LibraryBytes) -> Vec<u8> {
     match library {
         crowd_export::LibraryBytes::Held(bytes) => bytes,
         crowd_export::LibraryBytes::Records(lib) => lib.to_bytes(),
+        crowd_export::LibraryBytes::Spilled(lib, spilled) => {
+            let mut bytes = Vec::new();
+            let points = |sink: &mut dyn FnMut(&[u8]) -> std::io::Result<()>| spilled.copy_to(sink);
+            lib.write_with_points(spilled.section(), points, |piece| {
+                bytes.extend_from_slice(piece);
+                Ok(())
+            })
+            .expect("the scratch file reads back");
+            bytes
+        }
     }
 }
 
@@ -682,13 +692,25 @@ fn export_made_patch_by_patch_writes_what_export_of_the_held_motion_writes() {
             });
             let part =
                 crowd_export::export(&graph, &crossings, &made, &inputs, hash, RECORDS).unwrap();
+            // A gathering build's: the points kept in a scratch file as they are made, and the
+            // glTF's loops read back from it one at a time.
+            let scratch = tempfile::tempdir().unwrap();
+            let spilled = crowd_export::Handing::Spilled(scratch.path());
+            let spilled =
+                crowd_export::export(&graph, &crossings, &made, &inputs, hash, spilled).unwrap();
             assert_eq!(whole.manifest, part.manifest, "{name} {region:?}");
+            assert_eq!(whole.manifest, spilled.manifest, "{name} {region:?}");
+            let whole_bytes = bytes_of(whole.library);
             assert!(
-                bytes_of(whole.library) == bytes_of(part.library),
+                whole_bytes == bytes_of(part.library),
                 "{name} {region:?}: library.crowd differs"
             );
             assert!(
-                whole.glb == part.glb,
+                whole_bytes == bytes_of(spilled.library),
+                "{name} {region:?}: library.crowd differs, its points spilled"
+            );
+            assert!(
+                whole.glb == part.glb && whole.glb == spilled.glb,
                 "{name} {region:?}: world.glb differs"
             );
             // With a region, city's patches far from it are never read for the glTF (ring's
@@ -708,7 +730,7 @@ fn export_made_patch_by_patch_writes_what_export_of_the_held_motion_writes() {
                 seed: 7,
                 input_hash: String::new(),
                 region,
-                library: &library,
+                library: crowd_export::glb::LibraryRef::Held(&library),
             };
             let read = crowd_export::glb::patches_read(&world)
                 .iter()
@@ -759,6 +781,37 @@ fn a_library_read_from_a_file_is_the_library_of_its_bytes() {
         crowd_runtime::LoadError::Read(std::io::ErrorKind::Other)
     );
     assert!(err.to_string().contains("cannot be read"), "{err}");
+}
+
+/// A library written with its points handed over from elsewhere (stage 8's scratch file, a
+/// piece at a time) is the bytes of the library written whole.
+#[test]
+fn a_library_written_with_its_points_from_elsewhere_is_the_same_bytes() {
+    let bytes = bands_library();
+    let lib = Library::from_bytes(bytes).expect("bands' library loads");
+    let count = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
+    let entry = (0..count)
+        .map(|e| 16 + 24 * e)
+        .find(|&at| &bytes[at..at + 4] == b"PNTS")
+        .expect("a PNTS entry");
+    let at = u64::from_le_bytes(bytes[entry + 8..entry + 16].try_into().unwrap()) as usize;
+    let len = u64::from_le_bytes(bytes[entry + 16..entry + 24].try_into().unwrap()) as usize;
+    let points = &bytes[at..at + len];
+    let index = Library {
+        points: Vec::new(),
+        ..lib.clone()
+    };
+    let mut out = Vec::new();
+    let handed = |sink: &mut dyn FnMut(&[u8]) -> Result<(), ()>| {
+        points.chunks(1000).try_for_each(&mut *sink)
+    };
+    let crc = crowd_runtime::crc32(points);
+    let written = index.write_with_points((lib.points.len(), crc), handed, |piece| {
+        out.extend_from_slice(piece);
+        Ok(())
+    });
+    assert_eq!(written, Ok(()));
+    assert_eq!(&out, bytes);
 }
 
 /// A library opened on its file reads its points when asked: if the file changed meanwhile

@@ -1026,10 +1026,12 @@ fn export(a: &mut Artifacts, out: &Path, hash: Hash, _: &Ui) -> Result<Ran> {
     let tolerance_m = crowd_export::tolerance_m(&inputs);
     let stage = final_motion(a.pipeline);
     let failed = |e| anyhow!("{}: cannot export: {e}", out.display());
-    // A gathering build writes its library a piece at a time whatever its size, as a world
-    // too large for one process needs (and the shards' tests see that path).
+    // A gathering build keeps its library's points in a scratch file beside it and writes
+    // the library a piece at a time whatever its size, as a world too large for one process
+    // needs (and the shards' tests see that path).
+    let dir = out.parent().unwrap_or(Path::new("."));
     let handing = match a.split {
-        Split::Gather => crowd_export::Handing::Records,
+        Split::Gather => crowd_export::Handing::Spilled(dir),
         _ => crowd_export::Handing::BySize,
     };
     let export = if a.holds_motion(stage) {
@@ -1053,34 +1055,47 @@ fn export(a: &mut Artifacts, out: &Path, hash: Hash, _: &Ui) -> Result<Ran> {
         export.manifest.gltf_hash(),
     );
     let library = out.with_file_name(crowd_export::LIBRARY_FILE);
-    let ran = match export.library {
+    let (lib, spilled) = match export.library {
         crowd_export::LibraryBytes::Held(_) => {
-            let (writes, file) = crowd_export::writes(out, export);
-            Ran::files(writes).knowing(library, file.library_hash)
+            let (writes, file) = crowd_export::writes(out, export).map_err(failed)?;
+            let ran = Ran::files(writes).knowing(library, file.library_hash);
+            return Ok(ran.knowing(gltf.0, gltf.1));
         }
-        crowd_export::LibraryBytes::Records(lib) => {
-            let streamed = write_library(&library, lib)?;
-            let file = export.manifest.file((streamed.bytes, streamed.hash));
-            let hash = streamed.hash;
-            Ran {
-                streamed: vec![streamed],
-                ..Ran::files(vec![
-                    (gltf.0.clone(), export.glb),
-                    (out.to_path_buf(), files::to_stage_ron(&file).into_bytes()),
-                ])
-            }
-            .knowing(library, hash)
-        }
+        crowd_export::LibraryBytes::Records(lib) => (lib, None),
+        crowd_export::LibraryBytes::Spilled(lib, spilled) => (lib, Some(spilled)),
     };
+    let streamed = write_library(&library, lib, spilled)?;
+    let file = export.manifest.file((streamed.bytes, streamed.hash));
+    let hash = streamed.hash;
+    let ran = Ran {
+        streamed: vec![streamed],
+        ..Ran::files(vec![
+            (gltf.0.clone(), export.glb),
+            (out.to_path_buf(), files::to_stage_ron(&file).into_bytes()),
+        ])
+    }
+    .knowing(library, hash);
     Ok(ran.knowing(gltf.0, gltf.1))
 }
 
 /// A large library written to `path`'s temporary name a piece at a time, its records freed
-/// as soon as it is (the million's 0.9 GB of bytes were held beside its 0.9 GB of records).
-fn write_library(path: &Path, lib: crowd_runtime::Library) -> Result<files::StreamedFile> {
+/// as soon as it is (the million's 0.9 GB of bytes were held beside its 0.9 GB of records),
+/// its points from `spilled` when they are there.
+fn write_library(
+    path: &Path,
+    lib: crowd_runtime::Library,
+    spilled: Option<crowd_export::spill::Spilled>,
+) -> Result<files::StreamedFile> {
     let mut file = files::Streamed::create(path)?;
-    lib.write_to(|piece| file.write(piece))?;
-    drop(lib);
+    let mut write = |piece: &[u8]| file.write(piece).map_err(anyhow::Error::from);
+    match &spilled {
+        None => lib.write_to(write)?,
+        Some(spilled) => {
+            let points = |sink: &mut dyn FnMut(&[u8]) -> Result<()>| spilled.copy_to(sink);
+            lib.write_with_points(spilled.section(), points, &mut write)?
+        }
+    }
+    drop((lib, spilled));
     Ok(file.finish()?)
 }
 

@@ -8,12 +8,14 @@
 //! - [`simplify`]: both are made from the keyframes an engine needs, within `simplify_mm` of
 //!   stage 6's.
 //! - [`motion`]: those keyframes a patch at a time, held or read when asked.
+//! - [`spill`]: a large library's points kept in a scratch file as they are made.
 
 pub mod characters;
 pub mod glb;
 pub mod library;
 pub mod motion;
 pub mod simplify;
+pub mod spill;
 
 use crowd_core::{Hash, Hasher};
 
@@ -122,13 +124,16 @@ pub struct Export {
 pub struct Manifest(ExportFile);
 
 /// `library.crowd` as stage 8 hands it over.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug)]
 pub enum LibraryBytes {
     /// Its bytes, made beside `world.glb`.
     Held(Vec<u8>),
     /// A large library's records, to be written a piece at a time
     /// (`crowd_runtime::Library::write_to`): the million's 0.9 GB were held beside them.
     Records(crowd_runtime::Library),
+    /// Its records but the points, which are in a scratch file ([`Handing::Spilled`]), to be
+    /// written a piece at a time (`crowd_runtime::Library::write_with_points`).
+    Spilled(crowd_runtime::Library, spill::Spilled),
 }
 
 impl Manifest {
@@ -152,6 +157,8 @@ pub enum ExportError {
     Library(library::LibraryError),
     /// A patch of the final motion could not be read.
     Motion(crowd_core::Error),
+    /// The scratch file of the library's points could not be written or read.
+    Scratch(std::io::Error),
 }
 
 impl std::fmt::Display for ExportError {
@@ -159,6 +166,7 @@ impl std::fmt::Display for ExportError {
         match self {
             ExportError::Library(e) => e.fmt(f),
             ExportError::Motion(e) => e.fmt(f),
+            ExportError::Scratch(e) => write!(f, "the scratch file of the library's points: {e}"),
         }
     }
 }
@@ -188,13 +196,17 @@ const POINTS_BYTES_BESIDE_GLB: usize = 32 << 20;
 
 /// How stage 8 hands `library.crowd` over.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Handing {
+pub enum Handing<'a> {
     /// Its bytes, made beside `world.glb`, for a library under 32 million points; a larger
     /// one's records ([`LibraryBytes`]).
     BySize,
-    /// Its records, whatever its size: a gathering build writes every file that grows with the
-    /// world a piece at a time (and its tests then see that path on small worlds).
+    /// Its records, whatever its size (the tests of [`LibraryBytes::Records`]).
     Records,
+    /// Its records but the points, kept in a scratch file in this folder as they are made,
+    /// whatever its size: a gathering build writes every file that grows with the world a
+    /// piece at a time and holds none of them (the million's points: 0.77 GB), and its tests
+    /// then see that path on small worlds.
+    Spilled(&'a std::path::Path),
 }
 
 /// Stage 8's pure core: the library of the final trajectories, and its manifest. `motion` is
@@ -208,6 +220,10 @@ pub fn export<M: motion::Motion>(
     hash: Hash,
     handing: Handing,
 ) -> Result<Export, ExportError> {
+    let spill = match handing {
+        Handing::Spilled(dir) => Some(spill::Spill::create_in(dir)?),
+        _ => None,
+    };
     let tolerance_m = tolerance_m(inputs);
     let summaries = motion::Summaries::of(graph, motion)?;
     let ends =
@@ -216,16 +232,21 @@ pub fn export<M: motion::Motion>(
         characters::link_ends(ends, crossings.len()).map_err(library::LibraryError::Links)?;
     let mut short = [0u8; 8];
     short.copy_from_slice(&hash.as_bytes()[..8]);
-    let (mut lib, eased_m) = library::build(
-        graph,
-        crossings,
-        motion,
-        &summaries,
-        &links,
-        inputs.period_s,
-        inputs.seed,
-        short,
-    )?;
+    let made = (graph, crossings, motion, &summaries, &links);
+    let settings = (inputs.period_s, inputs.seed, short);
+    let (mut lib, eased_m, spilled) = match spill {
+        Some(mut spill) => {
+            let (lib, eased_m) = library::build_into(made, settings, &mut spill)?;
+            (lib, eased_m, Some(spill.finish()?))
+        }
+        None => {
+            let mut points =
+                Vec::with_capacity(summaries.trajectories.iter().map(|s| s.points).sum());
+            let (lib, eased_m) = library::build_into(made, settings, &mut points)?;
+            (crowd_runtime::Library { points, ..lib }, eased_m, None)
+        }
+    };
+    let points = spilled.as_ref().map_or(lib.points.len(), |s| s.section().0);
     let region = inputs.settings.gltf_region;
     lib.world.turn_rate_deg_s = inputs.settings.turn_rate_deg_s as f32;
     let glb = || {
@@ -238,7 +259,10 @@ pub fn export<M: motion::Motion>(
             seed: inputs.seed,
             input_hash: hash.to_string(),
             region,
-            library: &lib,
+            library: match &spilled {
+                Some(s) => glb::LibraryRef::Spilled(&lib, s),
+                None => glb::LibraryRef::Held(&lib),
+            },
         })
     };
     // The library's bytes beside `world.glb`: the glTF's longest loop keeps one thread busy
@@ -246,7 +270,7 @@ pub fn export<M: motion::Motion>(
     // made here: its records are handed over, to be written a piece at a time. Made beside the
     // glTF, its bytes raised the million's peak by their size (0.9 GB); made after it, they
     // were held beside the records (0.9 GB again).
-    let beside = handing == Handing::BySize && lib.points.len() < POINTS_BYTES_BESIDE_GLB;
+    let beside = handing == Handing::BySize && points < POINTS_BYTES_BESIDE_GLB;
     let (bytes, glb) = if beside {
         let (bytes, glb) = rayon::join(|| lib.to_bytes(), glb);
         (Some(bytes), glb?)
@@ -266,15 +290,20 @@ pub fn export<M: motion::Motion>(
         walkers: lib.walkers(),
         standers: lib.standers.len() as u64,
         loops: lib.characters.len() as u64,
-        points: lib.points.len() as u64,
+        points: points as u64,
         position_error_m: tolerance_m
             + graph.world.patch_side_m * library::POSITION_ERROR_SHARE
             + eased_m,
         // Rounding, and a tick more where a point was eased (`library::ease_ticks`).
         time_error_s: if eased_m > 0.0 { 1.5 } else { 0.5 } * crowd_runtime::TICK_S,
     };
+    let library = match (bytes, spilled) {
+        (Some(bytes), _) => LibraryBytes::Held(bytes),
+        (None, Some(spilled)) => LibraryBytes::Spilled(lib, spilled),
+        (None, None) => LibraryBytes::Records(lib),
+    };
     Ok(Export {
-        library: bytes.map_or(LibraryBytes::Records(lib), LibraryBytes::Held),
+        library,
         glb,
         manifest: Manifest(file),
     })
@@ -283,7 +312,10 @@ pub fn export<M: motion::Motion>(
 /// Stage 8's files: the library, then `export.ron` (written last, so that a manifest always
 /// names a library that is there). A large library's bytes are made here, whole: a build
 /// writes them a piece at a time instead (`crowd build`'s export).
-pub fn writes(out: &std::path::Path, export: Export) -> (crowd_core::files::Writes, ExportFile) {
+pub fn writes(
+    out: &std::path::Path,
+    export: Export,
+) -> Result<(crowd_core::files::Writes, ExportFile), ExportError> {
     let dir = out.parent().unwrap_or(std::path::Path::new("."));
     let Export {
         library,
@@ -293,6 +325,16 @@ pub fn writes(out: &std::path::Path, export: Export) -> (crowd_core::files::Writ
     let library = match library {
         LibraryBytes::Held(bytes) => bytes,
         LibraryBytes::Records(lib) => lib.to_bytes(),
+        LibraryBytes::Spilled(lib, spilled) => {
+            let mut bytes = Vec::new();
+            let points = |sink: &mut dyn FnMut(&[u8]) -> std::io::Result<()>| spilled.copy_to(sink);
+            let written = lib.write_with_points(spilled.section(), points, |piece| {
+                bytes.extend_from_slice(piece);
+                Ok(())
+            });
+            written.map_err(ExportError::Scratch)?;
+            bytes
+        }
     };
     let file = manifest.file((library.len() as u64, Hash::of(&library)));
     let ron = crowd_core::files::to_stage_ron(&file).into_bytes();
@@ -301,5 +343,5 @@ pub fn writes(out: &std::path::Path, export: Export) -> (crowd_core::files::Writ
         (dir.join(GLB_FILE), glb),
         (out.to_path_buf(), ron),
     ];
-    (writes, file)
+    Ok((writes, file))
 }

@@ -60,6 +60,45 @@ pub fn build<M: Motion + ?Sized>(
     seed: u64,
     input_hash: [u8; 8],
 ) -> Result<(Library, f64), ExportError> {
+    let made = (graph, crossings, motion, summaries, links);
+    // At its size: grown by doubling, the million's 0.77 GB of points took 0.99 GB, and twice
+    // that while each growth copied them (export's peak).
+    let mut points = Vec::with_capacity(summaries.trajectories.iter().map(|s| s.points).sum());
+    let (library, eased_m) = build_into(made, (period_s, seed, input_hash), &mut points)?;
+    Ok((Library { points, ..library }, eased_m))
+}
+
+/// Where [`build_into`] puts the library's points, a run of patches' at a time.
+pub trait PointSink {
+    /// How many it holds.
+    fn held(&self) -> usize;
+    /// Takes `points` after those it holds.
+    fn take(&mut self, points: &[Point]) -> Result<(), ExportError>;
+}
+
+impl PointSink for Vec<Point> {
+    fn held(&self) -> usize {
+        self.len()
+    }
+
+    fn take(&mut self, points: &[Point]) -> Result<(), ExportError> {
+        self.extend_from_slice(points);
+        Ok(())
+    }
+}
+
+/// [`build`], its points handed to `sink` as they are made: the library it returns holds none.
+pub fn build_into<M: Motion + ?Sized>(
+    (graph, crossings, motion, summaries, links): (
+        &PatchGraph,
+        &[Crossing],
+        &M,
+        &Summaries,
+        &Links,
+    ),
+    (period_s, seed, input_hash): (f64, u64, [u8; 8]),
+    points: &mut impl PointSink,
+) -> Result<(Library, f64), ExportError> {
     let period_ticks = (period_s / TICK_S).round();
     if (period_ticks * TICK_S - period_s).abs() > 1e-9 || period_ticks < 1.0 {
         return Err(LibraryError::Period(period_s).into());
@@ -92,9 +131,8 @@ pub fn build<M: Motion + ?Sized>(
     let mut patches = Vec::with_capacity(motion.patches());
     let mut standers = Vec::new();
     let mut trajectories = Vec::with_capacity(links.refs.len());
-    // At its size: grown by doubling, the million's 0.77 GB of points took 0.99 GB, and twice
-    // that while each growth copied them (export's peak).
-    let mut points = Vec::with_capacity(summaries.trajectories.iter().map(|s| s.points).sum());
+    // Each trajectory's last tick, which its loop's laps are counted from.
+    let mut last_ticks = Vec::with_capacity(links.refs.len());
     let mut eased_m = 0.0f64;
     for run in (0..motion.patches()).step_by(PATCHES_PER_RUN) {
         let end = (run + PATCHES_PER_RUN).min(motion.patches());
@@ -114,15 +152,16 @@ pub fn build<M: Motion + ?Sized>(
                 standers: count(part.standers.len(), "standers")?,
             });
             standers.extend(part.standers);
-            let offset = count(points.len(), "points")?;
+            let offset = count(points.held(), "points")?;
             for mut t in part.trajectories {
+                last_ticks.push(part.points[(t.first_point + t.points - 1) as usize].t);
                 t.first_point = offset
                     .checked_add(t.first_point)
                     .ok_or(LibraryError::TooMany("points"))?;
                 trajectories.push(t);
             }
-            points.extend(part.points);
-            count(points.len(), "points")?;
+            count(points.held() + part.points.len(), "points")?;
+            points.take(&part.points)?;
             eased_m = eased_m.max(part.eased_m);
         }
     }
@@ -130,13 +169,7 @@ pub fn build<M: Motion + ?Sized>(
         .loops
         .iter()
         .map(|lp| {
-            let total: u64 = lp
-                .iter()
-                .map(|&i| {
-                    let t = &trajectories[i];
-                    u64::from(points[(t.first_point + t.points - 1) as usize].t)
-                })
-                .sum();
+            let total: u64 = lp.iter().map(|&i| u64::from(last_ticks[i])).sum();
             Ok(Character {
                 first_trajectory: count(lp[0], "trajectories")?,
                 trajectories: count(lp.len(), "trajectories")?,
@@ -167,7 +200,7 @@ pub fn build<M: Motion + ?Sized>(
         standers,
         crossings: crossing_records,
         trajectories,
-        points,
+        points: Vec::new(),
         characters,
     };
     Ok((library, eased_m))

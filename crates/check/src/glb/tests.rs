@@ -72,7 +72,7 @@ fn figures_of(
         seed: 1,
         input_hash: String::new(),
         region,
-        library: &library,
+        library: crowd_export::glb::LibraryRef::Held(&library),
     };
     let inputs = Inputs {
         radius_m: 0.3,

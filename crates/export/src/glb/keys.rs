@@ -186,21 +186,24 @@ impl Stretch {
 /// stage 6's kept points at their times (what the translation keys show), and the headings of
 /// `crowd_runtime::turn::character_headings` with the library's own ticks for their turns, so
 /// that `world.glb` and `crowd-runtime` face the same way.
-pub(super) fn loop_path(w: &World, held: &Held, plan: &Plan) -> LoopPath {
-    let lib = w.library;
+pub(super) fn loop_path(w: &World, held: &Held, plan: &Plan) -> crowd_core::Result<LoopPath> {
+    let members = &w.links.loops[plan.lp];
+    let lib = LoopLibrary::of(w.library, plan.lp, members).map_err(|e| {
+        let scratch = std::path::Path::new("(the library's points, a scratch file)");
+        crowd_core::Error::io(scratch, "read", e)
+    })?;
     // The headings walk the whole loop in order, from the library (which is held), and are
     // cut to the stretches after. Made beside the path (`rayon::join`) they took 0.4 s off
     // painting's export, but a thread waiting there took up other loops, and the million's
     // export held 11.5 GB against 10.0: one after the other.
     let turn::PointHeadings { heading, walks } =
-        turn::character_headings(lib, &lib.characters[plan.lp]);
+        turn::character_headings(&lib.lib, lib.character());
     let mut walks = Some(walks);
-    let members = &w.links.loops[plan.lp];
-    let starts = Starts::of(w, members);
+    let starts = Starts::of(w, &lib, members);
     let whole = plan.runs == [(0, members.len() - 1)];
     let stretches = (plan.runs.iter())
         .map(|&(a, b)| {
-            let (times, points, turn_times) = stretch_keys(w, held, plan, &starts, (a, b));
+            let (times, points, turn_times) = stretch_keys(w, (held, &lib), plan, &starts, (a, b));
             // A trajectory's first point is the one before's last (the same instant and
             // place): its heading is left out but for the loop's first.
             let mut headings = Vec::with_capacity(times.len());
@@ -219,13 +222,68 @@ pub(super) fn loop_path(w: &World, held: &Held, plan: &Plan) -> LoopPath {
                 headings,
                 walking,
                 turn_times,
-                rate: f64::from(lib.world.turn_rate_deg_s).to_radians(),
+                rate: f64::from(lib.lib.world.turn_rate_deg_s).to_radians(),
             }
         })
         .collect();
-    LoopPath {
+    Ok(LoopPath {
         stretches,
         clock: plan.clock,
+    })
+}
+
+/// Loop `lp` of the library as its keys read it: the whole library held, or the loop's own
+/// library read back from stage 8's scratch file (`crowd_runtime::Library::loops`: its
+/// trajectories numbered anew in the library's order).
+struct LoopLibrary<'a> {
+    lib: std::borrow::Cow<'a, crowd_runtime::Library>,
+    /// The loop's character in `lib`.
+    ch: usize,
+    /// With the loop's own library, the whole library's records and the loop's trajectories'
+    /// (patch, number in the whole library), in the order of its own.
+    own: Option<(&'a crowd_runtime::Library, Vec<(u32, u32)>)>,
+}
+
+impl<'a> LoopLibrary<'a> {
+    fn of(
+        r: super::LibraryRef<'a>,
+        lp: usize,
+        members: &[usize],
+    ) -> std::io::Result<LoopLibrary<'a>> {
+        Ok(match r {
+            super::LibraryRef::Held(lib) => LoopLibrary {
+                lib: std::borrow::Cow::Borrowed(lib),
+                ch: lp,
+                own: None,
+            },
+            super::LibraryRef::Spilled(index, spilled) => {
+                let mut own: Vec<(u32, u32)> = (members.iter())
+                    .map(|&i| (index.trajectories[i].patch, i as u32))
+                    .collect();
+                own.sort_unstable();
+                LoopLibrary {
+                    lib: std::borrow::Cow::Owned(spilled.loop_library(index, lp)?),
+                    ch: 0,
+                    own: Some((index, own)),
+                }
+            }
+        })
+    }
+
+    fn character(&self) -> &crowd_runtime::Character {
+        &self.lib.characters[self.ch]
+    }
+
+    /// Trajectory `i` of the whole library.
+    fn trajectory(&self, i: usize) -> &crowd_runtime::Trajectory {
+        let at = match &self.own {
+            None => i,
+            Some((index, own)) => {
+                let key = (index.trajectories[i].patch, i as u32);
+                own.binary_search(&key).expect("a trajectory of the loop")
+            }
+        };
+        &self.lib.trajectories[at]
     }
 }
 
@@ -239,8 +297,7 @@ struct Starts {
 }
 
 impl Starts {
-    fn of(w: &World, members: &[usize]) -> Starts {
-        let lib = w.library;
+    fn of(w: &World, lib: &LoopLibrary, members: &[usize]) -> Starts {
         let mut starts = Starts {
             key: Vec::with_capacity(members.len() + 1),
             point: Vec::with_capacity(members.len() + 1),
@@ -254,7 +311,7 @@ impl Starts {
             let n = w.summaries.trajectories[i].points;
             key += if j == 0 { n } else { n.saturating_sub(1) };
             point += n;
-            tick += u64::from(lib.duration_ticks(&lib.trajectories[i]));
+            tick += u64::from(lib.lib.duration_ticks(lib.trajectory(i)));
         }
         starts.key.push(key);
         starts.point.push(point);
@@ -272,12 +329,11 @@ impl Starts {
 /// ([`Plan::offsets`]), so every time is the same bits whatever the stretch.
 fn stretch_keys(
     w: &World,
-    held: &Held,
+    (held, lib): (&Held, &LoopLibrary),
     plan: &Plan,
     starts: &Starts,
     (a, b): (usize, usize),
 ) -> (Vec<f64>, Vec<DVec2>, Vec<f64>) {
-    let lib = w.library;
     let members = &w.links.loops[plan.lp];
     let key0 = starts.key[a];
     let keys = starts.key[b + 1] - key0;
@@ -304,7 +360,7 @@ fn stretch_keys(
             let (offset, tick) = (plan.offsets[j], starts.tick[j]);
             let t0 = tr.points[0].t;
             // The library's trajectory `i` holds the same points, quantised.
-            let quantised = lib.points_of(&lib.trajectories[i]);
+            let quantised = lib.lib.points_of(lib.trajectory(i));
             let skip = usize::from(j > 0);
             for (k, cp) in tr.points.iter().enumerate().skip(skip) {
                 t[key] = offset + cp.t - t0;

@@ -52,7 +52,24 @@ pub struct World<'a> {
     pub region: Option<(f64, f64, f64, f64)>,
     /// The library made from the same keyframes: headings come from its points
     /// (`crowd_runtime::turn::library_headings`), and its turn rate.
-    pub library: &'a crowd_runtime::Library,
+    pub library: LibraryRef<'a>,
+}
+
+/// The library `world.glb` is faced by: held whole, or its records with its points in stage
+/// 8's scratch file, a loop's read back at a time.
+#[derive(Clone, Copy)]
+pub enum LibraryRef<'a> {
+    Held(&'a crowd_runtime::Library),
+    Spilled(&'a crowd_runtime::Library, &'a crate::spill::Spilled),
+}
+
+impl LibraryRef<'_> {
+    /// Every record (the points only when held).
+    pub fn records(&self) -> &crowd_runtime::Library {
+        match self {
+            LibraryRef::Held(lib) | LibraryRef::Spilled(lib, _) => lib,
+        }
+    }
 }
 
 /// The patches whose keyframes [`world_glb`] reads: those its shown slots walk through (all that
@@ -118,11 +135,11 @@ fn slots(w: &World, laps: &[u32]) -> crowd_core::Result<Vec<Slot>> {
         w.motion,
         &plan::patches(&plans, w.links, w.graph.patches.len()),
     )?;
-    let loop_slots = |plan: &plan::Plan| -> Vec<Slot> {
-        let path = keys::loop_path(w, &held, plan);
+    let loop_slots = |plan: &plan::Plan| -> crowd_core::Result<Vec<Slot>> {
+        let path = keys::loop_path(w, &held, plan)?;
         let first = firsts[plan.lp];
         // A loop of 60,000 laps (painting's longest) has its slots made in parallel too.
-        (plan.laps.par_iter())
+        let slots = (plan.laps.par_iter())
             .filter(|&&lap| !hidden(keys::window_box(&path, lap)))
             .map(|&lap| {
                 let keys = slot_keys(&path, lap);
@@ -139,7 +156,8 @@ fn slots(w: &World, laps: &[u32]) -> crowd_core::Result<Vec<Slot>> {
                     shown,
                 }
             })
-            .collect()
+            .collect();
+        Ok(slots)
     };
     // Loops are independent: their keys are made in parallel and kept in loop order
     // (painting's 428 loops were two seconds of the export on one core), but for the longest.
@@ -148,15 +166,14 @@ fn slots(w: &World, laps: &[u32]) -> crowd_core::Result<Vec<Slot>> {
             .map(|&i| w.summaries.trajectories[i].points)
             .sum()
     };
-    let mut per_loop: Vec<Option<Vec<Slot>>> = (plans.par_iter())
+    let per_loop: Vec<Option<crowd_core::Result<Vec<Slot>>>> = (plans.par_iter())
         .map(|plan| (keys_of(plan) < LONG_LOOP_KEYS).then(|| loop_slots(plan)))
         .collect();
-    for (made, plan) in per_loop.iter_mut().zip(&plans) {
-        if made.is_none() {
-            *made = Some(loop_slots(plan));
-        }
+    let mut all = Vec::new();
+    for (made, plan) in per_loop.into_iter().zip(&plans) {
+        all.extend(made.unwrap_or_else(|| loop_slots(plan))?);
     }
-    Ok(per_loop.into_iter().flatten().flatten().collect())
+    Ok(all)
 }
 
 /// Keys of loops from this long are made one loop at a time (each on every core): a loop's
@@ -369,7 +386,7 @@ pub fn world_glb(w: &World) -> crowd_core::Result<Vec<u8>> {
                 w.seed,
                 w.input_hash,
                 w.graph.radius_m,
-                w.library.world.turn_rate_deg_s,
+                w.library.records().world.turn_rate_deg_s,
                 laps
             ))
             .expect("valid JSON"),

@@ -87,6 +87,9 @@ const SECTIONS: [Section; 8] = [
 /// on every core).
 const PIECE_RECORDS: usize = 1 << 18;
 
+/// PNTS's place in [`SECTIONS`].
+const POINTS_AT: usize = 5;
+
 impl Library {
     /// The library's bytes: the header, a table left blank, each section written in place
     /// after it, then the table filled in (each section's checksum of its bytes there). One
@@ -110,19 +113,51 @@ impl Library {
     /// The bytes of [`Library::to_bytes`], handed to `sink` a piece at a time and never held
     /// whole (a gathering build writes the million's 0.9 GB so): each section is made twice,
     /// once for its checksum in the table before it, once to hand over.
-    pub fn write_to<E>(&self, mut sink: impl FnMut(&[u8]) -> Result<(), E>) -> Result<(), E> {
+    pub fn write_to<E>(&self, sink: impl FnMut(&[u8]) -> Result<(), E>) -> Result<(), E> {
+        let mut crc = crate::crc::Crc32::new();
+        self.pieces(&SECTIONS[POINTS_AT], |piece| {
+            crc.update(piece);
+            Ok::<(), E>(())
+        })?;
+        let points = (self.points.len(), crc.finish());
+        self.write_with_points(points, |sink| self.pieces(&SECTIONS[POINTS_AT], sink), sink)
+    }
+
+    /// [`Library::write_to`] of a library whose points are elsewhere (`self.points` is not
+    /// read): `count` of them whose bytes' checksum is `crc`, handed over in their place by
+    /// `points` (stage 8 of a large world keeps them in a scratch file as it makes them).
+    pub fn write_with_points<E>(
+        &self,
+        (count, crc): (usize, u32),
+        points: impl FnOnce(&mut dyn FnMut(&[u8]) -> Result<(), E>) -> Result<(), E>,
+        mut sink: impl FnMut(&[u8]) -> Result<(), E>,
+    ) -> Result<(), E> {
+        debug_assert_eq!(SECTIONS[POINTS_AT].tag, POINTS);
         let mut crcs = [0; SECTIONS.len()];
-        for (crc, section) in crcs.iter_mut().zip(&SECTIONS) {
-            let mut c = crate::crc::Crc32::new();
+        for (i, (c, section)) in crcs.iter_mut().zip(&SECTIONS).enumerate() {
+            if i == POINTS_AT {
+                *c = crc;
+                continue;
+            }
+            let mut check = crate::crc::Crc32::new();
             self.pieces(section, |piece| {
-                c.update(piece);
+                check.update(piece);
                 Ok::<(), E>(())
             })?;
-            *crc = c.finish();
+            *c = check.finish();
         }
-        sink(&self.head(&crcs))?;
-        for section in &SECTIONS {
-            self.pieces(section, &mut sink)?;
+        let records = |i: usize| match i {
+            POINTS_AT => count,
+            _ => (SECTIONS[i].records)(self),
+        };
+        sink(&self.head_of(&crcs, records))?;
+        let mut points = Some(points);
+        for (i, section) in SECTIONS.iter().enumerate() {
+            if i == POINTS_AT {
+                (points.take().expect("one PNTS section"))(&mut sink)?;
+            } else {
+                self.pieces(section, &mut sink)?;
+            }
         }
         Ok(())
     }
@@ -135,13 +170,18 @@ impl Library {
 
     /// The header and the section table, with the sections' checksums `crcs`.
     fn head(&self, crcs: &[u32; SECTIONS.len()]) -> Vec<u8> {
+        self.head_of(crcs, |i| (SECTIONS[i].records)(self))
+    }
+
+    /// [`Library::head`] of sections of `records(i)` records each.
+    fn head_of(&self, crcs: &[u32; SECTIONS.len()], records: impl Fn(usize) -> usize) -> Vec<u8> {
         let mut out = Vec::with_capacity(HEADER_LEN + ENTRY_LEN * SECTIONS.len());
         out.extend_from_slice(&MAGIC);
         put_u32(&mut out, VERSION);
         put_u32(&mut out, SECTIONS.len() as u32);
         let mut start = (HEADER_LEN + ENTRY_LEN * SECTIONS.len()) as u64;
-        for (section, crc) in SECTIONS.iter().zip(crcs) {
-            let len = (section.size * (section.records)(self)) as u64;
+        for (i, (section, crc)) in SECTIONS.iter().zip(crcs).enumerate() {
+            let len = (section.size * records(i)) as u64;
             out.extend_from_slice(&section.tag);
             put_u32(&mut out, *crc);
             out.extend_from_slice(&start.to_le_bytes());

@@ -12,6 +12,9 @@ use crate::error::LoadError;
 use std::io::{Read, Seek, SeekFrom};
 use std::sync::Mutex;
 
+/// Points [`LibraryFile::loops`] reads at a time.
+const BLOCK_POINTS: usize = 1 << 17;
+
 /// A library whose points stay in its file.
 #[derive(Debug)]
 pub struct LibraryFile<F> {
@@ -115,10 +118,18 @@ impl<F: Read + Seek> LibraryFile<F> {
     /// leave by, every patch with its range of them (and no standers), each loop's record
     /// pointing at its own. A reader plays or judges every loop a run at a time so.
     pub fn loops(&self, characters: std::ops::Range<usize>) -> Result<Library, LoadError> {
+        // Their trajectories are asked for in the file's order (as stage 8 writes it): read a
+        // block at a time, not a read a trajectory.
+        let mut block: (usize, Vec<Point>) = (0, Vec::new());
         loops_of(&self.index, characters, |i, t| {
-            let read = self.read(t.first_point as usize, t.points as usize)?;
-            self.unchanged(i, &read)?;
-            Ok(read)
+            let (first, n) = (t.first_point as usize, t.points as usize);
+            if first < block.0 || first + n > block.0 + block.1.len() {
+                let len = n.max(BLOCK_POINTS).min(self.points as usize - first);
+                block = (first, self.read(first, len)?);
+            }
+            let read = &block.1[first - block.0..first - block.0 + n];
+            self.unchanged(i, read)?;
+            Ok(read.to_vec())
         })
     }
 
@@ -151,18 +162,28 @@ impl Library {
     /// The library of loops `characters` alone, as [`LibraryFile::loops`] reads it from a
     /// file.
     pub fn loops(&self, characters: std::ops::Range<usize>) -> Library {
-        let points = |_, t: &Trajectory| Ok(self.points_of(t).to_vec());
+        let points = |_, t: &Trajectory| Ok::<_, LoadError>(self.points_of(t).to_vec());
         loops_of(self, characters, points).expect("points in memory are at hand")
+    }
+
+    /// [`Library::loops`] of a library whose points are elsewhere (`self.points` is not
+    /// read): each trajectory's (by its index here) as `read` reads them.
+    pub fn loops_with<E>(
+        &self,
+        characters: std::ops::Range<usize>,
+        read: impl FnMut(usize, &Trajectory) -> Result<Vec<Point>, E>,
+    ) -> Result<Library, E> {
+        loops_of(self, characters, read)
     }
 }
 
 /// The library of loops `characters` of `lib` alone (see [`LibraryFile::loops`]), each
 /// trajectory's points (by its index in `lib`) as `read` reads them.
-fn loops_of(
+fn loops_of<E>(
     lib: &Library,
     characters: std::ops::Range<usize>,
-    mut read: impl FnMut(usize, &Trajectory) -> Result<Vec<Point>, LoadError>,
-) -> Result<Library, LoadError> {
+    mut read: impl FnMut(usize, &Trajectory) -> Result<Vec<Point>, E>,
+) -> Result<Library, E> {
     let mut mine: Vec<u32> = Vec::new();
     for ch in &lib.characters[characters.clone()] {
         let mut at = ch.first_trajectory;
