@@ -21,10 +21,12 @@
 //! from the shards' parts and put together (700 bytes a walker) or, with the world one region,
 //! solved (6.3 kB a walker), and a little of its own patches (500 bytes a walker: it matches,
 //! clears and smooths them a patch at a time, and streams its parts); a gather holds what its
-//! export and check do: the library and as much again (about 2.3 kB a walker), but a world
-//! whose stage 6 side file is under a gibibyte (about 244,000 walkers) is checked in its three
-//! forms at once, for speed (12.5 kB a walker). The million's rows were measured again after
-//! issue 20's twelfth part (BENCHMARKS.md).
+//! export and check do: the library's records, the summaries and links, and a part of the
+//! points (the longest loop's, a strip's), about 1.75 kB a walker since neither holds the
+//! library's points (issue 20's thirteenth part; 2.3 kB before), but a world whose stage 6 side
+//! file is under a gibibyte (about 244,000 walkers) is checked in its three forms at once, for
+//! speed (12.5 kB a walker). The million's rows were measured again after issue 20's
+//! thirteenth part (BENCHMARKS.md).
 //!
 //! | build | walkers | peak measured | estimate |
 //! | --- | ---: | ---: | ---: |
@@ -32,7 +34,7 @@
 //! | painting (one region), a shard of 8 | 95,000 | 596-599 MB | 644 MB |
 //! | the million (regions of 16), a shard of 8 | 1,016,000 | 681-693 MB | 0.82 GB |
 //! | painting, the gather of 4 shards | 95,000 | 1.14-1.17 GB | 1.23 GB |
-//! | the million, the gather of 8 shards | 1,016,000 | 2.05-2.11 GB | 2.38 GB |
+//! | the million, the gather of 8 shards | 1,016,000 | 1.55-1.59 GB | 1.78 GB |
 //!
 //! A build that stops early (`--until`, or a shard's regions step) holds only what its last
 //! stage does of the world (the million's stages on one thread, `timings.ron`, 2026-12-06):
@@ -70,7 +72,7 @@ const SHARD_STAGE3_PER_WALKER: f64 = 700.0;
 /// A shard's peak bytes per walker of its own (its patches' stages 4 to 6), beside its stage 3.
 const SHARD_PER_OWN_WALKER: f64 = 500.0;
 /// A gather's peak bytes per walker, when its check takes the world a strip at a time.
-const GATHER_PER_WALKER: f64 = 2.3e3;
+const GATHER_PER_WALKER: f64 = 1.75e3;
 /// A gather's peak bytes per walker, when its check judges the world's three forms at once.
 const GATHER_PER_WALKER_AT_ONCE: f64 = 12.5e3;
 /// The walkers of the largest world whose check judges its three forms at once (its stage 6
@@ -315,7 +317,7 @@ mod tests {
             (95_000, shard(7, 8), 599e6),
             (1_016_000, shard(3, 8), 693e6),
             (95_000, Split::Gather, 1.17e9),
-            (1_016_000, Split::Gather, 2.11e9),
+            (1_016_000, Split::Gather, 1.59e9),
         ] {
             let f = pipeline(walkers, (walkers > 100_000).then_some(16));
 
