@@ -381,7 +381,7 @@ impl MotionIndex {
     }
 
     /// [`MotionIndex::of`] the side file at `path`, read through without keeping its bytes.
-    fn of_file(path: &Path) -> Result<MotionIndex> {
+    pub fn of_file(path: &Path) -> Result<MotionIndex> {
         let file = std::fs::File::open(path).map_err(|e| Error::io(path, "read", e))?;
         let len = file
             .metadata()
@@ -431,6 +431,28 @@ impl MotionIndex {
             .map(|p| self.decode(path, bytes, p))
             .collect();
         decoded.into_iter().collect()
+    }
+
+    /// Where patch `p`'s bytes lie in the side file (patch after patch, with nothing between).
+    pub fn span(&self, p: usize) -> std::ops::Range<usize> {
+        self.spans[p].0.clone()
+    }
+
+    /// Patch `p`'s motion, from `bytes`, the side file's from byte `base` on (holding the
+    /// patch's [`MotionIndex::span`]).
+    pub fn decode_in(
+        &self,
+        path: &Path,
+        bytes: &[u8],
+        base: usize,
+        p: usize,
+    ) -> Result<PatchMotion> {
+        let span = &self.spans[p].0;
+        let mut r = Reader {
+            bytes: &bytes[..span.end - base],
+            at: span.start - base,
+        };
+        decode_patch(&mut r).ok_or_else(|| damaged(path, base + r.at))
     }
 
     /// Patch `p`'s motion, from the `bytes` this index was made of.
