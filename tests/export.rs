@@ -425,6 +425,17 @@ proptest! {
     }
 }
 
+/// Where a library's PNTS section is named in its table, and its offset and length.
+fn points_section(bytes: &[u8]) -> (usize, u64, u64) {
+    let count = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
+    let entry = (0..count)
+        .map(|e| 16 + 24 * e)
+        .find(|&at| &bytes[at..at + 4] == b"PNTS")
+        .expect("a PNTS entry");
+    let word = |at: usize| u64::from_le_bytes(bytes[at..at + 8].try_into().unwrap());
+    (entry, word(entry + 8), word(entry + 16))
+}
+
 /// `bytes` with every section's checksum recomputed, where the table is readable.
 pub(crate) fn with_fresh_checksums(mut bytes: Vec<u8>) -> Vec<u8> {
     if bytes.len() < 16 {
@@ -789,14 +800,8 @@ fn a_library_read_from_a_file_is_the_library_of_its_bytes() {
 fn a_library_written_with_its_points_from_elsewhere_is_the_same_bytes() {
     let bytes = bands_library();
     let lib = Library::from_bytes(bytes).expect("bands' library loads");
-    let count = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
-    let entry = (0..count)
-        .map(|e| 16 + 24 * e)
-        .find(|&at| &bytes[at..at + 4] == b"PNTS")
-        .expect("a PNTS entry");
-    let at = u64::from_le_bytes(bytes[entry + 8..entry + 16].try_into().unwrap()) as usize;
-    let len = u64::from_le_bytes(bytes[entry + 16..entry + 24].try_into().unwrap()) as usize;
-    let points = &bytes[at..at + len];
+    let (_, at, len) = points_section(bytes);
+    let points = &bytes[at as usize..(at + len) as usize];
     let index = Library {
         points: Vec::new(),
         ..lib.clone()
@@ -828,12 +833,7 @@ fn points_changed_in_the_file_after_it_was_opened_are_refused() {
     let n = lib.trajectories.len();
     assert!(file.window(0..n).is_ok());
     // Trajectory 1's last point made earlier than the one before it.
-    let count = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
-    let entry = (0..count)
-        .map(|e| 16 + 24 * e)
-        .find(|&at| &bytes[at..at + 4] == b"PNTS")
-        .expect("a PNTS entry");
-    let at = u64::from_le_bytes(bytes[entry + 8..entry + 16].try_into().unwrap());
+    let (_, at, _) = points_section(bytes);
     let t = &lib.trajectories[1];
     let last = u64::from(t.first_point + t.points - 1);
     let mut f = std::fs::OpenOptions::new().write(true).open(&path).unwrap();
@@ -861,12 +861,7 @@ fn points_changed_in_the_file_after_it_was_opened_are_refused() {
 #[test]
 fn a_section_of_part_of_a_record_is_refused_the_same_way_from_a_file() {
     let mut bytes = bands_library().clone();
-    let count = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
-    let entry = (0..count)
-        .map(|e| 16 + 24 * e)
-        .find(|&at| &bytes[at..at + 4] == b"PNTS")
-        .expect("a PNTS entry");
-    let len = u64::from_le_bytes(bytes[entry + 16..entry + 24].try_into().unwrap());
+    let (entry, _, len) = points_section(&bytes);
     bytes[entry + 16..entry + 24].copy_from_slice(&(len - 1).to_le_bytes());
     let both = |bytes: &[u8]| {
         let loaded = Library::from_bytes(bytes);

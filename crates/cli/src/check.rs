@@ -415,32 +415,33 @@ struct LibraryJudged {
 
 /// `library.crowd` as the runtime loads it, when the folder holds one.
 fn load_library(dir: &Path) -> Result<Option<crowd_runtime::Library>> {
-    let path = dir.join(LIBRARY_FILE);
-    if !path.exists() {
-        return Ok(None);
-    }
     // Read a piece at a time: the library and its bytes at once were 1.8 GB of the million's
     // check, the spike of its peak.
-    let file = std::fs::File::open(&path).with_context(|| format!("{}", path.display()))?;
-    let lib = crowd_runtime::Library::read_from(file)
-        .with_context(|| format!("{}: the runtime refuses it", path.display()))?;
-    Ok(Some(lib))
+    with_library(dir, crowd_runtime::Library::read_from)
 }
 
 /// `library.crowd` opened as the runtime opens it, its points left in the file, when the
 /// folder holds one.
 fn open_library(dir: &Path) -> Result<Option<InFile<std::fs::File>>> {
+    let file = with_library(dir, crowd_runtime::LibraryFile::open)?;
+    Ok(file.map(|file| InFile {
+        file,
+        budget: crowd_check::library::FILE_BUDGET,
+    }))
+}
+
+/// `read` of the folder's `library.crowd`, when it holds one; its refusal names the file.
+fn with_library<T>(
+    dir: &Path,
+    read: impl FnOnce(std::fs::File) -> Result<T, crowd_runtime::LoadError>,
+) -> Result<Option<T>> {
     let path = dir.join(LIBRARY_FILE);
     if !path.exists() {
         return Ok(None);
     }
     let file = std::fs::File::open(&path).with_context(|| format!("{}", path.display()))?;
-    let file = crowd_runtime::LibraryFile::open(file)
-        .with_context(|| format!("{}: the runtime refuses it", path.display()))?;
-    Ok(Some(InFile {
-        file,
-        budget: crowd_check::library::FILE_BUDGET,
-    }))
+    let read = read(file).with_context(|| format!("{}: the runtime refuses it", path.display()))?;
+    Ok(Some(read))
 }
 
 /// The figures of a library ([`load_library`], [`open_library`]).

@@ -232,18 +232,18 @@ pub fn export<M: motion::Motion>(
         characters::link_ends(ends, crossings.len()).map_err(library::LibraryError::Links)?;
     let mut short = [0u8; 8];
     short.copy_from_slice(&hash.as_bytes()[..8]);
-    let made = (graph, crossings, motion, &summaries, &links);
-    let settings = (inputs.period_s, inputs.seed, short);
+    let (period_s, seed) = (inputs.period_s, inputs.seed);
     let (mut lib, eased_m, spilled) = match spill {
         Some(mut spill) => {
-            let (lib, eased_m) = library::build_into(made, settings, &mut spill)?;
+            let made = (graph, crossings, motion, &summaries, &links);
+            let (lib, eased_m) = library::build_into(made, (period_s, seed, short), &mut spill)?;
             (lib, eased_m, Some(spill.finish()?))
         }
         None => {
-            let mut points =
-                Vec::with_capacity(summaries.trajectories.iter().map(|s| s.points).sum());
-            let (lib, eased_m) = library::build_into(made, settings, &mut points)?;
-            (crowd_runtime::Library { points, ..lib }, eased_m, None)
+            let (lib, eased_m) = library::build(
+                graph, crossings, motion, &summaries, &links, period_s, seed, short,
+            )?;
+            (lib, eased_m, None)
         }
     };
     let points = spilled.as_ref().map_or(lib.points.len(), |s| s.section().0);

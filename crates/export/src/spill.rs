@@ -49,9 +49,7 @@ impl PointSink for Spill {
     fn take(&mut self, points: &[Point]) -> Result<(), ExportError> {
         self.bytes.clear();
         for p in points {
-            self.bytes.extend_from_slice(&p.x.to_le_bytes());
-            self.bytes.extend_from_slice(&p.y.to_le_bytes());
-            self.bytes.extend_from_slice(&p.t.to_le_bytes());
+            self.bytes.extend_from_slice(&p.to_le_bytes());
         }
         self.crc.update(&self.bytes);
         self.count += points.len();
@@ -83,17 +81,13 @@ impl Spilled {
 
     /// `n` points from point `first`.
     pub fn read(&self, first: usize, n: usize) -> std::io::Result<Vec<Point>> {
-        let mut bytes = vec![0u8; n * 8];
+        let mut bytes = vec![0u8; n * Point::BYTES];
         let mut file = self.file.lock().unwrap_or_else(|e| e.into_inner());
-        file.seek(SeekFrom::Start(first as u64 * 8))?;
+        file.seek(SeekFrom::Start((first * Point::BYTES) as u64))?;
         file.read_exact(&mut bytes)?;
         Ok(bytes
-            .chunks_exact(8)
-            .map(|b| Point {
-                x: u16::from_le_bytes([b[0], b[1]]),
-                y: u16::from_le_bytes([b[2], b[3]]),
-                t: u32::from_le_bytes([b[4], b[5], b[6], b[7]]),
-            })
+            .chunks_exact(Point::BYTES)
+            .map(Point::from_le_bytes)
             .collect())
     }
 
@@ -122,7 +116,7 @@ impl Spilled {
     ) -> Result<(), E> {
         let mut file = self.file.lock().unwrap_or_else(|e| e.into_inner());
         file.seek(SeekFrom::Start(0))?;
-        let mut left = self.count * 8;
+        let mut left = self.count * Point::BYTES;
         let mut piece = vec![0u8; COPY_BYTES.min(left)];
         while left > 0 {
             let piece = &mut piece[..COPY_BYTES.min(left)];

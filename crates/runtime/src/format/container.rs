@@ -275,9 +275,7 @@ fn write_trajectories(lib: &Library, run: Range<usize>, w: &mut Vec<u8>) {
 
 fn write_points(lib: &Library, run: Range<usize>, w: &mut Vec<u8>) {
     for p in &lib.points[run] {
-        w.extend_from_slice(&p.x.to_le_bytes());
-        w.extend_from_slice(&p.y.to_le_bytes());
-        put_u32(w, p.t);
+        w.extend_from_slice(&p.to_le_bytes());
     }
 }
 

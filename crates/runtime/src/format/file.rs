@@ -5,7 +5,7 @@
 //! million: 0.77 GB of points) holds the part, not the world.
 
 use super::container::POINTS;
-use super::read::{FromFile, PIECE_RECORDS, decode, point};
+use super::read::{FromFile, PIECE_RECORDS, decode};
 use super::records::{Character, Library, Patch, Point, Trajectory};
 use super::rules::{Shape, invalid};
 use crate::error::LoadError;
@@ -62,10 +62,10 @@ impl<F: Read + Seek> LibraryFile<F> {
         let mut src = FromFile::open(file)?;
         let mut span = 0..0;
         let index = decode(&mut src, |src| {
-            span = src.check_through((POINTS, "PNTS"), 8)?;
+            span = src.check_through((POINTS, "PNTS"), Point::BYTES)?;
             Ok(Vec::new())
         })?;
-        let (points_at, points) = (span.start as u64, (span.len() / 8) as u64);
+        let (points_at, points) = (span.start as u64, (span.len() / Point::BYTES) as u64);
         let shapes = shapes(&mut src.file, (points_at, points), &index.trajectories)?;
         index.validate_with(points, |i| shapes[i], |i| shapes[i].last)?;
         Ok(LibraryFile {
@@ -135,12 +135,17 @@ impl<F: Read + Seek> LibraryFile<F> {
 
     /// `count` points from PNTS index `first`.
     fn read(&self, first: usize, count: usize) -> Result<Vec<Point>, LoadError> {
-        let mut bytes = vec![0u8; count * 8];
+        let mut bytes = vec![0u8; count * Point::BYTES];
         let mut file = self.file.lock().unwrap_or_else(|e| e.into_inner());
-        file.seek(SeekFrom::Start(self.points_at + first as u64 * 8))
-            .map_err(LoadError::read)?;
+        file.seek(SeekFrom::Start(
+            self.points_at + (first * Point::BYTES) as u64,
+        ))
+        .map_err(LoadError::read)?;
         file.read_exact(&mut bytes).map_err(LoadError::read)?;
-        Ok(bytes.chunks_exact(8).map(point).collect())
+        Ok(bytes
+            .chunks_exact(Point::BYTES)
+            .map(Point::from_le_bytes)
+            .collect())
     }
 
     /// Whether trajectory `i`'s points read now are as the rules checked them at opening.
@@ -286,7 +291,7 @@ fn shapes<F: Read + Seek>(
         if a >= lo + (held.len() - skip) as u64 {
             // Past all that is held: start again there.
             (held, lo, skip) = (Vec::new(), a, 0);
-            file.seek(SeekFrom::Start(at + a * 8))
+            file.seek(SeekFrom::Start(at + a * Point::BYTES as u64))
                 .map_err(LoadError::read)?;
         } else {
             skip += (a - lo) as usize;
@@ -299,9 +304,9 @@ fn shapes<F: Read + Seek>(
         while lo + ((held.len() - skip) as u64) < b {
             let end = lo + (held.len() - skip) as u64;
             let n = (count - end).min(PIECE_RECORDS as u64) as usize;
-            bytes.resize(n * 8, 0);
+            bytes.resize(n * Point::BYTES, 0);
             file.read_exact(&mut bytes).map_err(LoadError::read)?;
-            held.extend(bytes.chunks_exact(8).map(point));
+            held.extend(bytes.chunks_exact(Point::BYTES).map(Point::from_le_bytes));
         }
         shapes[i as usize] = Shape::of(&held[skip..skip + t.points as usize]);
     }

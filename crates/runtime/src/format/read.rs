@@ -22,7 +22,7 @@ impl Library {
         let header = at(bytes, bounded(0, HEADER_LEN as u64, len, "the header")?);
         let table = at(bytes, table_bounds(header, len)?);
         let lib = decode(&mut InMemory { bytes, table }, |src| {
-            src.records((POINTS, "PNTS"), 8, point)
+            src.records((POINTS, "PNTS"), Point::BYTES, Point::from_le_bytes)
         })?;
         lib.validate()?;
         Ok(lib)
@@ -34,7 +34,7 @@ impl Library {
     /// file that cannot be read is [`LoadError::Read`].
     pub fn read_from(file: impl Read + Seek) -> Result<Library, LoadError> {
         let lib = decode(&mut FromFile::open(file)?, |src| {
-            src.records((POINTS, "PNTS"), 8, point)
+            src.records((POINTS, "PNTS"), Point::BYTES, Point::from_le_bytes)
         })?;
         lib.validate()?;
         Ok(lib)
@@ -240,15 +240,6 @@ pub(super) fn decode<S: Sections>(
         characters,
     };
     Ok(lib)
-}
-
-/// A PNTS record.
-pub(super) fn point(r: &[u8]) -> Point {
-    Point {
-        x: le_u16(&r[0..2]),
-        y: le_u16(&r[2..4]),
-        t: le_u32(&r[4..8]),
-    }
 }
 
 /// The section table's place, from the header: magic and version checked first.

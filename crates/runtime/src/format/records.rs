@@ -43,6 +43,29 @@ pub struct Point {
     pub t: u32,
 }
 
+impl Point {
+    /// A PNTS record's size (FORMAT.md): `x: u16, y: u16, t: u32`, little-endian.
+    pub const BYTES: usize = 8;
+
+    /// Its PNTS record.
+    pub fn to_le_bytes(self) -> [u8; Point::BYTES] {
+        let mut b = [0u8; Point::BYTES];
+        b[0..2].copy_from_slice(&self.x.to_le_bytes());
+        b[2..4].copy_from_slice(&self.y.to_le_bytes());
+        b[4..8].copy_from_slice(&self.t.to_le_bytes());
+        b
+    }
+
+    /// The point of a PNTS record (its first [`Point::BYTES`] bytes).
+    pub fn from_le_bytes(b: &[u8]) -> Point {
+        Point {
+            x: u16::from_le_bytes([b[0], b[1]]),
+            y: u16::from_le_bytes([b[2], b[3]]),
+            t: u32::from_le_bytes([b[4], b[5], b[6], b[7]]),
+        }
+    }
+}
+
 /// An entry or exit point of the patterns: where (world metres), when (ticks in the period),
 /// at what velocity (m/s), from which patch to which.
 #[derive(Debug, Clone, Copy, PartialEq)]
