@@ -143,19 +143,11 @@ fn sample_loops(
 /// (the million's: 1.7 GB more).
 fn headings(lib: &Library) -> PackedHeadings {
     let mut headings = PackedHeadings::for_points(lib);
-    let points = |ch: &crowd_runtime::Character| {
-        let mut at = ch.first_trajectory as usize;
-        (0..ch.trajectories).fold(0usize, |n, _| {
-            let tr = &lib.trajectories[at];
-            at = tr.next as usize;
-            n + tr.points as usize
-        })
-    };
     let mut start = 0;
     while start < lib.characters.len() {
         let (mut end, mut held) = (start, 0);
         while end < lib.characters.len() && (end == start || held < RUN_POINTS) {
-            held += points(&lib.characters[end]);
+            held += super::source::loop_points(lib, &lib.characters[end]);
             end += 1;
         }
         let run = &lib.characters[start..end];

@@ -122,13 +122,17 @@ pub fn patch_runs(lib: &Library, budget: usize) -> Vec<Range<usize>> {
 /// The library's loops in runs of about `budget` points (at least one loop each).
 pub fn loop_runs(lib: &Library, budget: usize) -> Vec<Range<usize>> {
     runs(lib.characters.len(), budget, |c| {
-        let ch = &lib.characters[c];
-        let mut at = ch.first_trajectory as usize;
-        (0..ch.trajectories).fold(0usize, |n, _| {
-            let t = &lib.trajectories[at];
-            at = t.next as usize;
-            n + t.points as usize
-        })
+        loop_points(lib, &lib.characters[c])
+    })
+}
+
+/// The points of loop `ch`'s trajectories.
+pub fn loop_points(lib: &Library, ch: &crowd_runtime::Character) -> usize {
+    let mut at = ch.first_trajectory as usize;
+    (0..ch.trajectories).fold(0, |n, _| {
+        let t = &lib.trajectories[at];
+        at = t.next as usize;
+        n + t.points as usize
     })
 }
 
