@@ -81,25 +81,39 @@ impl Memo {
     }
 
     pub fn to_bytes(&self) -> Vec<u8> {
-        let mut out = Bytes(MAGIC.to_vec());
-        out.u32(crate::VERSION);
-        out.list(&self.own, |o, (k, own)| {
+        let mut bytes = Vec::new();
+        self.write_to(&mut bytes).expect("writing to memory");
+        bytes
+    }
+
+    /// [`Memo::to_bytes`] written to `out` a piece at a time, hashed as it goes: the million's
+    /// memo is 0.3 GB, which the check held whole (grown by doubling) beside the memo itself,
+    /// at its peak.
+    pub fn write_to<W: std::io::Write + ?Sized>(&self, out: &mut W) -> std::io::Result<()> {
+        let mut sink = Sink {
+            buf: Bytes(Vec::with_capacity(SINK_BYTES)),
+            hash: Hash::pieces(),
+            out,
+        };
+        sink.buf.0.extend_from_slice(MAGIC);
+        sink.buf.u32(crate::VERSION);
+        sink.list(&self.own, |o, (k, own)| {
             o.0.extend_from_slice(k);
             own.put(o);
-        });
+        })?;
         for list in [&self.pairs, &self.library_pairs] {
-            out.list(list, |o, (k, p)| {
+            sink.list(list, |o, (k, p)| {
                 o.0.extend_from_slice(k);
                 p.put(o);
-            });
+            })?;
         }
-        out.list(&self.played, |o, (k, p)| {
+        sink.list(&self.played, |o, (k, p)| {
             o.0.extend_from_slice(k);
             p.put(o);
-        });
-        let hash = Hash::of(&out.0);
-        out.0.extend_from_slice(hash.as_bytes());
-        out.0
+        })?;
+        sink.spill()?;
+        let (_, hash) = sink.hash.finish();
+        sink.out.write_all(hash.as_bytes())
     }
 
     /// For lookups by key.
@@ -259,17 +273,44 @@ impl Bytes {
         self.u64(bytes.len() as u64);
         self.0.extend_from_slice(bytes);
     }
-    /// `items`, after their count.
-    pub fn list<T>(&mut self, items: &[T], mut put: impl FnMut(&mut Bytes, &T)) {
-        self.u64(items.len() as u64);
-        items.iter().for_each(|i| put(self, i));
-    }
     /// `v`, after whether there is one.
     pub fn option<T>(&mut self, v: &Option<T>, put: impl FnOnce(&mut Bytes, &T)) {
         self.u8(u8::from(v.is_some()));
         if let Some(v) = v {
             put(self, v);
         }
+    }
+}
+
+/// Where [`Memo::write_to`] puts its bytes: a buffer handed on (and hashed) each time it
+/// holds [`SINK_BYTES`].
+struct Sink<'a, W: std::io::Write + ?Sized> {
+    buf: Bytes,
+    hash: crowd_core::hash::Pieces,
+    out: &'a mut W,
+}
+
+/// Bytes [`Sink`] holds before it hands them on.
+const SINK_BYTES: usize = 1 << 20;
+
+impl<W: std::io::Write + ?Sized> Sink<'_, W> {
+    /// `items`, after their count, handed on a buffer at a time.
+    fn list<T>(&mut self, items: &[T], mut put: impl FnMut(&mut Bytes, &T)) -> std::io::Result<()> {
+        self.buf.u64(items.len() as u64);
+        for item in items {
+            put(&mut self.buf, item);
+            if self.buf.0.len() >= SINK_BYTES {
+                self.spill()?;
+            }
+        }
+        Ok(())
+    }
+
+    fn spill(&mut self) -> std::io::Result<()> {
+        self.hash.update(&self.buf.0);
+        self.out.write_all(&self.buf.0)?;
+        self.buf.0.clear();
+        Ok(())
     }
 }
 
@@ -387,5 +428,41 @@ impl Played {
             max_turn: r.f64()?,
             jumps: r.u64()?,
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A memo of several megabytes written a buffer at a time reads back whole: the hash at
+    /// its end is of every byte before it, however the writing was cut.
+    #[test]
+    fn a_memo_written_a_piece_at_a_time_reads_back_as_it_was() {
+        let played: Vec<([u8; 32], Played)> = (0..100_000u32)
+            .map(|i| {
+                let mut key = [0u8; 32];
+                key[..4].copy_from_slice(&i.to_le_bytes());
+                let share = Played {
+                    max_step2: f64::from(i) * 0.25,
+                    max_turn: f64::from(i % 7),
+                    jumps: u64::from(i % 3),
+                };
+                (key, share)
+            })
+            .collect();
+        let memo = Memo {
+            played: played.clone(),
+            ..Memo::default()
+        };
+        let mut written = Vec::new();
+        memo.write_to(&mut written).expect("writing to memory");
+        assert!(written.len() > 4 * SINK_BYTES, "{} bytes", written.len());
+        let read = Memo::from_bytes(&written).expect("the memo reads back");
+        assert_eq!(read.played, played);
+        assert!(read.own.is_empty() && read.pairs.is_empty() && read.library_pairs.is_empty());
+        // One byte changed anywhere, and the memo is not read.
+        written[SINK_BYTES + 17] ^= 1;
+        assert!(Memo::from_bytes(&written).is_none());
     }
 }

@@ -62,7 +62,7 @@ pub fn check(dir: &Path, options: &CheckOptions) -> Result<(CheckReport, StageRu
     // The memo before `check.ron`: a check whose `check.ron` is up to date is skipped, so a
     // check killed between the two must leave `check.ron` stale, not the memo (a killed build's
     // next check would keep the last check's memo beside a fresh report).
-    files::write_atomic(&dir.join(MEMO_FILE), &memo.to_bytes())?;
+    files::write_atomic_with(&dir.join(MEMO_FILE), |w| memo.write_to(w))?;
     files::write_atomic(&dir.join(CHECK_FILE), files::to_ron(&report).as_bytes())?;
     let mut timings = read_timings(dir);
     timings.insert("check".to_string(), run);

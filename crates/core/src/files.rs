@@ -133,6 +133,16 @@ fn write_durably(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
     file.sync_data()
 }
 
+/// [`write_durably`] of what `write` writes, through a buffer.
+fn write_durably_with(
+    path: &Path,
+    write: impl FnOnce(&mut dyn std::io::Write) -> std::io::Result<()>,
+) -> std::io::Result<()> {
+    let mut file = std::io::BufWriter::with_capacity(1 << 20, std::fs::File::create(path)?);
+    write(&mut file)?;
+    file.into_inner().map_err(|e| e.into_error())?.sync_data()
+}
+
 /// The temporary file [`write_atomic`] writes `path` through: hidden, in the same folder, named
 /// with this process's id (so that [`FolderLock::acquire`] knows it for a killed build's).
 fn temporary(path: &Path) -> std::path::PathBuf {
@@ -435,8 +445,17 @@ impl Drop for StreamedFile {
 
 /// Writes `bytes` to `path` through a temporary file in the same folder and a rename.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
+    write_atomic_with(path, |w| w.write_all(bytes))
+}
+
+/// [`write_atomic`] of what `write` writes (through a buffer), for a file too large to hold
+/// whole beside what it is made from (the million's `check.memo`: 0.3 GB).
+pub fn write_atomic_with(
+    path: &Path,
+    write: impl FnOnce(&mut dyn std::io::Write) -> std::io::Result<()>,
+) -> Result<()> {
     let tmp = temporary(path);
-    let result = write_durably(&tmp, bytes).and_then(|_| {
+    let result = write_durably_with(&tmp, write).and_then(|_| {
         let (old, renamed) = replace(&tmp, path);
         retire(old.into_iter().collect());
         renamed

@@ -15,6 +15,7 @@ mod steps;
 mod turning;
 mod walker;
 
+pub(crate) use walker::WALKS;
 pub use walker::{PackedHeadings, packed_heading};
 
 use crate::format::{Library, TICK_S};
@@ -74,7 +75,7 @@ const TICKS_PER_S: f64 = 1.0 / TICK_S;
 impl<'a> Sampler<'a> {
     /// A sampler whose first frame may be at any time.
     pub fn new(lib: &'a Library) -> Sampler<'a> {
-        Sampler::with_headings(lib, crate::turn::library_headings(lib))
+        Sampler::with_headings(lib, crate::turn::library_packed_headings(lib))
     }
 
     /// [`Sampler::new`] with the library's headings made already: `headings` must be

@@ -204,21 +204,222 @@ fn piece_end(
 /// A loop's headings `h` settled from its first walking direction: `lap(h, h0, again)` walks
 /// a lap from heading `h0` (stopping where it meets the lap before, when `again`), until the
 /// heading at the loop's start repeats; then the loop's end is its start.
-fn settle(h: &mut [f64], first_walk: f64, mut lap: impl FnMut(&mut [f64], f64, bool)) {
+fn settle(h: &mut [f64], first_walk: f64, lap: impl FnMut(&mut [f64], f64, bool)) {
     let n = h.len();
-    lap(h, first_walk, false);
-    for _ in 0..8 {
-        let end = h[n - 1];
-        if turn_between(end, h[0]).abs() <= 1e-12 {
-            break;
-        }
-        lap(h, end, true);
-    }
+    settle_laps(h, first_walk, lap);
     // A loop that never caught up keeps its last lap's start.
     for a in h.iter_mut() {
         *a = turn_between(*a, 0.0);
     }
     h[n - 1] = h[0];
+}
+
+/// [`settle`]'s laps, into any [`LapStore`]: from the first walking direction, then from
+/// where the lap before ended, until the heading at the loop's start repeats (at most 8 laps
+/// more).
+fn settle_laps<S: LapStore + ?Sized>(
+    store: &mut S,
+    first_walk: f64,
+    mut lap: impl FnMut(&mut S, f64, bool),
+) {
+    lap(store, first_walk, false);
+    for _ in 0..8 {
+        let (start, end) = store.ends();
+        if turn_between(end, start).abs() <= 1e-12 {
+            break;
+        }
+        lap(store, end, true);
+    }
+}
+
+/// Where a lap keeps the headings it makes at a loop's keys. A lap stops where it meets the
+/// lap before (the same bits at a key it compares): each key's heading is a function of the
+/// one before alone, so from there on the lap before is this lap.
+trait LapStore {
+    /// A lap begins at key 0 with heading `h0`.
+    fn begin(&mut self, h0: f64);
+    /// Keeps heading `v` at key `k` (1 or more), unless `again` and the lap before left the
+    /// same bits there, where it may compare (then true: the lap stops, keeping nothing).
+    fn meets(&mut self, k: usize, v: f64, again: bool) -> bool;
+    /// The headings at the loop's first key and its last, as the laps left them.
+    fn ends(&self) -> (f64, f64);
+}
+
+/// Every key's heading in full, compared at every key.
+impl LapStore for [f64] {
+    fn begin(&mut self, h0: f64) {
+        self[0] = h0;
+    }
+
+    fn meets(&mut self, k: usize, v: f64, again: bool) -> bool {
+        if again && self[k].to_bits() == v.to_bits() {
+            return true;
+        }
+        self[k] = v;
+        false
+    }
+
+    fn ends(&self) -> (f64, f64) {
+        (self[0], self[self.len() - 1])
+    }
+}
+
+/// Where a long loop's laps keep the heading in full, to compare a lap with the lap before:
+/// at every [`Marks::every`]th key and the last (and the first lap's start). A lap then stops
+/// at the first mark after it meets the lap before, not at the key itself: what it writes
+/// between the two are the lap before's bits again.
+struct Marks {
+    marks: Vec<f64>,
+    every: usize,
+    keys: usize,
+    first: f64,
+    last: f64,
+}
+
+impl Marks {
+    fn new(keys: usize, every: usize) -> Marks {
+        let every = every.max(1);
+        Marks {
+            marks: vec![0.0; keys / every + 1],
+            every,
+            keys,
+            first: 0.0,
+            last: 0.0,
+        }
+    }
+
+    /// [`LapStore::meets`] where key `k` is marked; else false (the caller keeps `v`).
+    fn meets(&mut self, k: usize, v: f64, again: bool) -> bool {
+        let kept = if k + 1 == self.keys {
+            &mut self.last
+        } else if k.is_multiple_of(self.every) {
+            &mut self.marks[k / self.every]
+        } else {
+            return false;
+        };
+        if again && kept.to_bits() == v.to_bits() {
+            return true;
+        }
+        *kept = v;
+        false
+    }
+
+    /// The settled heading at the loop's first key and its last (the same place a loop
+    /// later), as [`settle`] leaves it: within a turn.
+    fn settled_first(&self) -> f64 {
+        turn_between(self.first, 0.0)
+    }
+}
+
+/// A long loop's headings kept packed, two bytes a key ([`crate::packed_heading`], the walk
+/// bit that of the piece from the key), in full only at its [`Marks`].
+struct PackedLaps {
+    keys: Vec<u16>,
+    marks: Marks,
+}
+
+impl PackedLaps {
+    /// Room for `n` keys, each facing east and not walking until a walk through and the laps
+    /// set them.
+    fn new(n: usize, every: usize) -> PackedLaps {
+        PackedLaps {
+            keys: vec![crate::packed_heading(0.0, false); n],
+            marks: Marks::new(n, every),
+        }
+    }
+
+    /// The settled headings.
+    fn settled(mut self) -> Vec<u16> {
+        let n = self.keys.len();
+        let first = self.marks.settled_first();
+        for k in [0, n - 1] {
+            let walks = self.keys[k] & crate::sampler::WALKS != 0;
+            self.keys[k] = crate::packed_heading(first, walks);
+        }
+        self.keys
+    }
+}
+
+impl LapStore for PackedLaps {
+    fn begin(&mut self, h0: f64) {
+        self.marks.first = h0;
+    }
+
+    fn meets(&mut self, k: usize, v: f64, again: bool) -> bool {
+        if self.marks.meets(k, v, again) {
+            return true;
+        }
+        // Headings after a piece are within a turn already (`piece_end`).
+        let walks = self.keys[k] & crate::sampler::WALKS != 0;
+        self.keys[k] = crate::packed_heading(v, walks);
+        false
+    }
+
+    fn ends(&self) -> (f64, f64) {
+        (self.marks.first, self.marks.last)
+    }
+}
+
+/// A long loop's headings kept in full only over some stretches of its keys (and at its
+/// [`Marks`]): what `world.glb` reads of a loop whose walkers mostly stand outside its region.
+struct StretchLaps {
+    /// Each stretch's keys, `from..to`, sorted and apart, and the headings there.
+    stretches: Vec<(std::ops::Range<usize>, Vec<f64>)>,
+    /// The stretch a lap is in or before (laps go forward through the keys).
+    at: usize,
+    marks: Marks,
+}
+
+impl StretchLaps {
+    fn new(n: usize, stretches: &[std::ops::Range<usize>], every: usize) -> StretchLaps {
+        StretchLaps {
+            stretches: (stretches.iter())
+                .map(|r| (r.clone(), vec![0.0; r.len()]))
+                .collect(),
+            at: 0,
+            marks: Marks::new(n, every),
+        }
+    }
+
+    /// The settled headings of each stretch.
+    fn settled(mut self) -> Vec<Vec<f64>> {
+        let n = self.marks.keys;
+        let first = self.marks.settled_first();
+        for (keys, h) in &mut self.stretches {
+            for k in [0, n - 1] {
+                if keys.contains(&k) {
+                    h[k - keys.start] = first;
+                }
+            }
+        }
+        self.stretches.into_iter().map(|(_, h)| h).collect()
+    }
+}
+
+impl LapStore for StretchLaps {
+    fn begin(&mut self, h0: f64) {
+        self.marks.first = h0;
+        self.at = 0;
+    }
+
+    fn meets(&mut self, k: usize, v: f64, again: bool) -> bool {
+        if self.marks.meets(k, v, again) {
+            return true;
+        }
+        while self.stretches.get(self.at).is_some_and(|(r, _)| r.end <= k) {
+            self.at += 1;
+        }
+        if let Some((keys, h)) = self.stretches.get_mut(self.at)
+            && keys.contains(&k)
+        {
+            h[k - keys.start] = v;
+        }
+        false
+    }
+
+    fn ends(&self) -> (f64, f64) {
+        (self.marks.first, self.marks.last)
+    }
 }
 
 /// The first walking piece after standing piece `k` of a loop (`directions` NaN where a piece
@@ -310,20 +511,29 @@ impl PointHeadings {
 /// a reader that needs a few characters (stage 8's `world.glb` of a region) need not pay for
 /// all.
 pub fn character_headings(lib: &crate::Library, ch: &crate::Character) -> PointHeadings {
-    let rate = f64::from(lib.world.turn_rate_deg_s).to_radians();
     // Its trajectories in walking order first, so that every list below is made at its size
     // (growing them, and the fresh memory each growth touched, was a third of the time), and
     // so that each trajectory's points can be asked for ahead of their turn: the loop goes
     // from patch to patch, each trajectory's points a miss of the cache.
     let legs = loop_legs(lib, ch);
-    let (runs, keys, pieces) = loop_runs(lib, &legs);
+    let runs = loop_runs(lib, &legs);
+    legs_headings(lib, &legs, (&runs.0, runs.1, runs.2))
+}
+
+/// [`character_headings`] of a loop's `legs`, cut into `runs` ([`loop_runs`]).
+fn legs_headings(
+    lib: &crate::Library,
+    legs: &[Leg],
+    (runs, keys, pieces): (&[Run], usize, usize),
+) -> PointHeadings {
+    let rate = f64::from(lib.world.turn_rate_deg_s).to_radians();
     let (h, walking) = if keys < STREAM_KEYS {
         // The keys' times and pieces' directions, and no more: each list a loop long.
         let LoopKeys {
             times,
             directions,
             walking,
-        } = loop_keys(lib, &legs, (&runs, keys, pieces));
+        } = loop_keys(lib, legs, (runs, keys, pieces));
         (headings_from(&times, &directions, rate), walking)
     } else {
         // A long loop's keys made a window of runs at a time, each lap (the million's longest
@@ -331,17 +541,147 @@ pub fn character_headings(lib: &crate::Library, ch: &crate::Character) -> PointH
         // headings made with room for every point, which they are spread to below (grown
         // there, the longest loop's were copied, 0.29 GB twice over).
         let points = legs.iter().map(|l| l.points as usize).sum();
-        streamed_headings(
-            lib,
-            &legs,
-            (&runs, keys, pieces),
-            (rate, points),
-            WINDOW_RUNS,
-        )
+        streamed_headings(lib, legs, (runs, keys, pieces), (rate, points), WINDOW_RUNS)
     };
     PointHeadings {
-        heading: key_headings_at_points(h, &legs),
+        heading: key_headings_at_points(h, legs),
         walks: walking,
+    }
+}
+
+/// Every point's heading in `lib` packed as the sampler keeps them ([`crate::PackedHeadings`]):
+/// [`library_headings`] packed, made a character at a time ([`take_packed_headings`]), never
+/// every point's in full (nine bytes a point: the million's library, 0.87 GB, where the
+/// packed ones are 0.19 GB).
+pub fn library_packed_headings(lib: &crate::Library) -> crate::PackedHeadings {
+    let mut out = crate::PackedHeadings::for_points(lib);
+    for ch in &lib.characters {
+        take_packed_headings(lib, ch, &mut out);
+    }
+    out
+}
+
+/// Character `ch`'s headings packed at its points of `out` (the bits of
+/// [`crate::PackedHeadings::take`] of [`character_headings`]); a long loop's made packed a
+/// window of runs at a time ([`streamed_packed`]), never its headings in full.
+pub fn take_packed_headings(
+    lib: &crate::Library,
+    ch: &crate::Character,
+    out: &mut crate::PackedHeadings,
+) {
+    let legs = loop_legs(lib, ch);
+    let (runs, keys, pieces) = loop_runs(lib, &legs);
+    if keys < STREAM_KEYS {
+        out.take(lib, ch, &legs_headings(lib, &legs, (&runs, keys, pieces)));
+        return;
+    }
+    let rate = f64::from(lib.world.turn_rate_deg_s).to_radians();
+    let runs = (&runs[..], keys, pieces);
+    let packed = streamed_packed(lib, &legs, runs, (rate, WINDOW_RUNS), MARK_EVERY);
+    packed_at_points(&packed, &legs, &mut out.packed);
+}
+
+/// The headings (radians) at the keys `stretches` of character `ch`'s loop, and whether the
+/// piece from each key of a stretch but its last walks: the bits of [`character_headings`]
+/// there. A loop's keys are its trajectories' points in walking order, each trajectory's
+/// first point left out but for the loop's first (it is the one before's last). The
+/// stretches are in order and apart. A long loop's are made a window of runs at a time and
+/// kept in full only over the stretches ([`StretchLaps`]): `world.glb` of a region reads a
+/// few walkers' stretches of the million's longest loop, whose headings are 0.29 GB.
+pub fn stretch_headings(
+    lib: &crate::Library,
+    ch: &crate::Character,
+    stretches: &[std::ops::Range<usize>],
+) -> Vec<(Vec<f64>, Vec<bool>)> {
+    debug_assert!(stretches.windows(2).all(|w| w[0].end <= w[1].start));
+    let legs = loop_legs(lib, ch);
+    let (runs, keys, pieces) = loop_runs(lib, &legs);
+    let runs = (&runs[..], keys, pieces);
+    let rate = f64::from(lib.world.turn_rate_deg_s).to_radians();
+    if keys < STREAM_KEYS {
+        let at_once = loop_keys(lib, &legs, runs);
+        let h = headings_from(&at_once.times, &at_once.directions, rate);
+        return (stretches.iter())
+            .map(|r| (h[r.clone()].to_vec(), pieces_of(&at_once.walking, 0, r)))
+            .collect();
+    }
+    streamed_stretches(
+        lib,
+        &legs,
+        runs,
+        (rate, WINDOW_RUNS),
+        (stretches, MARK_EVERY),
+    )
+}
+
+/// The walk flags of the pieces from the keys of `keys` but its last, of those in `walking`
+/// (the flags of the pieces from key `from` on).
+fn pieces_of(walking: &[bool], from: usize, keys: &std::ops::Range<usize>) -> Vec<bool> {
+    let (a, b) = (keys.start, keys.end.saturating_sub(1).max(keys.start));
+    let (a, b) = (a.max(from) - from, b.max(from) - from);
+    walking[a.min(walking.len())..b.min(walking.len())].to_vec()
+}
+
+/// [`stretch_headings`] of a long loop: its laps through [`StretchLaps`] (the headings in full
+/// over the stretches and at every `every`th key) and its walk flags kept over the
+/// stretches as the first walk through finds them.
+fn streamed_stretches(
+    lib: &crate::Library,
+    legs: &[Leg],
+    runs: (&[Run], usize, usize),
+    (rate, window): (f64, usize),
+    (stretches, every): (&[std::ops::Range<usize>], usize),
+) -> Vec<(Vec<f64>, Vec<bool>)> {
+    let n = runs.1;
+    let upright = |r: &std::ops::Range<usize>| vec![PI / 2.0; r.len()];
+    if n < 2 {
+        let walking = loop_keys(lib, legs, runs).walking;
+        return (stretches.iter())
+            .map(|r| (upright(r), pieces_of(&walking, 0, r)))
+            .collect();
+    }
+    let mut walking: Vec<Vec<bool>> = vec![Vec::new(); stretches.len()];
+    let mut piece = 0;
+    let through = walk_through(lib, legs, runs, window, |w| {
+        let run = piece..piece + w.len();
+        for (r, kept) in stretches.iter().zip(&mut walking) {
+            let want = r.start..r.end.saturating_sub(1).max(r.start);
+            let (a, b) = (want.start.max(run.start), want.end.min(run.end));
+            if a < b {
+                kept.extend_from_slice(&w[a - piece..b - piece]);
+            }
+        }
+        piece = run.end;
+    });
+    let headings = match through {
+        Some(through) => {
+            let mut store = StretchLaps::new(n, stretches, every);
+            streamed_laps(lib, legs, runs, (rate, window), &through, &mut store);
+            store.settled()
+        }
+        None => stretches.iter().map(upright).collect(),
+    };
+    headings.into_iter().zip(walking).collect()
+}
+
+/// Keys between the full headings [`streamed_packed`] keeps to compare laps with (a lap goes
+/// on at most this far past where it meets the lap before).
+const MARK_EVERY: usize = 4096;
+
+/// A loop's packed key headings ([`streamed_packed`]) put at the points of its `legs` in
+/// `out` (a library's): a trajectory's first point is the one before's last key, and a
+/// trajectory's last point has no piece from it, so no walk bit.
+fn packed_at_points(keys: &[u16], legs: &[Leg], out: &mut [u16]) {
+    let mut key = 0usize;
+    for (j, leg) in legs.iter().enumerate() {
+        key -= usize::from(j > 0);
+        let (first, n) = (leg.first as usize, leg.points as usize);
+        let at = &mut out[first..first + n];
+        at.copy_from_slice(&keys[key..key + n]);
+        if let Some(last) = at.last_mut() {
+            *last &= !crate::sampler::WALKS;
+        }
+        key += n;
     }
 }
 
@@ -547,14 +887,79 @@ fn streamed_headings(
     (rate, room): (f64, usize),
     window: usize,
 ) -> (Vec<f64>, Vec<bool>) {
-    let (list, n, pieces) = runs;
+    let (_, n, pieces) = runs;
     if n < 2 {
         let walking = loop_keys(lib, legs, runs).walking;
         return (vec![PI / 2.0; n], walking);
     }
-    // Each run's first walking piece: (piece, direction, the time it starts); the loop's
-    // first and last times; the walk flags.
     let mut walking = Vec::with_capacity(pieces);
+    let through = walk_through(lib, legs, runs, window, |w| walking.extend_from_slice(w));
+    let Some(through) = through else {
+        return (vec![PI / 2.0; n], walking);
+    };
+    let mut h = Vec::with_capacity(room.max(n));
+    h.resize(n, 0.0);
+    streamed_laps(lib, legs, runs, (rate, window), &through, &mut h[..]);
+    for a in h.iter_mut() {
+        *a = turn_between(*a, 0.0);
+    }
+    h[n - 1] = h[0];
+    (h, walking)
+}
+
+/// [`streamed_headings`] packed ([`crate::packed_heading`]: two bytes a key, the walk bit
+/// that of the piece from the key), the headings in full kept only at every `every`th key
+/// ([`PackedLaps`]): the million's longest loop, 36 million keys, held 0.29 GB of headings
+/// and 36 MB of walk flags beside its packed ones, and now holds those alone (72 MB). The
+/// same bits as [`streamed_headings`]' packed.
+fn streamed_packed(
+    lib: &crate::Library,
+    legs: &[Leg],
+    runs: (&[Run], usize, usize),
+    (rate, window): (f64, usize),
+    every: usize,
+) -> Vec<u16> {
+    let (_, n, _) = runs;
+    let upright = |walks: bool| crate::packed_heading(PI / 2.0, walks);
+    if n < 2 {
+        return vec![upright(false); n];
+    }
+    let mut store = PackedLaps::new(n, every);
+    let mut piece = 0;
+    let through = walk_through(lib, legs, runs, window, |w| {
+        for &walks in w {
+            store.keys[piece] = crate::packed_heading(0.0, walks);
+            piece += 1;
+        }
+    });
+    let Some(through) = through else {
+        for k in &mut store.keys {
+            *k = upright(*k & crate::sampler::WALKS != 0);
+        }
+        return store.keys;
+    };
+    streamed_laps(lib, legs, runs, (rate, window), &through, &mut store);
+    store.settled()
+}
+
+/// What a first walk through a long loop's keys finds: where each run first walks (piece,
+/// direction, the time it starts), the loop's first walk, and its length in seconds.
+struct Through {
+    first_walks: Vec<Option<(usize, f64, f64)>>,
+    first_walk: (f64, f64),
+    length: f64,
+}
+
+/// The first walk through a loop's keys, a window of runs at a time ([`Through`]), handing
+/// each run's walk flags to `walking` in order; `None` when the loop never walks.
+fn walk_through(
+    lib: &crate::Library,
+    legs: &[Leg],
+    runs: (&[Run], usize, usize),
+    window: usize,
+    mut walking: impl FnMut(&[bool]),
+) -> Option<Through> {
+    let list = runs.0;
     let mut first_walks: Vec<Option<(usize, f64, f64)>> = Vec::with_capacity(list.len());
     let (mut first_time, mut last_time) = (0.0, 0.0);
     each_run_keys(lib, legs, runs, window, |r, keys| {
@@ -566,27 +971,43 @@ fn streamed_headings(
         let walk = (keys.directions.iter().position(|d| !d.is_nan()))
             .map(|i| (run.piece + i, keys.directions[i], start(run.piece + i)));
         first_walks.push(walk);
-        walking.extend_from_slice(&keys.walking);
+        walking(&keys.walking);
         last_time = keys.times.last().copied().unwrap_or(last_time);
         true
     });
-    let Some((_, first_walk, first_walk_t)) = first_walks.iter().flatten().next().copied() else {
-        return (vec![PI / 2.0; n], walking);
-    };
-    let length = last_time - first_time;
+    let (_, first_walk, first_walk_t) = first_walks.iter().flatten().next().copied()?;
+    Some(Through {
+        first_walks,
+        first_walk: (first_walk, first_walk_t),
+        length: last_time - first_time,
+    })
+}
+
+/// A long loop's laps ([`settle_laps`]), piece by piece through its runs' keys made a window
+/// of runs at a time, as `headings_from`'s, into `store`.
+fn streamed_laps<S: LapStore + ?Sized>(
+    lib: &crate::Library,
+    legs: &[Leg],
+    runs: (&[Run], usize, usize),
+    (rate, window): (f64, usize),
+    through: &Through,
+    store: &mut S,
+) {
+    let list = runs.0;
+    let (first_walk, first_walk_t) = through.first_walk;
     // The first walk after run `r`: in a run after it, or a loop later.
     let walk_after = |r: usize| {
-        (first_walks[r + 1..].iter().flatten().next().copied()).unwrap_or((
-            usize::MAX,
-            first_walk,
-            first_walk_t + length,
-        ))
+        (through.first_walks[r + 1..]
+            .iter()
+            .flatten()
+            .next()
+            .copied())
+        .unwrap_or((usize::MAX, first_walk, first_walk_t + through.length))
     };
-    let mut h = Vec::with_capacity(room.max(n));
-    h.resize(n, 0.0);
-    // A lap as `headings_from`'s, piece by piece through the runs' keys.
-    let lap = |h: &mut [f64], h0: f64, again: bool| {
-        h[0] = h0;
+    let lap = |store: &mut S, h0: f64, again: bool| {
+        store.begin(h0);
+        // The heading at the key the next piece starts from.
+        let mut from = h0;
         let mut walk: Option<(usize, f64, f64)> = None;
         let mut before = 0.0;
         each_run_keys(lib, legs, runs, window, |r, keys| {
@@ -602,18 +1023,17 @@ fn streamed_headings(
                         |j| (k + 1 + j, keys.directions[i + 1 + j], time(k + 1 + j)),
                     ))
                 };
-                let next = piece_end(h[k], (k, d, time(k), time(k + 1)), rate, &mut walk, ahead);
-                if again && h[k + 1].to_bits() == next.to_bits() {
+                let next = piece_end(from, (k, d, time(k), time(k + 1)), rate, &mut walk, ahead);
+                if store.meets(k + 1, next, again) {
                     return false;
                 }
-                h[k + 1] = next;
+                from = next;
             }
             before = keys.times.last().copied().unwrap_or(before);
             true
         });
     };
-    settle(&mut h, first_walk, lap);
-    (h, walking)
+    settle_laps(store, first_walk, lap);
 }
 
 /// The time of key `k` of a loop, from run `run`'s keys, or `before` (the last key of the run
@@ -1098,6 +1518,99 @@ mod tests {
         }
     }
 
+    /// A long loop's headings made packed, a window of runs at a time and compared with the
+    /// lap before only every few keys, are its headings made at once, packed at its points:
+    /// whatever the window and however far apart the compared keys.
+    #[test]
+    fn a_long_loop_packed_a_window_at_a_time_is_its_headings_made_at_once_packed() {
+        for (legs, seed, still, rate) in [
+            (1, 31, 0, 6.0),
+            (3000, 32, 0, 6.0),
+            (3000, 33, 990, 6.0),
+            (5000, 34, 999, 6.0),
+            (2500, 35, 500, 0.02),
+            (2500, 36, 1000, 6.0),
+        ] {
+            let (mut lib, ch) = one_long_loop_standing(legs, seed, still);
+            lib.characters = vec![ch];
+            let legs_of = loop_legs(&lib, &ch);
+            let (runs, keys, pieces) = loop_runs(&lib, &legs_of);
+            let runs = (&runs[..], keys, pieces);
+            let at_once = loop_keys(&lib, &legs_of, runs);
+            let h = headings_from(&at_once.times, &at_once.directions, rate);
+            let model = PointHeadings {
+                heading: key_headings_at_points(h, &legs_of),
+                walks: at_once.walking,
+            };
+            let mut expected = crate::PackedHeadings::for_points(&lib);
+            expected.take(&lib, &ch, &model);
+            for (window, every) in [(1, 1), (2, 7), (3, 4096), (64, 100), (64, MARK_EVERY)] {
+                let packed = streamed_packed(&lib, &legs_of, runs, (rate, window), every);
+                let mut made = crate::PackedHeadings::for_points(&lib);
+                packed_at_points(&packed, &legs_of, &mut made.packed);
+                let case = format!("{legs} legs, {still} still, rate {rate}, window {window}");
+                assert_eq!(made, expected, "{case}, every {every}");
+            }
+        }
+    }
+
+    /// A long loop's headings kept in full only over some stretches of its keys, a window of
+    /// runs at a time, are those stretches of its headings made at once, and so are their
+    /// walk flags; and a loop's stretches are its points' headings, each trajectory's first
+    /// point left out but for the loop's first.
+    #[test]
+    fn stretches_of_a_long_loop_are_its_headings_made_at_once_there() {
+        for (legs, seed, still, rate) in [
+            (1, 41, 0, 6.0),
+            (3000, 42, 0, 6.0),
+            (3000, 43, 990, 6.0),
+            (2500, 44, 500, 0.02),
+            (2500, 45, 1000, 6.0),
+        ] {
+            let (lib, ch) = one_long_loop_standing(legs, seed, still);
+            let legs_of = loop_legs(&lib, &ch);
+            let (runs, keys, pieces) = loop_runs(&lib, &legs_of);
+            let runs = (&runs[..], keys, pieces);
+            let at_once = loop_keys(&lib, &legs_of, runs);
+            let h = headings_from(&at_once.times, &at_once.directions, rate);
+            let cut = |a: usize, b: usize| a.min(keys)..b.min(keys);
+            let stretches = [
+                std::iter::once(0..keys).collect(),
+                vec![cut(0, 1), cut(5, 17), cut(100, 4000), cut(keys - 1, keys)],
+                vec![cut(1, 2), cut(2, 2), cut(4096, 8193), cut(20_000, keys)],
+            ];
+            for (window, every) in [(1, 1), (3, 7), (64, 4096)] {
+                for wanted in &stretches {
+                    let made =
+                        streamed_stretches(&lib, &legs_of, runs, (rate, window), (wanted, every));
+                    let case = format!("{legs} legs, {still} still, rate {rate}, {wanted:?}");
+                    for (r, (made, walking)) in wanted.iter().zip(made) {
+                        let bits = |v: &[f64]| v.iter().map(|a| a.to_bits()).collect::<Vec<_>>();
+                        assert_eq!(bits(&made), bits(&h[r.clone()]), "{case}, {window} {every}");
+                        let flags = pieces_of(&at_once.walking, 0, r);
+                        assert_eq!(walking, flags, "{case}");
+                    }
+                }
+            }
+            // The library's own rate, through the public way in: the points' headings.
+            let all = character_headings(&lib, &ch);
+            let whole = stretch_headings(&lib, &ch, std::slice::from_ref(&(0..keys)));
+            let mut points = Vec::new();
+            let mut key = 0;
+            for (j, leg) in legs_of.iter().enumerate() {
+                let n = leg.points as usize;
+                if j == 0 {
+                    points.extend_from_slice(&whole[0].0[..n]);
+                } else {
+                    points.extend_from_slice(&whole[0].0[key - 1..key - 1 + n]);
+                }
+                key += if j == 0 { n } else { n - 1 };
+            }
+            assert_eq!(points, all.heading, "{legs} legs");
+            assert_eq!(whole[0].1, all.walks, "{legs} legs");
+        }
+    }
+
     /// A loop's key headings put at its points in place are the points' headings copied out.
     #[test]
     fn key_headings_put_at_points_in_place_are_the_copied_ones() {
@@ -1128,6 +1641,7 @@ mod tests {
             let mut taken = crate::PackedHeadings::for_points(&lib);
             taken.take(&lib, &ch, &character_headings(&lib, &ch));
             assert_eq!(taken, whole, "{legs} legs");
+            assert_eq!(library_packed_headings(&lib), whole, "{legs} legs");
         }
     }
 

@@ -140,20 +140,32 @@ fn sample_loops(
 /// they were a second of painting's check), a run of characters of about [`RUN_POINTS`]
 /// points at a time, each taken in as the run is done: all characters' made at once, and
 /// taken into every point's heading in radians, were the library's headings nine times over
-/// (the million's: 1.7 GB more).
+/// (the million's: 1.7 GB more). A loop of [`RUN_POINTS`] or more is a run of its own, made
+/// packed where it is kept (`take_packed_headings`: a long loop's made a window at a time,
+/// on every core): the million's longest, 36 million points, held 0.29 GB of headings in
+/// full and two copies of its packed ones beside them.
 fn headings(lib: &Library) -> PackedHeadings {
     let mut headings = PackedHeadings::for_points(lib);
+    let points = |ch| super::source::loop_points(lib, ch);
     let mut start = 0;
     while start < lib.characters.len() {
+        if points(&lib.characters[start]) >= RUN_POINTS {
+            let ch = &lib.characters[start];
+            crowd_runtime::turn::take_packed_headings(lib, ch, &mut headings);
+            start += 1;
+            continue;
+        }
         let (mut end, mut held) = (start, 0);
-        while end < lib.characters.len() && (end == start || held < RUN_POINTS) {
-            held += super::source::loop_points(lib, &lib.characters[end]);
+        while end < lib.characters.len() && held < RUN_POINTS {
+            let more = points(&lib.characters[end]);
+            if more >= RUN_POINTS {
+                break;
+            }
+            held += more;
             end += 1;
         }
         let run = &lib.characters[start..end];
-        // Each packed as soon as it is made: a run ends with its first long loop, so it may
-        // hold two, and the million's check held 0.48 GB of two characters' headings at nine
-        // bytes a point (heaptrack) where it now holds two bytes a point.
+        // Each packed as soon as it is made (two bytes a point, not nine).
         let made: Vec<Vec<u16>> = (run.par_iter())
             .map(|ch| {
                 let one = crowd_runtime::turn::character_headings(lib, ch);

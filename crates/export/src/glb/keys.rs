@@ -192,30 +192,19 @@ pub(super) fn loop_path(w: &World, held: &Held, plan: &Plan) -> crowd_core::Resu
         let scratch = std::path::Path::new("(the library's points, a scratch file)");
         crowd_core::Error::io(scratch, "read", e)
     })?;
-    // The headings walk the whole loop in order, from the library (which is held), and are
-    // cut to the stretches after. Made beside the path (`rayon::join`) they took 0.4 s off
-    // painting's export, but a thread waiting there took up other loops, and the million's
-    // export held 11.5 GB against 10.0: one after the other.
-    let turn::PointHeadings { heading, walks } =
-        turn::character_headings(&lib.lib, lib.character());
-    let mut walks = Some(walks);
     let starts = Starts::of(w, &lib, members);
-    let whole = plan.runs == [(0, members.len() - 1)];
-    let stretches = (plan.runs.iter())
-        .map(|&(a, b)| {
+    // The headings walk the whole loop in order, and are kept over the stretches the slots
+    // read (a long loop's only there: `turn::stretch_headings`). Made beside the path
+    // (`rayon::join`) they took 0.4 s off painting's export, but a thread waiting there took
+    // up other loops, and the million's export held 11.5 GB against 10.0: one after the
+    // other.
+    let keys: Vec<std::ops::Range<usize>> = (plan.runs.iter())
+        .map(|&(a, b)| starts.key[a]..starts.key[b + 1])
+        .collect();
+    let headings = turn::stretch_headings(&lib.lib, lib.character(), &keys);
+    let stretches = (plan.runs.iter().zip(headings))
+        .map(|(&(a, b), (headings, walking))| {
             let (times, points, turn_times) = stretch_keys(w, (held, &lib), plan, &starts, (a, b));
-            // A trajectory's first point is the one before's last (the same instant and
-            // place): its heading is left out but for the loop's first.
-            let mut headings = Vec::with_capacity(times.len());
-            for j in a..=b {
-                let (at, count) = (starts.point[j], starts.point[j + 1] - starts.point[j]);
-                headings.extend_from_slice(&heading[at + usize::from(j > 0)..at + count]);
-            }
-            let (first, last) = (starts.key[a], starts.key[b + 1]);
-            let walking = match (whole, walks.as_ref()) {
-                (false, Some(all)) => all[first..last - 1].to_vec(),
-                _ => walks.take().expect("one stretch takes the whole loop's"),
-            };
             Stretch {
                 times,
                 points,
@@ -289,10 +278,9 @@ impl<'a> LoopLibrary<'a> {
 
 /// Where each of a loop's trajectories starts, and where the last ends (members + 1): its first
 /// key in the loop's keys (each trajectory's first point left out but for the loop's first),
-/// its first point in the heading table (every point), and the library's ticks before it.
+/// and the library's ticks before it.
 struct Starts {
     key: Vec<usize>,
-    point: Vec<usize>,
     tick: Vec<u64>,
 }
 
@@ -300,21 +288,17 @@ impl Starts {
     fn of(w: &World, lib: &LoopLibrary, members: &[usize]) -> Starts {
         let mut starts = Starts {
             key: Vec::with_capacity(members.len() + 1),
-            point: Vec::with_capacity(members.len() + 1),
             tick: Vec::with_capacity(members.len() + 1),
         };
-        let (mut key, mut point, mut tick) = (0usize, 0usize, 0u64);
+        let (mut key, mut tick) = (0usize, 0u64);
         for (j, &i) in members.iter().enumerate() {
             starts.key.push(key);
-            starts.point.push(point);
             starts.tick.push(tick);
             let n = w.summaries.trajectories[i].points;
             key += if j == 0 { n } else { n.saturating_sub(1) };
-            point += n;
             tick += u64::from(lib.lib.duration_ticks(lib.trajectory(i)));
         }
         starts.key.push(key);
-        starts.point.push(point);
         starts.tick.push(tick);
         starts
     }

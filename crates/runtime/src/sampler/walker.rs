@@ -333,7 +333,7 @@ impl Loops {
 
 /// The bit of a [`Loops::headings`] entry that says the piece from that point walks (the
 /// heading keeps 32768ths of a turn, 2e-4 rad).
-pub(super) const WALKS: u16 = 1;
+pub(crate) const WALKS: u16 = 1;
 
 /// A point's entry of [`Loops::headings`]: its heading (radians, [`crate::turn`]) in 65536ths
 /// of a turn, the lowest bit whether the piece from it walks. What the sampler plays of a
