@@ -602,7 +602,7 @@ pub fn stretch_headings(
         let at_once = loop_keys(lib, &legs, runs);
         let h = headings_from(&at_once.times, &at_once.directions, rate);
         return (stretches.iter())
-            .map(|r| (h[r.clone()].to_vec(), pieces_of(&at_once.walking, 0, r)))
+            .map(|r| (h[r.clone()].to_vec(), pieces_of(&at_once.walking, r)))
             .collect();
     }
     streamed_stretches(
@@ -614,12 +614,15 @@ pub fn stretch_headings(
     )
 }
 
-/// The walk flags of the pieces from the keys of `keys` but its last, of those in `walking`
-/// (the flags of the pieces from key `from` on).
-fn pieces_of(walking: &[bool], from: usize, keys: &std::ops::Range<usize>) -> Vec<bool> {
-    let (a, b) = (keys.start, keys.end.saturating_sub(1).max(keys.start));
-    let (a, b) = (a.max(from) - from, b.max(from) - from);
-    walking[a.min(walking.len())..b.min(walking.len())].to_vec()
+/// The pieces from the keys of `keys` but its last (piece `k` goes from key `k` to the next).
+fn pieces(keys: &std::ops::Range<usize>) -> std::ops::Range<usize> {
+    keys.start..keys.end.saturating_sub(1).max(keys.start)
+}
+
+/// The walk flags of [`pieces`] of `keys`, of a loop's `walking` (a flag per piece).
+fn pieces_of(walking: &[bool], keys: &std::ops::Range<usize>) -> Vec<bool> {
+    let p = pieces(keys);
+    walking[p.start.min(walking.len())..p.end.min(walking.len())].to_vec()
 }
 
 /// [`stretch_headings`] of a long loop: its laps through [`StretchLaps`] (the headings in full
@@ -637,7 +640,7 @@ fn streamed_stretches(
     if n < 2 {
         let walking = loop_keys(lib, legs, runs).walking;
         return (stretches.iter())
-            .map(|r| (upright(r), pieces_of(&walking, 0, r)))
+            .map(|r| (upright(r), pieces_of(&walking, r)))
             .collect();
     }
     let mut walking: Vec<Vec<bool>> = vec![Vec::new(); stretches.len()];
@@ -645,7 +648,7 @@ fn streamed_stretches(
     let through = walk_through(lib, legs, runs, window, |w| {
         let run = piece..piece + w.len();
         for (r, kept) in stretches.iter().zip(&mut walking) {
-            let want = r.start..r.end.saturating_sub(1).max(r.start);
+            let want = pieces(r);
             let (a, b) = (want.start.max(run.start), want.end.min(run.end));
             if a < b {
                 kept.extend_from_slice(&w[a - piece..b - piece]);
@@ -1488,6 +1491,40 @@ mod tests {
         }
     }
 
+    /// A long loop of [`one_long_loop_standing`], cut into runs, with its keys and headings
+    /// made at once at `rate`: what the streamed ways of making them are held to.
+    struct AtOnce {
+        lib: crate::Library,
+        ch: crate::Character,
+        legs: Vec<Leg>,
+        runs: (Vec<Run>, usize, usize),
+        keys: LoopKeys,
+        headings: Vec<f64>,
+    }
+
+    impl AtOnce {
+        fn new(legs: usize, seed: u64, still: u64, rate: f64) -> AtOnce {
+            let (mut lib, ch) = one_long_loop_standing(legs, seed, still);
+            lib.characters = vec![ch];
+            let legs = loop_legs(&lib, &ch);
+            let runs = loop_runs(&lib, &legs);
+            let keys = loop_keys(&lib, &legs, (&runs.0, runs.1, runs.2));
+            let headings = headings_from(&keys.times, &keys.directions, rate);
+            AtOnce {
+                lib,
+                ch,
+                legs,
+                runs,
+                keys,
+                headings,
+            }
+        }
+
+        fn runs(&self) -> (&[Run], usize, usize) {
+            (&self.runs.0, self.runs.1, self.runs.2)
+        }
+    }
+
     /// A long loop's headings made a window of runs at a time, lap after lap, are the bits of
     /// its keys made at once: whatever the window, where the loop walks throughout, where it
     /// stands for runs on end (a standing piece turns towards a walk runs ahead, or a loop
@@ -1501,19 +1538,14 @@ mod tests {
             (5000, 14, 999, 6.0),
             (2500, 15, 500, 0.02),
         ] {
-            let (lib, ch) = one_long_loop_standing(legs, seed, still);
-            let legs_of = loop_legs(&lib, &ch);
-            let (runs, keys, pieces) = loop_runs(&lib, &legs_of);
-            let runs = (&runs[..], keys, pieces);
-            let at_once = loop_keys(&lib, &legs_of, runs);
-            let h = headings_from(&at_once.times, &at_once.directions, rate);
+            let made = AtOnce::new(legs, seed, still, rate);
             let bits = |v: &[f64]| v.iter().map(|a| a.to_bits()).collect::<Vec<u64>>();
             for window in [1, 2, 3, 64] {
                 let (streamed, walking) =
-                    streamed_headings(&lib, &legs_of, runs, (rate, 0), window);
+                    streamed_headings(&made.lib, &made.legs, made.runs(), (rate, 0), window);
                 let case = format!("{legs} legs, {still} still, rate {rate}, window {window}");
-                assert_eq!(walking, at_once.walking, "{case}");
-                assert_eq!(bits(&streamed), bits(&h), "{case}");
+                assert_eq!(walking, made.keys.walking, "{case}");
+                assert_eq!(bits(&streamed), bits(&made.headings), "{case}");
             }
         }
     }
@@ -1531,23 +1563,19 @@ mod tests {
             (2500, 35, 500, 0.02),
             (2500, 36, 1000, 6.0),
         ] {
-            let (mut lib, ch) = one_long_loop_standing(legs, seed, still);
-            lib.characters = vec![ch];
-            let legs_of = loop_legs(&lib, &ch);
-            let (runs, keys, pieces) = loop_runs(&lib, &legs_of);
-            let runs = (&runs[..], keys, pieces);
-            let at_once = loop_keys(&lib, &legs_of, runs);
-            let h = headings_from(&at_once.times, &at_once.directions, rate);
+            let at_once = AtOnce::new(legs, seed, still, rate);
+            let (lib, legs_of) = (&at_once.lib, &at_once.legs);
             let model = PointHeadings {
-                heading: key_headings_at_points(h, &legs_of),
-                walks: at_once.walking,
+                heading: key_headings_at_points(at_once.headings.clone(), legs_of),
+                walks: at_once.keys.walking.clone(),
             };
-            let mut expected = crate::PackedHeadings::for_points(&lib);
-            expected.take(&lib, &ch, &model);
+            let mut expected = crate::PackedHeadings::for_points(lib);
+            expected.take(lib, &at_once.ch, &model);
             for (window, every) in [(1, 1), (2, 7), (3, 4096), (64, 100), (64, MARK_EVERY)] {
-                let packed = streamed_packed(&lib, &legs_of, runs, (rate, window), every);
-                let mut made = crate::PackedHeadings::for_points(&lib);
-                packed_at_points(&packed, &legs_of, &mut made.packed);
+                let runs = at_once.runs();
+                let packed = streamed_packed(lib, legs_of, runs, (rate, window), every);
+                let mut made = crate::PackedHeadings::for_points(lib);
+                packed_at_points(&packed, legs_of, &mut made.packed);
                 let case = format!("{legs} legs, {still} still, rate {rate}, window {window}");
                 assert_eq!(made, expected, "{case}, every {every}");
             }
@@ -1567,45 +1595,34 @@ mod tests {
             (2500, 44, 500, 0.02),
             (2500, 45, 1000, 6.0),
         ] {
-            let (lib, ch) = one_long_loop_standing(legs, seed, still);
-            let legs_of = loop_legs(&lib, &ch);
-            let (runs, keys, pieces) = loop_runs(&lib, &legs_of);
-            let runs = (&runs[..], keys, pieces);
-            let at_once = loop_keys(&lib, &legs_of, runs);
-            let h = headings_from(&at_once.times, &at_once.directions, rate);
+            let at_once = AtOnce::new(legs, seed, still, rate);
+            let (lib, ch, legs_of) = (&at_once.lib, &at_once.ch, &at_once.legs);
+            let keys = at_once.runs.1;
             let cut = |a: usize, b: usize| a.min(keys)..b.min(keys);
             let stretches = [
                 std::iter::once(0..keys).collect(),
                 vec![cut(0, 1), cut(5, 17), cut(100, 4000), cut(keys - 1, keys)],
                 vec![cut(1, 2), cut(2, 2), cut(4096, 8193), cut(20_000, keys)],
             ];
+            let bits = |v: &[f64]| v.iter().map(|a| a.to_bits()).collect::<Vec<_>>();
             for (window, every) in [(1, 1), (3, 7), (64, 4096)] {
                 for wanted in &stretches {
+                    let runs = at_once.runs();
                     let made =
-                        streamed_stretches(&lib, &legs_of, runs, (rate, window), (wanted, every));
+                        streamed_stretches(lib, legs_of, runs, (rate, window), (wanted, every));
                     let case = format!("{legs} legs, {still} still, rate {rate}, {wanted:?}");
                     for (r, (made, walking)) in wanted.iter().zip(made) {
-                        let bits = |v: &[f64]| v.iter().map(|a| a.to_bits()).collect::<Vec<_>>();
-                        assert_eq!(bits(&made), bits(&h[r.clone()]), "{case}, {window} {every}");
-                        let flags = pieces_of(&at_once.walking, 0, r);
+                        let expected = &at_once.headings[r.clone()];
+                        assert_eq!(bits(&made), bits(expected), "{case}, {window} {every}");
+                        let flags = pieces_of(&at_once.keys.walking, r);
                         assert_eq!(walking, flags, "{case}");
                     }
                 }
             }
             // The library's own rate, through the public way in: the points' headings.
-            let all = character_headings(&lib, &ch);
-            let whole = stretch_headings(&lib, &ch, std::slice::from_ref(&(0..keys)));
-            let mut points = Vec::new();
-            let mut key = 0;
-            for (j, leg) in legs_of.iter().enumerate() {
-                let n = leg.points as usize;
-                if j == 0 {
-                    points.extend_from_slice(&whole[0].0[..n]);
-                } else {
-                    points.extend_from_slice(&whole[0].0[key - 1..key - 1 + n]);
-                }
-                key += if j == 0 { n } else { n - 1 };
-            }
+            let all = character_headings(lib, ch);
+            let whole = stretch_headings(lib, ch, std::slice::from_ref(&(0..keys)));
+            let points = key_headings_at_points(whole[0].0.clone(), legs_of);
             assert_eq!(points, all.heading, "{legs} legs");
             assert_eq!(whole[0].1, all.walks, "{legs} legs");
         }
