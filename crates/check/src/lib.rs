@@ -221,8 +221,8 @@ fn own_shares(
     memo: &Recalled,
 ) -> crowd_core::Result<Vec<(Own, bool)>> {
     in_order((0..w.graph.patches.len()).into_par_iter().map(|p| {
-        if let Some(o) = own_keys.and_then(|k| memo.own(&k[p])) {
-            return Ok((o.clone(), false));
+        if let Some(o) = own_keys.and_then(|k| memo.take_own(&k[p])) {
+            return Ok((o, false));
         }
         Ok((own_share(w, tables, p)?, true))
     }))

@@ -47,7 +47,8 @@ pub struct Memo {
 /// A [`Memo`] read for lookups.
 #[derive(Default)]
 pub struct Recalled {
-    own: HashMap<[u8; 32], Own>,
+    /// Taken out as they are looked up ([`Recalled::take_own`]).
+    own: std::sync::Mutex<HashMap<[u8; 32], Own>>,
     pairs: HashMap<[u8; 32], Pairs>,
     library_pairs: HashMap<[u8; 32], Pairs>,
     played: HashMap<[u8; 32], Played>,
@@ -90,36 +91,15 @@ impl Memo {
     /// memo is 0.3 GB, which the check held whole (grown by doubling) beside the memo itself,
     /// at its peak.
     pub fn write_to<W: std::io::Write + ?Sized>(&self, out: &mut W) -> std::io::Result<()> {
-        let mut sink = Sink {
-            buf: Bytes(Vec::with_capacity(SINK_BYTES)),
-            hash: Hash::pieces(),
-            out,
-        };
-        sink.buf.0.extend_from_slice(MAGIC);
-        sink.buf.u32(crate::VERSION);
-        sink.list(&self.own, |o, (k, own)| {
-            o.0.extend_from_slice(k);
-            own.put(o);
-        })?;
-        for list in [&self.pairs, &self.library_pairs] {
-            sink.list(list, |o, (k, p)| {
-                o.0.extend_from_slice(k);
-                p.put(o);
-            })?;
-        }
-        sink.list(&self.played, |o, (k, p)| {
-            o.0.extend_from_slice(k);
-            p.put(o);
-        })?;
-        sink.spill()?;
-        let (_, hash) = sink.hash.finish();
-        sink.out.write_all(hash.as_bytes())
+        MemoWriter::begin(out, (&self.own, &self.pairs))?
+            .end((&self.library_pairs, &self.played))
+            .map(drop)
     }
 
     /// For lookups by key.
     pub fn recall(self) -> Recalled {
         Recalled {
-            own: self.own.into_iter().collect(),
+            own: std::sync::Mutex::new(self.own.into_iter().collect()),
             pairs: self.pairs.into_iter().collect(),
             library_pairs: self.library_pairs.into_iter().collect(),
             played: self.played.into_iter().collect(),
@@ -146,7 +126,7 @@ impl Recalled {
     /// hashes, so two memos that hold one key hold one share for it.
     pub fn add(&mut self, more: Memo) {
         self.added += 1;
-        self.own.extend(more.own);
+        self.own_map().extend(more.own);
         self.pairs.extend(more.pairs);
         self.library_pairs.extend(more.library_pairs);
         self.played.extend(more.played);
@@ -160,12 +140,22 @@ impl Recalled {
     /// Lets the stage file's shares go (once it is judged, the library's are all a check
     /// looks up).
     pub fn forget_stage(&mut self) {
-        self.own = HashMap::new();
+        *self.own_map() = HashMap::new();
         self.pairs = HashMap::new();
     }
 
-    pub(crate) fn own(&self, key: &Hash) -> Option<&Own> {
-        self.own.get(key.as_bytes())
+    /// The own share of `key`, taken out: the check that looks it up keeps it in its new memo,
+    /// and a copy left here doubled the million's 0.2 GB of shares while the stage file was
+    /// judged. A key is looked up once (it pins its patch's place); asked again, it is judged
+    /// again.
+    pub(crate) fn take_own(&self, key: &Hash) -> Option<Own> {
+        self.own_map().remove(key.as_bytes())
+    }
+
+    fn own_map(&self) -> std::sync::MutexGuard<'_, HashMap<[u8; 32], Own>> {
+        self.own
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
     }
 
     pub(crate) fn pairs(&self, key: &Hash) -> Option<Pairs> {
@@ -282,18 +272,83 @@ impl Bytes {
     }
 }
 
-/// Where [`Memo::write_to`] puts its bytes: a buffer handed on (and hashed) each time it
-/// holds [`SINK_BYTES`].
-struct Sink<'a, W: std::io::Write + ?Sized> {
+/// A memo written as a check goes, in its file's order: the stage file's part, then the
+/// library's. A large world's check writes the stage file's part as soon as it is judged and
+/// lets it go before it judges the library (the million's: 0.2 GB of patches' shares, held
+/// through the library's check, at its peak).
+pub struct MemoWriter<W: std::io::Write>(Sink<W>);
+
+impl<W: std::io::Write> MemoWriter<W> {
+    /// Starts the memo in `out` with the stage file's part (`None`: the check judged none).
+    pub fn start(out: W, stage: Option<&StagePart>) -> std::io::Result<MemoWriter<W>> {
+        match stage {
+            Some(s) => MemoWriter::begin(out, (&s.own, &s.pairs)),
+            None => MemoWriter::begin(out, (&[], &[])),
+        }
+    }
+
+    /// Ends the memo with the library's part (`None`: the check judged no library), and its
+    /// hash; `out` is handed back.
+    pub fn finish(self, library: Option<&LibraryPart>) -> std::io::Result<W> {
+        match library {
+            Some(l) => self.end((&l.pairs, &l.played)),
+            None => self.end((&[], &[])),
+        }
+    }
+
+    fn begin(out: W, (own, pairs): StageLists) -> std::io::Result<MemoWriter<W>> {
+        let mut sink = Sink {
+            buf: Bytes(Vec::with_capacity(SINK_BYTES)),
+            hash: Hash::pieces(),
+            out,
+        };
+        sink.buf.0.extend_from_slice(MAGIC);
+        sink.buf.u32(crate::VERSION);
+        sink.list(own, |o, (k, own)| {
+            o.0.extend_from_slice(k);
+            own.put(o);
+        })?;
+        sink.list(pairs, |o, (k, p)| {
+            o.0.extend_from_slice(k);
+            p.put(o);
+        })?;
+        Ok(MemoWriter(sink))
+    }
+
+    fn end(self, (pairs, played): LibraryLists) -> std::io::Result<W> {
+        let mut sink = self.0;
+        sink.list(pairs, |o, (k, p)| {
+            o.0.extend_from_slice(k);
+            p.put(o);
+        })?;
+        sink.list(played, |o, (k, p)| {
+            o.0.extend_from_slice(k);
+            p.put(o);
+        })?;
+        sink.spill()?;
+        let (_, hash) = sink.hash.finish();
+        sink.out.write_all(hash.as_bytes())?;
+        Ok(sink.out)
+    }
+}
+
+/// The stage file's lists of a memo: own shares and pairs, by key.
+type StageLists<'a> = (&'a [([u8; 32], Own)], &'a [([u8; 32], Pairs)]);
+/// The library's lists of a memo: pairs and played walkers, by key.
+type LibraryLists<'a> = (&'a [([u8; 32], Pairs)], &'a [([u8; 32], Played)]);
+
+/// Where [`MemoWriter`] puts its bytes: a buffer handed on (and hashed) each time it holds
+/// [`SINK_BYTES`].
+struct Sink<W: std::io::Write> {
     buf: Bytes,
     hash: crowd_core::hash::Pieces,
-    out: &'a mut W,
+    out: W,
 }
 
 /// Bytes [`Sink`] holds before it hands them on.
 const SINK_BYTES: usize = 1 << 20;
 
-impl<W: std::io::Write + ?Sized> Sink<'_, W> {
+impl<W: std::io::Write> Sink<W> {
     /// `items`, after their count, handed on a buffer at a time.
     fn list<T>(&mut self, items: &[T], mut put: impl FnMut(&mut Bytes, &T)) -> std::io::Result<()> {
         self.buf.u64(items.len() as u64);

@@ -10,7 +10,7 @@ use crate::stages::{self, GRAPH_FILE, PATTERNS_FILE};
 use crate::ui::Ui;
 use anyhow::{Context, Result, bail};
 use crowd_check::library::{InFile, Source};
-use crowd_check::memo::{Memo, Recalled};
+use crowd_check::memo::{self, Memo, MemoWriter, Recalled};
 use crowd_check::{CheckReport, Judged, ProductFigures};
 use crowd_core::config::PipelineFile;
 use crowd_core::files;
@@ -62,7 +62,7 @@ pub fn check(dir: &Path, options: &CheckOptions) -> Result<(CheckReport, StageRu
     // The memo before `check.ron`: a check whose `check.ron` is up to date is skipped, so a
     // check killed between the two must leave `check.ron` stale, not the memo (a killed build's
     // next check would keep the last check's memo beside a fresh report).
-    files::write_atomic_with(&dir.join(MEMO_FILE), |w| memo.write_to(w))?;
+    memo.put_in_place()?;
     files::write_atomic(&dir.join(CHECK_FILE), files::to_ron(&report).as_bytes())?;
     let mut timings = read_timings(dir);
     timings.insert("check".to_string(), run);
@@ -240,7 +240,10 @@ fn input_hash(dir: &Path, stage: &Stage, options: &CheckOptions) -> Result<Hash>
     Ok(h.finish())
 }
 
-fn measure(dir: &Path, options: &CheckOptions) -> Result<(CheckReport, Memo, Redone)> {
+fn measure(
+    dir: &Path,
+    options: &CheckOptions,
+) -> Result<(CheckReport, files::StreamedFile, Redone)> {
     let graph = PatchGraph::load_shared(&dir.join(GRAPH_FILE))?;
     let chosen = chosen(dir, options.stage)?;
     // The stage's files are read (versions, sizes, hashes) before anything is judged: a
@@ -288,19 +291,24 @@ fn measure(dir: &Path, options: &CheckOptions) -> Result<(CheckReport, Memo, Red
         .transpose()
     };
     let gltf = || gltf(dir, &graph, &walls, limit);
-    let (stage, (library, gltf)) = if small {
-        rayon::join(
+    let memo_path = dir.join(MEMO_FILE);
+    let (stage, (library, gltf), writer) = if small {
+        let (stage, products) = rayon::join(
             || stage_figures(&graph, stage, &memo),
             || rayon::join(|| library(&memo), gltf),
-        )
+        );
+        let stage = stage?;
+        let writer = start_memo(&memo_path, &stage.memo)?;
+        (stage, products, writer)
     } else {
-        let stage = stage_figures(&graph, stage, &memo);
-        // The stage file's shares are looked up no more (the million's: 0.3 GB).
+        let mut stage = stage_figures(&graph, stage, &memo)?;
+        // The stage file's shares are looked up no more (the million's: 0.3 GB), and its
+        // part of the new memo is written and let go before the library is judged (0.2 GB).
         memo.forget_stage();
-        (stage, (library(&memo), gltf()))
+        let writer = start_memo(&memo_path, &std::mem::take(&mut stage.memo))?;
+        (stage, (library(&memo), gltf()), writer)
     };
     drop(memo);
-    let stage = stage?;
     let library = library?;
     let n = graph.patches.len();
     let mut redone = Redone {
@@ -316,7 +324,9 @@ fn measure(dir: &Path, options: &CheckOptions) -> Result<(CheckReport, Memo, Red
         report.library = Some(l.judged.figures);
         l.judged.memo
     });
-    let memo = Memo::of(Some(stage.memo), library_memo);
+    let memo = (writer.finish(library_memo.as_ref()))
+        .map_err(|e| crowd_core::Error::io(&memo_path, "write", e))?
+        .finish()?;
     report.gltf = gltf?;
     // What is judged must be what stage 8 wrote: each file against the manifest's size and hash.
     let manifest = dir.join(stages::EXPORT_FILE);
@@ -393,6 +403,12 @@ impl StageFiles {
 
 /// The check of a stage's trajectories, with their motion figures: decoded a strip of the
 /// world at a time (`crowd_check::check_world`).
+/// The check's new memo, begun at `path`'s temporary name with the stage file's part.
+fn start_memo(path: &Path, stage: &memo::StagePart) -> Result<MemoWriter<files::Streamed>> {
+    let file = files::Streamed::create(path)?;
+    MemoWriter::start(file, Some(stage)).map_err(|e| crowd_core::Error::io(path, "write", e).into())
+}
+
 fn stage_figures(graph: &PatchGraph, s: StageFiles, memo: &Recalled) -> Result<Judged> {
     let world = crowd_check::World {
         graph,

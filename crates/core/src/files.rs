@@ -410,6 +410,20 @@ impl Streamed {
     }
 }
 
+/// A memo or report written a piece at a time by code that writes to any `std::io::Write`.
+impl std::io::Write for Streamed {
+    fn write(&mut self, bytes: &[u8]) -> std::io::Result<usize> {
+        self.hash.update(bytes);
+        let file = self.file.as_mut().expect("writing before finishing");
+        std::io::Write::write_all(file, bytes)?;
+        Ok(bytes.len())
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        self.file.as_mut().map_or(Ok(()), std::io::Write::flush)
+    }
+}
+
 impl Drop for Streamed {
     fn drop(&mut self) {
         if self.file.is_some() {
@@ -432,6 +446,18 @@ impl StreamedFile {
     /// Where its bytes are now: at the temporary name until the build puts it in place.
     pub fn on_disk(&self) -> &Path {
         self.tmp.as_deref().unwrap_or(&self.path)
+    }
+
+    /// Puts it in place now, renamed over `path` (a file written outside a build's
+    /// [`Staging`]: `crowd check`'s memo).
+    pub fn put_in_place(mut self) -> Result<()> {
+        let tmp = self.tmp.take().expect("put in place once");
+        let (old, renamed) = replace(&tmp, &self.path);
+        retire(old.into_iter().collect());
+        renamed.map_err(|e| {
+            let _ = std::fs::remove_file(&tmp);
+            Error::io(&self.path, "write", e)
+        })
     }
 }
 
