@@ -8,14 +8,14 @@ use crate::stage::Stage;
 use crate::stages;
 use anyhow::Result;
 use crowd_core::config::PipelineFile;
-use crowd_core::files;
 use crowd_core::maps::MergeFile;
 use crowd_core::patterns::{Crossing, Patterns};
 use crowd_core::trajectories::{PatchMotion, TrajectoriesFile, check_motion};
-use crowd_core::{MergedMaps, PatchGraph};
+use crowd_core::{Hash, MergedMaps, PatchGraph};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::rc::Rc;
+use std::sync::Arc;
 
 /// A stage's patterns: the file and its crossings.
 pub type PatternsOf = (Patterns, Vec<Crossing>);
@@ -44,10 +44,15 @@ pub struct Artifacts<'p> {
     dir: PathBuf,
     /// A stage's file given at another path (a subcommand's `--input`).
     given: Option<(&'static str, PathBuf)>,
-    bytes: BTreeMap<&'static str, Rc<Vec<u8>>>,
+    /// The hashes of stage files' bytes, what later stages' input hashes are made of (their
+    /// bytes are not kept: the million's `graph.ron` and `patterns.ron` were 75 MB held
+    /// through every stage).
+    file_hashes: BTreeMap<&'static str, Hash>,
     layers: Option<Rc<Vec<crowd_merge::LayerBytes>>>,
     maps: Option<Rc<MergedMaps>>,
-    graph: Option<Rc<PatchGraph>>,
+    /// Shared with `PatchGraph::load_shared`'s parse, not a copy of it (the million's graph,
+    /// 0.1 GB, was held twice).
+    graph: Option<Arc<PatchGraph>>,
     patterns: Option<Rc<PatternsOf>>,
     motion: BTreeMap<&'static str, Rc<MotionOf>>,
     /// Motion this build made but left in files not yet in place (a gathering's stage 6, in
@@ -69,7 +74,7 @@ impl<'p> Artifacts<'p> {
             previous: Default::default(),
             dir: dir.to_path_buf(),
             given: None,
-            bytes: BTreeMap::new(),
+            file_hashes: BTreeMap::new(),
             layers: None,
             maps: None,
             graph: None,
@@ -95,19 +100,22 @@ impl<'p> Artifacts<'p> {
         }
     }
 
-    /// The bytes of the file `stage` made (what later stages' hashes are made of).
-    pub fn bytes(&mut self, stage: &Stage) -> Result<Rc<Vec<u8>>> {
-        if let Some(bytes) = self.bytes.get(stage.output) {
-            return Ok(bytes.clone());
+    /// The hash of the bytes of the file `stage` made (what later stages' input hashes are
+    /// made of), read through once, a piece at a time.
+    pub fn file_hash(&mut self, stage: &Stage) -> Result<Hash> {
+        if let Some(hash) = self.file_hashes.get(stage.output) {
+            return Ok(*hash);
         }
-        let bytes = Rc::new(files::read_bytes(&self.path(stage.output))?);
-        self.bytes.insert(stage.output, bytes.clone());
-        Ok(bytes)
+        let path = self.path(stage.output);
+        let (_, hash) =
+            Hash::of_file(&path).map_err(|e| crowd_core::Error::io(&path, "read", e))?;
+        self.file_hashes.insert(stage.output, hash);
+        Ok(hash)
     }
 
-    /// Records the bytes of the file `stage` just made.
-    pub fn keep_bytes(&mut self, stage: &'static Stage, bytes: Vec<u8>) {
-        self.bytes.insert(stage.output, Rc::new(bytes));
+    /// Records the hash of the bytes of the file `stage` just made (not yet in place).
+    pub fn keep_hash(&mut self, stage: &'static Stage, bytes: &[u8]) {
+        self.file_hashes.insert(stage.output, Hash::of(bytes));
     }
 
     /// The painted layers the pipeline names, read (not decoded) once.
@@ -133,14 +141,13 @@ impl<'p> Artifacts<'p> {
     }
 
     pub fn made_graph(&mut self, graph: PatchGraph) {
-        self.graph = Some(Rc::new(graph));
+        self.graph = Some(Arc::new(graph));
     }
 
     /// Stage 2's graph.
-    pub fn graph(&mut self) -> Result<Rc<PatchGraph>> {
+    pub fn graph(&mut self) -> Result<Arc<PatchGraph>> {
         if self.graph.is_none() {
-            let graph = PatchGraph::load_shared(&self.path(stages::GRAPH.output))?;
-            self.graph = Some(Rc::new(PatchGraph::clone(&graph)));
+            self.graph = Some(PatchGraph::load_shared(&self.path(stages::GRAPH.output))?);
         }
         Ok(self.graph.clone().expect("just loaded"))
     }

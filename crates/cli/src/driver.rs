@@ -182,7 +182,7 @@ fn run_stages(
         }
         let (ran, run) = timed(|| (stage.run)(artifacts, &path, hash, ui))?;
         if let Some(bytes) = ran.bytes_of(&path) {
-            artifacts.keep_bytes(stage, bytes.to_vec());
+            artifacts.keep_hash(stage, bytes);
         }
         for file in ran.streamed {
             pending.stage_streamed(file);

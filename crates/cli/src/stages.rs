@@ -96,7 +96,7 @@ pub static GRAPH: Stage = Stage {
     kind: PatchGraph::STAGE,
     version: PatchGraph::VERSION,
     hash: |a| {
-        let merge = a.bytes(&MERGE)?;
+        let merge = a.file_hash(&MERGE)?;
         Ok(crowd_graph::input_hash(
             &merge,
             &crowd_graph::inputs(a.pipeline),
@@ -123,7 +123,7 @@ pub static OPTIMIZE: Stage = Stage {
     kind: Patterns::STAGE,
     version: Patterns::VERSION,
     hash: |a| {
-        let graph = a.bytes(&GRAPH)?;
+        let graph = a.file_hash(&GRAPH)?;
         Ok(crowd_optimize::input_hash(
             &graph,
             &crowd_optimize::inputs(a.pipeline),
@@ -154,7 +154,7 @@ pub static MATCH: Stage = Stage {
     kind: TrajectoriesFile::STAGE,
     version: TrajectoriesFile::VERSION,
     hash: |a| {
-        let (graph, patterns) = (a.bytes(&GRAPH)?, a.bytes(&OPTIMIZE)?);
+        let (graph, patterns) = (a.file_hash(&GRAPH)?, a.file_hash(&OPTIMIZE)?);
         let inputs = crowd_match::inputs(a.pipeline);
         Ok(crowd_match::input_hash(&graph, &patterns, &inputs))
     },
@@ -181,7 +181,7 @@ pub static COLLIDE: Stage = Stage {
                 &inputs,
             ));
         }
-        let (graph, matched) = (a.bytes(&GRAPH)?, a.bytes(&MATCH)?);
+        let (graph, matched) = (a.file_hash(&GRAPH)?, a.file_hash(&MATCH)?);
         Ok(crowd_collide::input_hash(&graph, &matched, &inputs))
     },
     fresh: |a, path, hash| motion_fresh(&COLLIDE, a, path, hash),
@@ -200,7 +200,7 @@ pub static SMOOTH: Stage = Stage {
     kind: crowd_smooth::STAGE,
     version: crowd_smooth::VERSION,
     hash: |a| {
-        let (graph, patterns) = (a.bytes(&GRAPH)?, a.bytes(&OPTIMIZE)?);
+        let (graph, patterns) = (a.file_hash(&GRAPH)?, a.file_hash(&OPTIMIZE)?);
         let inputs = crowd_smooth::inputs(a.pipeline);
         if let Split::Shard(_) = a.split {
             // A shard has only its part of stage 5: what that part is made from stands in.
@@ -210,7 +210,7 @@ pub static SMOOTH: Stage = Stage {
                 &inputs,
             ));
         }
-        let collided = a.bytes(&COLLIDE)?;
+        let collided = a.file_hash(&COLLIDE)?;
         Ok(crowd_smooth::input_hash(
             &graph, &patterns, &collided, &inputs,
         ))
@@ -231,7 +231,7 @@ pub static EDIT: Stage = Stage {
     kind: crowd_moments::STAGE,
     version: crowd_moments::VERSION,
     hash: |a| {
-        let (graph, smoothed) = (a.bytes(&GRAPH)?, a.bytes(&SMOOTH)?);
+        let (graph, smoothed) = (a.file_hash(&GRAPH)?, a.file_hash(&SMOOTH)?);
         let inputs = crowd_moments::inputs(a.pipeline);
         let maps = crate::flow_maps::read(a.pipeline)?;
         let bytes: Vec<&[u8]> = maps.iter().map(|m| m.bytes.as_slice()).collect();
@@ -259,8 +259,8 @@ pub static EXPORT: Stage = Stage {
     kind: crowd_export::STAGE,
     version: crowd_export::VERSION,
     hash: |a| {
-        let (graph, patterns) = (a.bytes(&GRAPH)?, a.bytes(&OPTIMIZE)?);
-        let smoothed = a.bytes(final_motion(a.pipeline))?;
+        let (graph, patterns) = (a.file_hash(&GRAPH)?, a.file_hash(&OPTIMIZE)?);
+        let smoothed = a.file_hash(final_motion(a.pipeline))?;
         let inputs = crowd_export::inputs(a.pipeline);
         Ok(crowd_export::input_hash(
             &graph, &patterns, &smoothed, &inputs,
@@ -342,10 +342,10 @@ fn merge(a: &mut Artifacts, out: &Path, hash: Hash, ui: &Ui) -> Result<Ran> {
 
 fn graph(a: &mut Artifacts, out: &Path, _: Hash, ui: &Ui) -> Result<Ran> {
     let bar = ui.stage_bar(GRAPH.name);
-    let merge_bytes = a.bytes(&MERGE)?;
+    let merge_file = a.file_hash(&MERGE)?;
     let maps = a.take_maps()?;
     let merge_path = a.path(MERGE.output);
-    let graph = crowd_graph::build(a.pipeline, &merge_path, &merge_bytes, &maps, &bar)?;
+    let graph = crowd_graph::build(a.pipeline, &merge_path, &merge_file, &maps, &bar)?;
     let bytes = files::to_stage_ron(&graph).into_bytes();
     a.made_graph(graph);
     Ok(Ran::files(vec![(out.to_path_buf(), bytes)]))
@@ -922,7 +922,7 @@ fn smooth_gathered(
     // What each part says it is made from: stage 5's part's, the patterns, the settings.
     let collide_part =
         crowd_collide::shard::part_hash(a.hashes[MATCH.name], &crowd_collide::inputs(a.pipeline));
-    let made_from = crowd_smooth::shard::part_hash(collide_part, &a.bytes(&OPTIMIZE)?, inputs);
+    let made_from = crowd_smooth::shard::part_hash(collide_part, &a.file_hash(&OPTIMIZE)?, inputs);
     let mut summing = crowd_core::trajectories::Summing::new(inputs.period_s);
     let side_path = out.with_extension("bin");
     let gathered = crowd_smooth::shard::gather_bytes(

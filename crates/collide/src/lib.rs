@@ -459,15 +459,16 @@ pub fn inputs(pipeline: &crowd_core::config::PipelineFile) -> Inputs {
     }
 }
 
-/// The hash of stage 5's inputs: the graph and trajectories files' bytes and the settings.
+/// The hash of stage 5's inputs: the graph and trajectories files (their bytes' hashes) and
+/// the settings.
 pub fn input_hash(
-    graph_bytes: &[u8],
-    trajectories_bytes: &[u8],
+    graph_file: &crowd_core::Hash,
+    trajectories_file: &crowd_core::Hash,
     inputs: &Inputs,
 ) -> crowd_core::Hash {
     crowd_core::Hasher::new(STAGE, VERSION)
-        .file("graph file", graph_bytes)
-        .file("trajectories file", trajectories_bytes)
+        .file_hash("graph file", graph_file)
+        .file_hash("trajectories file", trajectories_file)
         .value("inputs", inputs)
         .finish()
 }

@@ -583,7 +583,8 @@ fn stage_5_reads_its_speeds_and_margin_from_the_pipeline_and_hashes_them() {
     );
     let coarser = crate::inputs(&pipeline("export: (simplify_mm: 2.0)"));
     assert!(coarser.margin_m > default.margin_m + 1e-3);
-    let hash = |i: &crate::Inputs| input_hash(b"g", b"t", i);
+    let (g, t) = (crowd_core::Hash::of(b"g"), crowd_core::Hash::of(b"t"));
+    let hash = |i: &crate::Inputs| input_hash(&g, &t, i);
     let only_max = crate::inputs(&pipeline("match: (max_speed: 2.0)"));
     let all = [&default, &faster, &only_max, &coarser].map(hash);
     for (i, a) in all.iter().enumerate() {

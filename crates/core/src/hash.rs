@@ -232,8 +232,14 @@ impl Hasher {
 
     /// Adds an input file by the hash of its bytes.
     pub fn file(&mut self, label: &str, bytes: &[u8]) -> &mut Hasher {
-        let hash = Hash::of(bytes).to_string();
-        self.part(label, hash.as_bytes())
+        self.file_hash(label, &Hash::of(bytes))
+    }
+
+    /// [`Hasher::file`] of a file whose bytes hash to `hash`: a build keeps its stage files'
+    /// hashes, not their bytes (the million's `graph.ron` and `patterns.ron`, 75 MB, were held
+    /// through every stage for its input hashes).
+    pub fn file_hash(&mut self, label: &str, hash: &Hash) -> &mut Hasher {
+        self.part(label, hash.to_string().as_bytes())
     }
 
     /// Adds a labelled value through its RON text (settings structs).

@@ -5,11 +5,24 @@
 
 use crowd_core::trajectories::PatchMotion;
 
-/// A trajectory by patch and place in its patch, numbered patch after patch.
+/// A trajectory by patch and place in its patch, numbered patch after patch (32 bits each:
+/// one is held for every trajectory of the world through export).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct TrajectoryRef {
-    pub patch: usize,
-    pub index: usize,
+    pub patch: u32,
+    pub index: u32,
+}
+
+impl TrajectoryRef {
+    /// Trajectory `index` of patch `patch` (a world's patches, and a patch's trajectories, are
+    /// numbered in 32 bits in every stage file).
+    pub fn new(patch: usize, index: usize) -> TrajectoryRef {
+        let n = |x: usize| u32::try_from(x).expect("stage files number in 32 bits");
+        TrajectoryRef {
+            patch: n(patch),
+            index: n(index),
+        }
+    }
 }
 
 /// Every trajectory's global number, its successor, and the loops.
@@ -17,7 +30,7 @@ pub struct TrajectoryRef {
 pub struct Links {
     pub refs: Vec<TrajectoryRef>,
     /// `next[i]`: the trajectory that enters by trajectory `i`'s exit.
-    pub next: Vec<usize>,
+    pub next: Vec<u32>,
     /// Loops, each as its trajectories in walking order, from its lowest-numbered one.
     pub loops: Vec<Vec<usize>>,
 }
@@ -66,7 +79,7 @@ impl std::error::Error for LinkError {}
 pub fn link(motion: &[PatchMotion], crossings: usize) -> Result<Links, LinkError> {
     let ends = motion.iter().enumerate().flat_map(|(patch, m)| {
         (m.trajectories.iter().enumerate())
-            .map(move |(index, tr)| (TrajectoryRef { patch, index }, tr.entry, tr.exit))
+            .map(move |(index, tr)| (TrajectoryRef::new(patch, index), tr.entry, tr.exit))
     });
     link_ends(ends, crossings)
 }
@@ -79,15 +92,15 @@ pub fn link_ends(
 ) -> Result<Links, LinkError> {
     let mut refs = Vec::new();
     let mut exit_of = Vec::new();
-    let mut entered_by: Vec<Option<usize>> = vec![None; crossings];
+    let mut entered_by: Vec<Option<u32>> = vec![None; crossings];
     let mut counts = vec![0usize; crossings];
     let mut exits = vec![0usize; crossings];
     for (r, entry, exit) in ends {
         for c in [entry, exit] {
             if c as usize >= crossings {
                 return Err(LinkError::UnknownCrossing {
-                    patch: r.patch,
-                    trajectory: r.index,
+                    patch: r.patch as usize,
+                    trajectory: r.index as usize,
                     crossing: c,
                 });
             }
@@ -99,7 +112,8 @@ pub fn link_ends(
                 count: exits[exit as usize],
             });
         }
-        entered_by[entry as usize] = Some(refs.len());
+        // Each trajectory leaves by a crossing of its own (above), numbered in 32 bits.
+        entered_by[entry as usize] = Some(u32::try_from(refs.len()).expect("32-bit crossings"));
         counts[entry as usize] += 1;
         refs.push(r);
         exit_of.push(exit);
@@ -128,7 +142,7 @@ pub fn link_ends(
         while !seen[at] {
             seen[at] = true;
             lp.push(at);
-            at = next[at];
+            at = next[at] as usize;
         }
         // Each trajectory has one successor and (counts == 1) one predecessor: a permutation,
         // so the walk closes on `start`.

@@ -41,12 +41,13 @@ pub fn inputs(pipeline: &crowd_core::config::PipelineFile) -> Inputs {
     }
 }
 
-/// The hash of stage 8's inputs: the graph, patterns and final trajectories' bytes and settings.
-pub fn input_hash(graph: &[u8], patterns: &[u8], trajectories: &[u8], inputs: &Inputs) -> Hash {
+/// The hash of stage 8's inputs: the graph, patterns and final trajectories' files (their
+/// bytes' hashes) and settings.
+pub fn input_hash(graph: &Hash, patterns: &Hash, trajectories: &Hash, inputs: &Inputs) -> Hash {
     Hasher::new(STAGE, VERSION)
-        .file("graph file", graph)
-        .file("patterns file", patterns)
-        .file("trajectories file", trajectories)
+        .file_hash("graph file", graph)
+        .file_hash("patterns file", patterns)
+        .file_hash("trajectories file", trajectories)
         .value("inputs", inputs)
         .finish()
 }
@@ -226,8 +227,7 @@ pub fn export<M: motion::Motion>(
     };
     let tolerance_m = tolerance_m(inputs);
     let summaries = motion::Summaries::of(graph, motion)?;
-    let ends =
-        (summaries.refs.iter().zip(&summaries.trajectories)).map(|(&r, s)| (r, s.entry, s.exit));
+    let ends = (summaries.refs().zip(&summaries.trajectories)).map(|(r, s)| (r, s.entry, s.exit));
     let links =
         characters::link_ends(ends, crossings.len()).map_err(library::LibraryError::Links)?;
     let mut short = [0u8; 8];

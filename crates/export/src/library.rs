@@ -259,7 +259,7 @@ impl<F: Fn(usize) -> i64> Quantised<'_, F> {
             let t0 = ticks(tr.points[0].t);
             let first_point = part.points.len();
             // The end, snapped: the successor's start a whole number of periods on.
-            let succ = (self.start_of)(links.next[i]);
+            let succ = (self.start_of)(links.next[i] as usize);
             let exact = ticks(tr.points[tr.points.len() - 1].t) - t0;
             let gap = (succ - start).rem_euclid(pt);
             let mut end = gap + pt * ((exact - gap) as f64 / pt as f64).round() as i64;
@@ -294,7 +294,7 @@ impl<F: Fn(usize) -> i64> Quantised<'_, F> {
                 patch: p as u32,
                 entry: tr.entry,
                 exit: tr.exit,
-                next: count(links.next[i], "trajectories")?,
+                next: links.next[i],
                 first_point: count(first_point, "points")?,
                 points: count(tr.points.len(), "points")?,
                 start: start as u32,

@@ -316,20 +316,21 @@ pub fn inputs(pipeline: &PipelineFile) -> GraphInputs {
     }
 }
 
-/// The hash of stage 2's inputs: the merge file's bytes and the graph settings.
-pub fn input_hash(merge_file_bytes: &[u8], inputs: &GraphInputs) -> Hash {
+/// The hash of stage 2's inputs: the merge file (its bytes' hash) and the graph settings.
+pub fn input_hash(merge_file: &Hash, inputs: &GraphInputs) -> Hash {
     Hasher::new(PatchGraph::STAGE, PatchGraph::VERSION)
-        .file("merge file", merge_file_bytes)
+        .file_hash("merge file", merge_file)
         .value("inputs", inputs)
         .finish()
 }
 
-/// Builds the graph of a pipeline from stage 1's maps and the bytes of its file (`merge` names
-/// it in messages). Problems of the scene point at the pipeline setting to change.
+/// Builds the graph of a pipeline from stage 1's maps and the hash of its file's bytes
+/// (`merge` names it in messages). Problems of the scene point at the pipeline setting to
+/// change.
 pub fn build(
     pipeline: &PipelineFile,
     merge: &Path,
-    merge_bytes: &[u8],
+    merge_file: &Hash,
     maps: &MergedMaps,
     progress: &dyn Progress,
 ) -> Result<PatchGraph> {
@@ -340,7 +341,7 @@ pub fn build(
         ));
     }
     let inputs = inputs(pipeline);
-    let hash = input_hash(merge_bytes, &inputs);
+    let hash = input_hash(merge_file, &inputs);
     build_graph(maps, &inputs, hash, progress)
         .map_err(|problem| pipeline.scene_error(problem.field(), problem.to_string()))
 }

@@ -245,12 +245,17 @@ pub fn inputs(pipeline: &crowd_core::config::PipelineFile) -> Inputs {
     }
 }
 
-/// The hash of stage 4's inputs: the graph and patterns files' bytes and the settings.
-pub fn input_hash(graph_bytes: &[u8], patterns_bytes: &[u8], inputs: &Inputs) -> crowd_core::Hash {
+/// The hash of stage 4's inputs: the graph and patterns files (their bytes' hashes) and the
+/// settings.
+pub fn input_hash(
+    graph_file: &crowd_core::Hash,
+    patterns_file: &crowd_core::Hash,
+    inputs: &Inputs,
+) -> crowd_core::Hash {
     use crowd_core::trajectories::TrajectoriesFile;
     crowd_core::Hasher::new(TrajectoriesFile::STAGE, TrajectoriesFile::VERSION)
-        .file("graph file", graph_bytes)
-        .file("patterns file", patterns_bytes)
+        .file_hash("graph file", graph_file)
+        .file_hash("patterns file", patterns_file)
         .value("period", &inputs.period_s)
         .value("seed", &inputs.seed)
         .value("settings", &inputs.settings)

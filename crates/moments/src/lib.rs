@@ -79,9 +79,9 @@ pub fn inputs(pipeline: &crowd_core::config::PipelineFile) -> Inputs {
 /// the shipped files are held to (with export's share).
 pub const SPEED_ALLOWANCE: f64 = 1.04;
 
-/// The hash of stage 7's inputs: the graph and smoothed files' bytes, the settings, and the
-/// bytes of the flow maps the edits name (in the order of the edits).
-pub fn input_hash(graph: &[u8], smoothed: &[u8], inputs: &Inputs, flow_maps: &[&[u8]]) -> Hash {
+/// The hash of stage 7's inputs: the graph and smoothed files (their bytes' hashes), the
+/// settings, and the bytes of the flow maps the edits name (in the order of the edits).
+pub fn input_hash(graph: &Hash, smoothed: &Hash, inputs: &Inputs, flow_maps: &[&[u8]]) -> Hash {
     // A flow map counts by its bytes, not by where it is (as the layers do): a pipeline copied
     // elsewhere with absolute paths rebuilds nothing.
     let mut settings = inputs.clone();
@@ -92,8 +92,8 @@ pub fn input_hash(graph: &[u8], smoothed: &[u8], inputs: &Inputs, flow_maps: &[&
     }
     let mut hasher = Hasher::new(STAGE, VERSION);
     hasher
-        .file("graph file", graph)
-        .file("smoothed file", smoothed)
+        .file_hash("graph file", graph)
+        .file_hash("smoothed file", smoothed)
         .value("inputs", &settings);
     for bytes in flow_maps {
         hasher.file("flow map", bytes);

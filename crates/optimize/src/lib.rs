@@ -827,13 +827,13 @@ pub fn inputs(pipeline: &crowd_core::config::PipelineFile) -> Inputs {
     }
 }
 
-/// The hash of stage 3's inputs: the graph file's bytes and the settings.
-pub fn input_hash(graph_file_bytes: &[u8], inputs: &Inputs) -> crowd_core::Hash {
+/// The hash of stage 3's inputs: the graph file (its bytes' hash) and the settings.
+pub fn input_hash(graph_file: &crowd_core::Hash, inputs: &Inputs) -> crowd_core::Hash {
     crowd_core::Hasher::new(
         crowd_core::patterns::Patterns::STAGE,
         crowd_core::patterns::Patterns::VERSION,
     )
-    .file("graph file", graph_file_bytes)
+    .file_hash("graph file", graph_file)
     .value("inputs", inputs)
     .finish()
 }

@@ -134,12 +134,13 @@ pub fn inputs(pipeline: &crowd_core::config::PipelineFile) -> Inputs {
     }
 }
 
-/// The hash of stage 6's inputs: the graph, patterns and collided files' bytes and the settings.
-pub fn input_hash(graph: &[u8], patterns: &[u8], collided: &[u8], inputs: &Inputs) -> Hash {
+/// The hash of stage 6's inputs: the graph, patterns and collided files (their bytes' hashes)
+/// and the settings.
+pub fn input_hash(graph: &Hash, patterns: &Hash, collided: &Hash, inputs: &Inputs) -> Hash {
     Hasher::new(STAGE, VERSION)
-        .file("graph file", graph)
-        .file("patterns file", patterns)
-        .file("collided file", collided)
+        .file_hash("graph file", graph)
+        .file_hash("patterns file", patterns)
+        .file_hash("collided file", collided)
         .value("inputs", inputs)
         .finish()
 }

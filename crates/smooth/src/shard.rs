@@ -15,10 +15,10 @@ use std::path::Path;
 /// What a shard's part of stage 6 is made from: what stage 5's part is made from
 /// (`crowd_collide::shard::part_hash`), the patterns file's bytes and the settings (a shard has
 /// not the collided file whose bytes stage 6's own hash covers: only its part of it).
-pub fn part_hash(collide_part_hash: Hash, patterns: &[u8], inputs: &Inputs) -> Hash {
+pub fn part_hash(collide_part_hash: Hash, patterns: &Hash, inputs: &Inputs) -> Hash {
     Hasher::new(crate::STAGE, crate::VERSION)
         .value("stage 5 part", &collide_part_hash)
-        .file("patterns file", patterns)
+        .file_hash("patterns file", patterns)
         .value("inputs", inputs)
         .finish()
 }

@@ -340,7 +340,9 @@ fn stretch_keys(
         for (j, &i) in members.iter().enumerate().take(end).skip(first) {
             let r = w.links.refs[i];
             let tr = held.trajectory(r);
-            let origin = w.graph.world_from_patch(w.graph.patches[r.patch].cell);
+            let origin = w
+                .graph
+                .world_from_patch(w.graph.patches[r.patch as usize].cell);
             let (offset, tick) = (plan.offsets[j], starts.tick[j]);
             let t0 = tr.points[0].t;
             // The library's trajectory `i` holds the same points, quantised.

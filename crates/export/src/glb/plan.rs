@@ -128,7 +128,7 @@ pub(super) fn patches(plans: &[Plan], links: &Links, patches: usize) -> Vec<bool
         let members = &links.loops[plan.lp];
         for &(a, b) in &plan.runs {
             for &i in &members[a..=b] {
-                read[links.refs[i].patch] = true;
+                read[links.refs[i].patch as usize] = true;
             }
         }
     }
