@@ -33,9 +33,9 @@
 //! | --- | ---: | ---: | ---: |
 //! | painting (one region), a shard of 4 (`--threads 1`) | 95,000 | 599 MB | 650 MB |
 //! | painting (one region), a shard of 8 | 95,000 | 596-599 MB | 644 MB |
-//! | the million (regions of 16), a shard of 8 | 1,016,000 | 681-693 MB | 0.82 GB |
+//! | the million (regions of 16), a shard of 8 | 1,016,000 | 0.53-0.58 GB (681-693 MB before issue 20's fifteenth part) | 0.82 GB |
 //! | painting, the gather of 4 shards | 95,000 | 1.14-1.17 GB | 1.23 GB |
-//! | the million, the gather of 8 shards | 1,016,000 | 1.30-1.36 GB | 1.82 GB |
+//! | the million, the gather of 8 shards | 1,016,000 | 1.10-1.13 GB (1.30-1.38 GB before) | 1.82 GB |
 //!
 //! A build that stops early (`--until`, or a shard's regions step) holds only what its last
 //! stage does of the world (the million's stages on one thread, `timings.ron`, 2026-12-06):
