@@ -220,3 +220,51 @@ fn a_library_judged_from_its_file_a_part_at_a_time_is_judged_as_in_memory() {
         }
     }
 }
+
+/// A large world's check judges the stage file first, writes its part of the memo and lets it
+/// go, then judges the shipped files (`CheckOptions::at_once`): the same `check.ron` and
+/// `check.memo`, to the byte, as the check that judges them at once, from nothing and again
+/// with the memo it wrote.
+#[test]
+fn a_check_one_part_after_the_other_writes_what_one_at_once_writes() {
+    use crowd::check::{CheckOptions, check};
+    for name in ["city", "ring"] {
+        let pipeline = crowd_core::config::PipelineFile::load(&scene_pipeline(name)).unwrap();
+        let judged = |at_once: bool| {
+            let dir = copy_of(name);
+            for file in ["check.ron", "check.memo"] {
+                std::fs::remove_file(dir.path().join(file)).unwrap();
+            }
+            let options = CheckOptions {
+                max_speed: pipeline.pipeline.matching.max_speed,
+                turn_rate_deg_s: pipeline.pipeline.export.turn_rate_deg_s,
+                at_once: Some(at_once),
+                ..CheckOptions::default()
+            };
+            let read = |file: &str| std::fs::read(dir.path().join(file)).unwrap();
+            let (_, _, from_nothing) = check(dir.path(), &options).unwrap();
+            let first = (read("check.ron"), read("check.memo"));
+            let (_, _, again) = check(dir.path(), &options).unwrap();
+            assert_eq!(
+                (read("check.ron"), read("check.memo")),
+                first,
+                "{name}: again"
+            );
+            (first, from_nothing, again)
+        };
+        let (at_once, one_after) = (judged(true), judged(false));
+        assert!(
+            at_once.0 == one_after.0,
+            "{name}: check.ron and check.memo differ"
+        );
+        for (what, redone) in [("from nothing", &one_after.1), ("again", &one_after.2)] {
+            let n = redone.stage_own.1;
+            assert!(n > 0, "{name}: patches");
+            let expected = if what == "again" { 0 } else { n };
+            assert_eq!(
+                redone.stage_own.0, expected,
+                "{name} {what}: own shares judged"
+            );
+        }
+    }
+}

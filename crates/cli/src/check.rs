@@ -38,6 +38,12 @@ pub struct CheckOptions {
     /// `export.turn_rate_deg_s` of the build's pipeline: no character may turn faster (plus
     /// the keys' rounding, [`TURN_MARGIN`]).
     pub turn_rate_deg_s: f64,
+    /// Whether the stage file and the shipped files are judged at once (faster: each works
+    /// while the other waits on its serial parts) or one after the other (the stage file's part
+    /// of the memo written and let go first: half as much memory again held at once); `None`:
+    /// at once where the stage's side file is under [`SMALL_WORLD_BYTES`]. Either way the
+    /// same `check.ron` and `check.memo`.
+    pub at_once: Option<bool>,
 }
 
 /// The shipped files' headings may turn this much faster than `export.turn_rate_deg_s`: f32
@@ -50,6 +56,7 @@ impl Default for CheckOptions {
             stage: None,
             max_speed: crowd_core::config::MatchSettings::default().max_speed,
             turn_rate_deg_s: crowd_core::config::ExportSettings::default().turn_rate_deg_s,
+            at_once: None,
         }
     }
 }
@@ -167,6 +174,7 @@ pub fn after_build(
         stage: None,
         max_speed,
         turn_rate_deg_s,
+        at_once: None,
     };
     let path = out.join(CHECK_FILE);
     if !force && fresh(out, &options)? {
@@ -252,7 +260,7 @@ fn measure(
     // On a small world (see below) `library.crowd` is read and loaded meanwhile too: painting's
     // takes 0.14 s on one core, which the library's judging, the check's longest part, waited
     // for.
-    let small = small_world(dir, chosen);
+    let small = options.at_once.unwrap_or_else(|| small_world(dir, chosen));
     let ((stage, memo), loaded) = rayon::join(
         || {
             rayon::join(
@@ -365,9 +373,9 @@ fn small_world(dir: &Path, chosen: &Stage) -> bool {
     std::fs::metadata(side).is_ok_and(|m| m.len() < SMALL_WORLD_BYTES)
 }
 
-/// See [`small_world`]: ring's and city's stage 6 side files are 22 MB, painting's 412, the
+/// See [`small_world`] (and [`CheckOptions::at_once`]): ring's and city's stage 6 side files are 22 MB, painting's 412, the
 /// million's 4,200 (whose check holds 5.8 GB one part after the other).
-const SMALL_WORLD_BYTES: u64 = 1 << 30;
+pub const SMALL_WORLD_BYTES: u64 = 1 << 30;
 
 /// What the check of a stage's trajectories reads: its file, its motion left in its side file,
 /// the crossings of the patterns beside it, and the stage's patch keys when they belong to
