@@ -69,10 +69,10 @@ impl Memo {
         if r.take(MAGIC.len())? != MAGIC || r.u32()? != crate::VERSION {
             return None;
         }
-        let own = r.list(|r| Some((r.key()?, Own::get(r)?)))?;
-        let pairs = r.list(|r| Some((r.key()?, Pairs::get(r)?)))?;
-        let library_pairs = r.list(|r| Some((r.key()?, Pairs::get(r)?)))?;
-        let played = r.list(|r| Some((r.key()?, Played::get(r)?)))?;
+        let own = r.keyed()?;
+        let pairs = r.keyed()?;
+        let library_pairs = r.keyed()?;
+        let played = r.keyed()?;
         r.0.is_empty().then_some(Memo {
             own,
             pairs,
@@ -304,27 +304,15 @@ impl<W: std::io::Write> MemoWriter<W> {
         };
         sink.buf.0.extend_from_slice(MAGIC);
         sink.buf.u32(crate::VERSION);
-        sink.list(own, |o, (k, own)| {
-            o.0.extend_from_slice(k);
-            own.put(o);
-        })?;
-        sink.list(pairs, |o, (k, p)| {
-            o.0.extend_from_slice(k);
-            p.put(o);
-        })?;
+        sink.keyed(own)?;
+        sink.keyed(pairs)?;
         Ok(MemoWriter(sink))
     }
 
     fn end(self, (pairs, played): LibraryLists) -> std::io::Result<W> {
         let mut sink = self.0;
-        sink.list(pairs, |o, (k, p)| {
-            o.0.extend_from_slice(k);
-            p.put(o);
-        })?;
-        sink.list(played, |o, (k, p)| {
-            o.0.extend_from_slice(k);
-            p.put(o);
-        })?;
+        sink.keyed(pairs)?;
+        sink.keyed(played)?;
         sink.spill()?;
         let (_, hash) = sink.hash.finish();
         sink.out.write_all(hash.as_bytes())?;
@@ -349,11 +337,12 @@ struct Sink<W: std::io::Write> {
 const SINK_BYTES: usize = 1 << 20;
 
 impl<W: std::io::Write> Sink<W> {
-    /// `items`, after their count, handed on a buffer at a time.
-    fn list<T>(&mut self, items: &[T], mut put: impl FnMut(&mut Bytes, &T)) -> std::io::Result<()> {
+    /// `items` (records by key), after their count, handed on a buffer at a time.
+    fn keyed<T: Record>(&mut self, items: &[([u8; 32], T)]) -> std::io::Result<()> {
         self.buf.u64(items.len() as u64);
-        for item in items {
-            put(&mut self.buf, item);
+        for (key, item) in items {
+            self.buf.0.extend_from_slice(key);
+            item.put(&mut self.buf);
             if self.buf.0.len() >= SINK_BYTES {
                 self.spill()?;
             }
@@ -416,7 +405,7 @@ impl<'a> Reader<'a> {
     fn key(&mut self) -> Option<[u8; 32]> {
         self.take(32)?.try_into().ok()
     }
-    /// A list written by [`Bytes::list`] (its count checked against what is left, so a damaged
+    /// A list, its count first (the count checked against what is left, so a damaged
     /// count allocates nothing).
     pub fn list<T>(&mut self, mut get: impl FnMut(&mut Reader<'a>) -> Option<T>) -> Option<Vec<T>> {
         let n = usize::try_from(self.u64()?).ok()?;
@@ -424,6 +413,10 @@ impl<'a> Reader<'a> {
             return None;
         }
         (0..n).map(|_| get(self)).collect()
+    }
+    /// Records by key, as [`Sink::keyed`] wrote them.
+    fn keyed<T: Record>(&mut self) -> Option<Vec<([u8; 32], T)>> {
+        self.list(|r| Some((r.key()?, T::get(r)?)))
     }
     /// An option written by [`Bytes::option`].
     pub fn option<T>(
@@ -438,7 +431,13 @@ impl<'a> Reader<'a> {
     }
 }
 
-impl Own {
+/// A memo's record kept by key: an own share, a patch's pairs, a walker's play.
+trait Record: Sized {
+    fn put(&self, o: &mut Bytes);
+    fn get(r: &mut Reader) -> Option<Self>;
+}
+
+impl Record for Own {
     fn put(&self, o: &mut Bytes) {
         self.extent.put(o);
         o.u64(self.walkers);
@@ -451,6 +450,16 @@ impl Own {
             walkers: r.u64()?,
             tally: r.option(PackedTally::get)?,
         })
+    }
+}
+
+impl Record for crate::world::Pairs {
+    fn put(&self, o: &mut Bytes) {
+        crate::world::Pairs::put(self, o);
+    }
+
+    fn get(r: &mut Reader) -> Option<Self> {
+        crate::world::Pairs::get(r)
     }
 }
 
@@ -470,7 +479,7 @@ impl Extent {
     }
 }
 
-impl Played {
+impl Record for Played {
     fn put(&self, o: &mut Bytes) {
         o.f64(self.max_step2);
         o.f64(self.max_turn);
