@@ -19,7 +19,7 @@ pub mod products;
 mod strips;
 mod world;
 
-use crowd_core::patterns::Crossing;
+use crowd_core::patterns::Crossings;
 use crowd_core::trajectories::PatchMotion;
 use crowd_core::{Hash, PatchGraph};
 use crowd_geometry::BoxGrid;
@@ -98,7 +98,7 @@ pub fn check_world(
     graph: &PatchGraph,
     source: &dyn Source,
     period_s: f64,
-    crossings: Option<&[Crossing]>,
+    crossings: Option<Crossings<'_>>,
 ) -> crowd_core::Result<CheckReport> {
     let world = World {
         graph,
@@ -116,7 +116,7 @@ pub struct World<'a> {
     pub source: &'a dyn Source,
     pub period_s: f64,
     /// The patterns' crossings: with them, the motion figures as well.
-    pub crossings: Option<&'a [Crossing]>,
+    pub crossings: Option<Crossings<'a>>,
 }
 
 /// A stage file's check, and what of it a later check may take.
@@ -169,7 +169,7 @@ fn judge(
         .iter()
         .fold(world::Pairs::default(), |a, b| a.merge(*b));
     let measure = (w.crossings.zip(tables.as_ref())).map(|(c, t)| {
-        let mut m = motion::Measure::new(c.len());
+        let mut m = motion::Measure::new(c.numbers());
         for (p, (o, _)) in own.iter().enumerate() {
             if let Some(tally) = &o.tally {
                 let tally = tally
@@ -468,7 +468,7 @@ pub(crate) mod tests {
             graph,
             source: &motion,
             period_s: 20.0,
-            crossings: Some(&[]),
+            crossings: Some((&[][..]).into()),
         };
         judge(&world, keys, memo, budget).unwrap()
     }

@@ -9,7 +9,7 @@
 use crate::memo::{Bytes, Reader};
 use crowd_core::PatchGraph;
 use crowd_core::patch_keys::Table;
-use crowd_core::patterns::{Crossing, Way, border_point};
+use crowd_core::patterns::{Crossings, Way, border_point};
 use crowd_core::trajectories::{PatchMotion, position_on};
 use crowd_geometry::Segment;
 use glam::DVec2;
@@ -265,7 +265,7 @@ fn sparse(mut bins: Vec<u32>) -> Vec<(u32, u32)> {
 
 /// What the motion figures take of patch `p` (motion `m`, its crossings numbered by `table`).
 pub(crate) fn patch_tally(
-    world: (&PatchGraph, &[Crossing], f64),
+    world: (&PatchGraph, Crossings<'_>, f64),
     p: usize,
     m: &PatchMotion,
     table: &Table,
@@ -327,7 +327,7 @@ pub(crate) fn patch_tally(
 /// Where each end of patch `p`'s trajectories lies against its crossing, and the velocity
 /// there (every crossing is then seen from both sides, [`Measure::finish`]).
 fn ends(
-    (graph, crossings, period_s): (&PatchGraph, &[Crossing], f64),
+    (graph, crossings, period_s): (&PatchGraph, Crossings<'_>, f64),
     p: usize,
     m: &PatchMotion,
     table: &Table,
@@ -341,7 +341,7 @@ fn ends(
             (tr.exit, pts[pts.len() - 1], pts[pts.len() - 2], false),
         ];
         for (c, end, next, entry) in ends {
-            let Some(crossing) = crossings.get(c as usize) else {
+            let Some(crossing) = crossings.get(c) else {
                 continue;
             };
             let border = &graph.borders[crossing.border as usize];
@@ -390,14 +390,15 @@ fn p95(hist: &[u64]) -> f64 {
 }
 
 /// The motion figures of `motion` (per patch, in patch order) against its crossings.
-pub fn figures(
+pub fn figures<'a>(
     graph: &PatchGraph,
-    crossings: &[Crossing],
+    crossings: impl Into<Crossings<'a>>,
     motion: &[PatchMotion],
     period_s: f64,
 ) -> MotionFigures {
+    let crossings = crossings.into();
     let tables = crowd_core::patch_keys::Seen::new(graph, crossings).tables;
-    let mut m = Measure::new(crossings.len());
+    let mut m = Measure::new(crossings.numbers());
     for (p, pm) in motion.iter().enumerate() {
         let t = patch_tally((graph, crossings, period_s), p, pm, &tables[p]);
         m.add(p, &t, &tables[p]);
@@ -410,6 +411,7 @@ pub fn figures(
 pub struct Measure {
     tally: Tally,
     /// Per crossing: trajectories that enter (leave) by it, and the velocity there.
+    first: u32,
     entered: Vec<(u32, DVec2)>,
     left: Vec<(u32, DVec2)>,
     pos_err: f64,
@@ -417,12 +419,13 @@ pub struct Measure {
 }
 
 impl Measure {
-    /// A measure of a world with `crossings` crossings.
-    pub fn new(crossings: usize) -> Measure {
+    /// A measure of the crossings `held` (the world's numbers: all of them in a whole check).
+    pub fn new(held: std::ops::Range<u32>) -> Measure {
         Measure {
             tally: Tally::new(),
-            entered: vec![(0u32, DVec2::ZERO); crossings],
-            left: vec![(0u32, DVec2::ZERO); crossings],
+            first: held.start,
+            entered: vec![(0u32, DVec2::ZERO); held.len()],
+            left: vec![(0u32, DVec2::ZERO); held.len()],
             pos_err: 0.0,
             time_err: 0.0,
         }
@@ -434,7 +437,7 @@ impl Measure {
         self.pos_err = self.pos_err.max(t.pos_err);
         self.time_err = self.time_err.max(t.time_err);
         for e in &t.ends {
-            let c = table.global(e.local) as usize;
+            let c = table.global(e.local).wrapping_sub(self.first) as usize;
             let slot = if e.entry {
                 &mut self.entered
             } else {

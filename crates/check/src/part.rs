@@ -150,7 +150,7 @@ mod tests {
             for s in 0..shards {
                 let mine = n * s / shards..n * (s + 1) / shards;
                 let source = OnlyMine { motion: &motion, mine: mine.clone() };
-                let world = World { graph: &graph, source: &source, period_s: 20.0, crossings: Some(&[]) };
+                let world = World { graph: &graph, source: &source, period_s: 20.0, crossings: Some((&[][..]).into()) };
                 let patches: Vec<usize> = mine.clone().collect();
                 let part = check_part(&world, None, &patches, &keys[mine]).unwrap();
                 edges += patches.len() - part.pairs.len();

@@ -4,12 +4,13 @@
 //! it). Values are shared (`Rc`) so a stage can hold several while the next one's result goes
 //! in, and taken out (`take_*`) by the last stage that needs them, to free the memory early.
 
+use crate::driver::Split;
 use crate::stage::Stage;
 use crate::stages;
 use anyhow::Result;
 use crowd_core::config::PipelineFile;
 use crowd_core::maps::MergeFile;
-use crowd_core::patterns::{Crossing, Patterns};
+use crowd_core::patterns::{Crossings, HeldCrossings, Patterns};
 use crowd_core::trajectories::{PatchMotion, TrajectoriesFile, check_motion};
 use crowd_core::{Hash, MergedMaps, PatchGraph};
 use std::collections::BTreeMap;
@@ -18,7 +19,9 @@ use std::rc::Rc;
 use std::sync::Arc;
 
 /// A stage's patterns: the file and its crossings.
-pub type PatternsOf = (Patterns, Vec<Crossing>);
+pub type PatternsOf = (Patterns, HeldCrossings);
+/// Stage 3's file as read: the patterns and the world's crossings.
+type FileOf = (Patterns, Vec<crowd_core::patterns::Crossing>);
 /// A trajectories file (stages 4, 5, 6) and its motion.
 pub type MotionOf = (TrajectoriesFile, Vec<PatchMotion>);
 use crowd_core::trajectories::LazyMotion;
@@ -152,15 +155,34 @@ impl<'p> Artifacts<'p> {
         Ok(self.graph.clone().expect("just loaded"))
     }
 
-    pub fn made_patterns(&mut self, patterns: PatternsOf) {
-        self.patterns = Some(Rc::new(patterns));
+    pub fn made_patterns(&mut self, patterns: PatternsOf) -> Result<()> {
+        self.keep_patterns(patterns)
     }
 
     /// Keeps stage 3's patterns read from `path`, refused unless they fit the graph.
-    pub fn found_patterns(&mut self, path: &Path, patterns: PatternsOf) -> Result<()> {
+    pub fn found_patterns(&mut self, path: &Path, (patterns, crossings): FileOf) -> Result<()> {
         let graph = self.graph()?;
-        crowd_core::patterns::check_crossings(path, &graph, &patterns.0, &patterns.1)?;
-        self.patterns = Some(Rc::new(patterns));
+        crowd_core::patterns::check_crossings(path, &graph, &patterns, &crossings)?;
+        self.keep_patterns((patterns, HeldCrossings::whole(crossings)))
+    }
+
+    /// Keeps the patterns: a shard (of stages 4-6) only the crossings its patches and the two
+    /// rings of patches round them reach (its stage 4 matches a ring, and its keys and stage 6
+    /// read that ring's crossings), after dealing the patches to shards by the whole list.
+    fn keep_patterns(&mut self, (patterns, crossings): PatternsOf) -> Result<()> {
+        let crossings = match self.split {
+            Split::Shard(shard) if !self.regions_only => {
+                let graph = self.graph()?;
+                let costs = costs_of(&graph, crossings.view());
+                let own: Vec<usize> = shard.run(&costs).collect();
+                let ring = crowd_core::shard::with_neighbours(&graph, &own);
+                let reach = crowd_core::shard::with_neighbours(&graph, &ring);
+                self.shard_costs = Some(Rc::new(costs));
+                crossings.window(crowd_core::shard::border_window(&graph, &reach))
+            }
+            _ => crossings,
+        };
+        self.patterns = Some(Rc::new((patterns, crossings)));
         Ok(())
     }
 
@@ -202,11 +224,7 @@ impl<'p> Artifacts<'p> {
         }
         // From stage 3, so that a shard knows its patches before it matches them.
         let (graph, patterns) = (self.graph()?, self.patterns()?);
-        let mut walkers = vec![0usize; graph.patches.len()];
-        for c in &patterns.1 {
-            walkers[c.ends(&graph).1.patch.0 as usize] += 1;
-        }
-        let costs = Rc::new(crowd_core::shard::costs(walkers.len(), |p| walkers[p]));
+        let costs = Rc::new(costs_of(&graph, patterns.1.view()));
         self.shard_costs = Some(costs.clone());
         Ok(costs)
     }
@@ -242,4 +260,14 @@ impl<'p> Artifacts<'p> {
         }
         Ok(self.motion.remove(stage.output).expect("just loaded"))
     }
+}
+
+/// What each patch costs a shard, from stage 3's crossings (the walkers that enter it): the
+/// world's whole list, for every shard to deal the same.
+fn costs_of(graph: &PatchGraph, crossings: Crossings<'_>) -> Vec<u64> {
+    let mut walkers = vec![0usize; graph.patches.len()];
+    for (_, c) in crossings.indexed() {
+        walkers[c.ends(graph).1.patch.0 as usize] += 1;
+    }
+    crowd_core::shard::costs(walkers.len(), |p| walkers[p])
 }

@@ -422,7 +422,7 @@ fn stage_figures(graph: &PatchGraph, s: StageFiles, memo: &Recalled) -> Result<J
         graph,
         source: &s.motion,
         period_s: s.file.period_s,
-        crossings: Some(&s.crossings),
+        crossings: Some((&s.crossings).into()),
     };
     let mut judged = crowd_check::check_world_memo(&world, s.keys.as_deref(), memo)?;
     judged.report.stage = s.stage.kind.to_string();

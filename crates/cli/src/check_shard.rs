@@ -10,7 +10,7 @@ use anyhow::Result;
 use crowd_check::memo::{Memo, Recalled};
 use crowd_core::files::StreamedFile;
 use crowd_core::patch_keys::Table;
-use crowd_core::patterns::Crossing;
+use crowd_core::patterns::Crossings;
 use crowd_core::trajectories::{LazyMotion, PatchMotion};
 use crowd_core::{Hash, PatchGraph, Shard, shard::SHARDS_DIR};
 use std::borrow::Cow;
@@ -25,7 +25,7 @@ pub fn part_path(dir: &Path, shard: Shard) -> PathBuf {
 /// What a shard's stage 6 hands its check: the world, the shard's patches and its part.
 pub struct Smoothed<'a> {
     pub graph: &'a PatchGraph,
-    pub crossings: &'a [Crossing],
+    pub crossings: Crossings<'a>,
     /// Where each patch's crossings are in the world's (`patch_keys::Seen`).
     pub tables: &'a [Table],
     /// The shard's patches, in patch order, and their stage 6 keys (`crowd_smooth::patch_keys_of`).

@@ -264,8 +264,18 @@ pub fn run_stage(
         _ => Artifacts::new(pipeline, &dir),
     };
     let hash = (stage.hash)(&mut artifacts)?;
-    let Ran { writes, note, .. } = (stage.run)(&mut artifacts, &out, hash, ui)?;
-    files::write_all(&writes)?;
+    let Ran {
+        writes,
+        streamed,
+        note,
+        ..
+    } = (stage.run)(&mut artifacts, &out, hash, ui)?;
+    let mut pending = files::Staging::new();
+    for file in streamed {
+        pending.stage_streamed(file);
+    }
+    pending.stage(writes);
+    pending.commit()?;
     let note = note.map(|n| format!(" ({n})")).unwrap_or_default();
     ui.say(format!("{}: wrote {}{note}", stage.name, out.display()));
     Ok(())

@@ -386,12 +386,12 @@ fn optimize(a: &mut Artifacts, out: &Path, hash: Hash, ui: &Ui) -> Result<Ran> {
     if outcome.crossings.is_empty() {
         crate::warnings::no_walker(&graph, a.pipeline)?;
     }
-    // The regions' cache first, then the regions let go before the patterns are encoded:
-    // the million's shard held both at stage 3's peak (0.69 GB; 0.62-0.66 GB so).
-    let regions = crowd_optimize::encode_regions(out, &outcome.solved);
+    // The regions' cache first, then the regions let go before the patterns are written:
+    // the million's shard held both at stage 3's peak (0.69 GB; 0.62-0.66 GB so). Both
+    // binary files are streamed to disk, not held as bytes (0.19 GB at the million).
+    let regions = crowd_optimize::write_regions(out, &outcome.solved)?;
     drop(std::mem::take(&mut outcome.solved));
-    let (patterns, mut writes) = crowd_optimize::encode(out, &outcome, &s, hash);
-    writes.insert(1, regions);
+    let (patterns, side, writes) = crowd_optimize::encode(out, &outcome, &s, hash)?;
     let note = format!(
         "E = {:.4}, {} of {} regions optimised ({} reused)",
         outcome.error.e,
@@ -401,9 +401,11 @@ fn optimize(a: &mut Artifacts, out: &Path, hash: Hash, ui: &Ui) -> Result<Ran> {
     ) + &from_parts
         .map(|(regions, parts)| format!("; {regions} in {parts} shard parts"))
         .unwrap_or_default();
-    a.made_patterns((patterns, outcome.crossings));
+    let crossings = crowd_core::patterns::HeldCrossings::whole(outcome.crossings);
+    a.made_patterns((patterns, crossings))?;
     Ok(Ran {
         note: Some(note),
+        streamed: vec![side, regions],
         ..Ran::files(writes)
     })
 }
@@ -838,7 +840,7 @@ fn smooth_shard(
         keys.map(|k| (seen.tables, k))
     });
     let checked = checked.transpose()?;
-    let smoother = crowd_smooth::Smoother::new(&graph, &patterns.1, &collided, inputs);
+    let smoother = crowd_smooth::Smoother::new(&graph, patterns.1.view(), &collided, inputs);
     let mut ran = smooth_part(dir, (shard, hash), &smoother, &own, bar)?;
     // Stage 5's motion is read no more: let it go before the check's strips.
     drop(smoother);
@@ -849,7 +851,7 @@ fn smooth_shard(
     let started = std::time::Instant::now();
     let smoothed = crate::check_shard::Smoothed {
         graph: &graph,
-        crossings: &patterns.1,
+        crossings: patterns.1.view(),
         tables: &tables,
         own: &own,
         keys: &keys,
@@ -1039,7 +1041,8 @@ fn export(a: &mut Artifacts, out: &Path, hash: Hash, _: &Ui) -> Result<Ran> {
         let held = a.take_motion(stage)?;
         let motion = std::rc::Rc::try_unwrap(held).map_or_else(|shared| shared.1.clone(), |m| m.1);
         let kept = crowd_export::simplify::motion(motion, tolerance_m);
-        crowd_export::export(&graph, &patterns.1, &kept, &inputs, hash, handing).map_err(failed)?
+        crowd_export::export(&graph, patterns.1.world(), &kept, &inputs, hash, handing)
+            .map_err(failed)?
     } else {
         // A gathering build: each patch read from the stage's files and thinned when export
         // asks, so neither the world's dense motion nor its thinned copy is held.
@@ -1048,7 +1051,8 @@ fn export(a: &mut Artifacts, out: &Path, hash: Hash, _: &Ui) -> Result<Ran> {
         let made = crowd_export::motion::Made::new(motion.patches(), |p| {
             Ok(crowd_export::simplify::patch(motion.patch(p)?, tolerance_m))
         });
-        crowd_export::export(&graph, &patterns.1, &made, &inputs, hash, handing).map_err(failed)?
+        crowd_export::export(&graph, patterns.1.world(), &made, &inputs, hash, handing)
+            .map_err(failed)?
     };
     let gltf = (
         out.with_file_name(crowd_export::GLB_FILE),

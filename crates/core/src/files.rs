@@ -65,6 +65,18 @@ impl SideFile {
         (path, record)
     }
 
+    /// The record of a side file streamed to disk beside its owner (`file`'s path is the
+    /// owner's with `.bin`, as [`SideFile::beside`] names it).
+    pub fn streamed(file: &StreamedFile) -> SideFile {
+        SideFile {
+            file: (file.path.file_name())
+                .map(|n| n.to_string_lossy().into_owned())
+                .unwrap_or_default(),
+            bytes: file.bytes,
+            hash: file.hash,
+        }
+    }
+
     /// Whether the side file next to `owner` is the one this record names (its size, then
     /// its hash), without keeping its bytes.
     pub fn holds(&self, owner: &Path) -> bool {

@@ -14,7 +14,7 @@
 
 use crate::Hash;
 use crate::patch_graph::PatchGraph;
-use crate::patterns::Crossing;
+use crate::patterns::{Crossing, Crossings};
 use crate::trajectories::PatchMotion;
 
 /// Where one patch's crossings are in the world's patterns: per border of the patch (in the
@@ -82,19 +82,28 @@ pub fn neighbours(graph: &PatchGraph, p: usize) -> [Option<usize>; 4] {
 /// [`Table`], found once.
 pub struct Seen<'a> {
     pub graph: &'a PatchGraph,
-    pub crossings: &'a [Crossing],
+    pub crossings: Crossings<'a>,
     borders: Vec<Vec<u32>>,
     pub tables: Vec<Table>,
 }
 
 impl<'a> Seen<'a> {
-    /// `crossings` sorted by border, as stage 3 writes them.
-    pub fn new(graph: &'a PatchGraph, crossings: &'a [Crossing]) -> Seen<'a> {
-        let mut starts = vec![(0u32, 0u32); graph.borders.len()];
-        for (i, c) in crossings.iter().enumerate() {
+    /// `crossings` sorted by border, as stage 3 writes them. A border whose crossings are not
+    /// held (outside a shard's window) has a place no crossing is at: a patch's table that
+    /// names it panics when read.
+    pub fn new(graph: &'a PatchGraph, crossings: impl Into<Crossings<'a>>) -> Seen<'a> {
+        let crossings = crossings.into();
+        let first = crossings.numbers().start;
+        let mut starts: Vec<(u32, u32)> = (0..graph.borders.len() as u32)
+            .map(|b| match crossings.holds_border(b) {
+                true => (first, 0),
+                false => (u32::MAX, 0),
+            })
+            .collect();
+        for (i, c) in crossings.indexed() {
             let s = &mut starts[c.border as usize];
             if s.1 == 0 {
-                s.0 = i as u32;
+                s.0 = i;
             }
             s.1 += 1;
         }
@@ -151,7 +160,7 @@ impl<'a> Seen<'a> {
             .collect();
         let mut crossings = Vec::new();
         for (slot, &(start, count)) in self.tables[p].0.iter().enumerate() {
-            for c in &self.crossings[start as usize..(start + count) as usize] {
+            for c in self.crossings.run(start as usize..(start + count) as usize) {
                 crossings.push((slot, c.way, c.s, c.t, c.velocity));
             }
         }
@@ -164,11 +173,12 @@ impl<'a> Seen<'a> {
 }
 
 /// The crossings of a patch's borders, in its own order: what a key hashes of the patterns.
-pub fn crossings_of<'a>(table: &Table, crossings: &'a [Crossing]) -> Vec<&'a Crossing> {
+pub fn crossings_of<'a>(table: &Table, crossings: impl Into<Crossings<'a>>) -> Vec<&'a Crossing> {
+    let crossings = crossings.into();
     table
         .0
         .iter()
-        .flat_map(|&(start, count)| &crossings[start as usize..(start + count) as usize])
+        .flat_map(|&(start, count)| crossings.run(start as usize..(start + count) as usize))
         .collect()
 }
 

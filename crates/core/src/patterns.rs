@@ -215,6 +215,137 @@ impl Patterns {
     }
 }
 
+/// Stage 3's crossings as a build holds them: the world's whole list, or a shard's window of
+/// it ([`HeldCrossings::window`]). Either way a crossing keeps its number in the world's list,
+/// the number trajectories name their entry and exit by, so the stages after stage 3 read both
+/// alike; a shard holds only the crossings its patches and their surroundings reach (the
+/// million's world list is 0.1 GB, in every shard).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct HeldCrossings {
+    first: u32,
+    list: Vec<Crossing>,
+    borders: (u32, u32),
+}
+
+impl HeldCrossings {
+    /// The world's whole list (sorted by border, then time).
+    pub fn whole(list: Vec<Crossing>) -> HeldCrossings {
+        HeldCrossings {
+            first: 0,
+            list,
+            borders: (0, u32::MAX),
+        }
+    }
+
+    /// Only the crossings of borders `borders` (the world's list is sorted by border, so they
+    /// are one run of it), numbered as in the world's list.
+    pub fn window(self, borders: std::ops::Range<u32>) -> HeldCrossings {
+        let list = self.list;
+        let lo = list.partition_point(|c| c.border < borders.start);
+        let hi = list.partition_point(|c| c.border < borders.end);
+        HeldCrossings {
+            first: self.first + lo as u32,
+            list: list[lo..hi].to_vec(),
+            borders: (borders.start, borders.end),
+        }
+    }
+
+    pub fn view(&self) -> Crossings<'_> {
+        Crossings {
+            first: self.first,
+            list: &self.list,
+            borders: self.borders,
+        }
+    }
+
+    /// The world's whole list; asked of a shard's window, a bug, which panics.
+    pub fn world(&self) -> &[Crossing] {
+        assert!(
+            self.first == 0 && self.borders == (0, u32::MAX),
+            "the world's crossings asked of a shard's window"
+        );
+        &self.list
+    }
+}
+
+/// A view of [`HeldCrossings`], indexed by the world's numbers: `crossings[k]` is the world's
+/// crossing `k`, and asking for one the window does not hold is a bug, which panics.
+#[derive(Debug, Clone, Copy)]
+pub struct Crossings<'a> {
+    first: u32,
+    list: &'a [Crossing],
+    borders: (u32, u32),
+}
+
+impl<'a> From<&'a [Crossing]> for Crossings<'a> {
+    /// The world's whole list.
+    fn from(list: &'a [Crossing]) -> Crossings<'a> {
+        Crossings {
+            first: 0,
+            list,
+            borders: (0, u32::MAX),
+        }
+    }
+}
+
+impl<'a> From<&'a Vec<Crossing>> for Crossings<'a> {
+    fn from(list: &'a Vec<Crossing>) -> Crossings<'a> {
+        Crossings::from(&list[..])
+    }
+}
+
+impl<'a> From<&'a HeldCrossings> for Crossings<'a> {
+    fn from(held: &'a HeldCrossings) -> Crossings<'a> {
+        held.view()
+    }
+}
+
+impl<'a> Crossings<'a> {
+    /// Every crossing held, with its number in the world's list.
+    pub fn indexed(self) -> impl Iterator<Item = (u32, &'a Crossing)> + 'a {
+        (self.first..).zip(self.list)
+    }
+
+    /// The world's numbers held: `first..end`.
+    pub fn numbers(self) -> std::ops::Range<u32> {
+        self.first..self.first + self.list.len() as u32
+    }
+
+    /// The world's crossing `k`, if held.
+    pub fn get(self, k: u32) -> Option<&'a Crossing> {
+        self.list.get(k.checked_sub(self.first)? as usize)
+    }
+
+    /// Whether every crossing of border `b` is held.
+    pub fn holds_border(self, b: u32) -> bool {
+        (self.borders.0..self.borders.1).contains(&b)
+    }
+
+    fn offset(self, k: usize) -> usize {
+        let held = self.numbers();
+        assert!(
+            (held.start as usize..=held.end as usize).contains(&k),
+            "crossing {k} is not held (this build holds {held:?} of the world's)"
+        );
+        k - held.start as usize
+    }
+}
+
+impl std::ops::Index<usize> for Crossings<'_> {
+    type Output = Crossing;
+    fn index(&self, k: usize) -> &Crossing {
+        &self.list[self.offset(k)]
+    }
+}
+
+impl<'a> Crossings<'a> {
+    /// The world's crossings `range` (as a slice of the world's list would be).
+    pub fn run(self, range: std::ops::Range<usize>) -> &'a [Crossing] {
+        let start = self.offset(range.start);
+        &self.list[start..start + range.len()]
+    }
+}
+
 /// Refuses crossings that do not fit `graph` (patterns built from another graph, or damaged):
 /// one measure per patch, every border they name must exist and be open, and their times
 /// within the period.
@@ -273,20 +404,40 @@ const RECORD: usize = 4 + 1 + 4 * 8;
 /// The crossings side file: magic, count (u32 LE), then per crossing border (u32), way (u8: 0
 /// a to b, 1 b to a), s, t, velocity x, velocity y (f64), all little-endian.
 pub fn encode_crossings(crossings: &[Crossing]) -> Vec<u8> {
-    let mut out = Vec::with_capacity(12 + crossings.len() * RECORD);
-    out.extend_from_slice(MAGIC);
-    out.extend_from_slice(&(crossings.len() as u32).to_le_bytes());
+    let mut out = Vec::with_capacity(crossings_file_bytes(crossings.len()));
+    write_crossings(&mut out, crossings).expect("writing to memory");
+    out
+}
+
+/// The size of [`encode_crossings`]'s bytes for `n` crossings.
+pub fn crossings_file_bytes(n: usize) -> usize {
+    12 + n * RECORD
+}
+
+/// [`encode_crossings`]'s bytes written to `out` as they are made, for a list too large to
+/// hold twice (the million's 85 MB `patterns.bin` beside its 98 MB of crossings).
+pub fn write_crossings<W: std::io::Write + ?Sized>(
+    out: &mut W,
+    crossings: &[Crossing],
+) -> std::io::Result<()> {
+    out.write_all(MAGIC)?;
+    out.write_all(&(crossings.len() as u32).to_le_bytes())?;
     for c in crossings {
-        out.extend_from_slice(&c.border.to_le_bytes());
-        out.push(match c.way {
+        let mut record = [0u8; RECORD];
+        record[..4].copy_from_slice(&c.border.to_le_bytes());
+        record[4] = match c.way {
             Way::AToB => 0,
             Way::BToA => 1,
-        });
-        for v in [c.s, c.t, c.velocity.x, c.velocity.y] {
-            out.extend_from_slice(&v.to_le_bytes());
+        };
+        for (k, v) in [c.s, c.t, c.velocity.x, c.velocity.y]
+            .into_iter()
+            .enumerate()
+        {
+            record[5 + 8 * k..13 + 8 * k].copy_from_slice(&v.to_le_bytes());
         }
+        out.write_all(&record)?;
     }
-    out
+    Ok(())
 }
 
 pub fn decode_crossings(path: &std::path::Path, bytes: &[u8]) -> Result<Vec<Crossing>> {
@@ -295,7 +446,7 @@ pub fn decode_crossings(path: &std::path::Path, bytes: &[u8]) -> Result<Vec<Cros
         return Err(bad("wrong magic".into()));
     }
     let n = u32::from_le_bytes(bytes[8..12].try_into().unwrap()) as usize;
-    if bytes.len() != 12 + n * RECORD {
+    if bytes.len() != crossings_file_bytes(n) {
         return Err(bad(format!("{} bytes for {n} crossings", bytes.len())));
     }
     // At its size (the count was checked against the bytes above): collected from results,

@@ -107,6 +107,22 @@ pub fn with_neighbours(graph: &crate::PatchGraph, patches: &[usize]) -> Vec<usiz
     all
 }
 
+/// The run of the world's border numbers from the first border of any of `patches` to the
+/// last: the crossings a shard holds ([`crate::patterns::HeldCrossings::window`]). Borders are
+/// numbered patch by patch (each patch's east and north), so the borders of a run of patches
+/// and their surroundings are a run of about as many rows.
+pub fn border_window(graph: &crate::PatchGraph, patches: &[usize]) -> std::ops::Range<u32> {
+    let mut mine = vec![false; graph.patches.len()];
+    patches.iter().for_each(|&p| mine[p] = true);
+    let touched = |b: &crate::patch_graph::Border| mine[b.a.0 as usize] || mine[b.b.0 as usize];
+    let first = graph.borders.iter().position(touched);
+    let last = graph.borders.iter().rposition(touched);
+    match first.zip(last) {
+        Some((first, last)) => first as u32..last as u32 + 1,
+        None => 0..0,
+    }
+}
+
 /// The folder, in a build folder, that shard files go to and are gathered from.
 pub const SHARDS_DIR: &str = "shards";
 

@@ -25,7 +25,7 @@ pub use crowd_geometry::route;
 pub use cache::{MEMO_SIZE, ScoreCache, match_points_cached, measure_patch_cached};
 
 use crowd_core::config::MatchSettings;
-use crowd_core::patterns::{Crossing, Measured, Side};
+use crowd_core::patterns::{Crossings, Measured, Side};
 use crowd_core::trajectories::{PatchMotion, Trajectory};
 use crowd_core::{PatchGraph, Rect, RequestedDirection};
 use glam::DVec2;
@@ -88,16 +88,16 @@ pub struct Incidence {
 }
 
 impl Incidence {
-    pub fn new(graph: &PatchGraph, crossings: &[Crossing]) -> Incidence {
+    pub fn new<'a>(graph: &PatchGraph, crossings: impl Into<Crossings<'a>>) -> Incidence {
         let n = graph.patches.len();
         let mut inc = Incidence {
             entries: vec![Vec::new(); n],
             exits: vec![Vec::new(); n],
         };
-        for (k, c) in crossings.iter().enumerate() {
+        for (k, c) in crossings.into().indexed() {
             let (from, to) = c.ends(graph);
-            inc.exits[from.patch.0 as usize].push(k as u32);
-            inc.entries[to.patch.0 as usize].push(k as u32);
+            inc.exits[from.patch.0 as usize].push(k);
+            inc.entries[to.patch.0 as usize].push(k);
         }
         inc
     }
@@ -106,7 +106,7 @@ impl Incidence {
 /// The endpoints of a patch, seen from inside it.
 pub fn endpoints(
     graph: &PatchGraph,
-    crossings: &[Crossing],
+    crossings: Crossings<'_>,
     ids: &[u32],
     entering: bool,
 ) -> Vec<Endpoint> {
@@ -171,7 +171,7 @@ pub fn measure_patch(
 /// Stage 4 over a whole scene: the graph, its patterns and the settings.
 pub struct Matcher<'a> {
     pub graph: &'a PatchGraph,
-    pub crossings: &'a [Crossing],
+    pub crossings: Crossings<'a>,
     pub incidence: Incidence,
     pub settings: &'a MatchSettings,
     pub period_s: f64,
@@ -180,10 +180,11 @@ pub struct Matcher<'a> {
 impl<'a> Matcher<'a> {
     pub fn new(
         graph: &'a PatchGraph,
-        crossings: &'a [Crossing],
+        crossings: impl Into<Crossings<'a>>,
         settings: &'a MatchSettings,
         period_s: f64,
     ) -> Matcher<'a> {
+        let crossings = crossings.into();
         Matcher {
             graph,
             crossings,
@@ -263,15 +264,15 @@ pub fn input_hash(
 }
 
 /// Every patch's motion, in patch order (in parallel; the same bytes on any thread count).
-pub fn match_all(
+pub fn match_all<'a>(
     graph: &PatchGraph,
-    crossings: &[Crossing],
+    crossings: impl Into<Crossings<'a>>,
     measured: &[Measured],
     inputs: &Inputs,
     progress: &dyn crowd_core::Progress,
 ) -> Vec<PatchMotion> {
     use rayon::prelude::*;
-    let matcher = Matcher::new(graph, crossings, &inputs.settings, inputs.period_s);
+    let matcher = Matcher::new(graph, crossings.into(), &inputs.settings, inputs.period_s);
     progress.begin("match", graph.patches.len() as u64);
     (0..graph.patches.len())
         .into_par_iter()
@@ -285,16 +286,16 @@ pub fn match_all(
 
 /// The motion of the patches `patches` only (in that order; in parallel): a rebuild computes
 /// the patches whose [`patch_key`] changed.
-pub fn match_patches(
+pub fn match_patches<'a>(
     graph: &PatchGraph,
-    crossings: &[Crossing],
+    crossings: impl Into<Crossings<'a>>,
     measured: &[Measured],
     inputs: &Inputs,
     progress: &dyn crowd_core::Progress,
     patches: &[usize],
 ) -> Vec<PatchMotion> {
     use rayon::prelude::*;
-    let matcher = Matcher::new(graph, crossings, &inputs.settings, inputs.period_s);
+    let matcher = Matcher::new(graph, crossings.into(), &inputs.settings, inputs.period_s);
     progress.begin("match", patches.len() as u64);
     patches
         .par_iter()

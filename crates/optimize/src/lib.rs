@@ -841,18 +841,24 @@ pub fn input_hash(graph_file: &crowd_core::Hash, inputs: &Inputs) -> crowd_core:
 /// The cache of every region's result, beside `patterns.ron` ([`known`]).
 pub const REGIONS_FILE: &str = "regions.bin";
 
-/// Stage 3's files, encoded: the crossings side file, `patterns.ron` and the per-step
-/// figures as CSV (`optimize.csv`), all beside `out`. The regions' cache is
-/// [`encode_regions`]'s.
+/// Stage 3's files beside `out`: the crossings side file, streamed to its temporary name
+/// (the million's is 85 MB: held as bytes beside the crossings, it was a third of the
+/// stage's peak), then `patterns.ron` and the per-step figures as CSV (`optimize.csv`),
+/// encoded. The regions' cache is [`write_regions`]'.
 pub fn encode(
     out: &std::path::Path,
     outcome: &Outcome,
     inputs: &Inputs,
     hash: crowd_core::Hash,
-) -> (crowd_core::patterns::Patterns, crowd_core::files::Writes) {
+) -> crowd_core::Result<(
+    crowd_core::patterns::Patterns,
+    crowd_core::files::StreamedFile,
+    crowd_core::files::Writes,
+)> {
     use crowd_core::files::{Header, SideFile};
-    let bytes = crowd_core::patterns::encode_crossings(&outcome.crossings);
-    let (side, record) = SideFile::beside(out, &bytes);
+    let side = stream(&out.with_extension("bin"), |w| {
+        crowd_core::patterns::write_crossings(w, &outcome.crossings)
+    })?;
     let patterns = crowd_core::patterns::Patterns {
         header: Header::new(
             crowd_core::patterns::Patterns::STAGE,
@@ -869,7 +875,7 @@ pub fn encode(
         regression: outcome.regression,
         log: outcome.log.clone(),
         measured: outcome.measured.clone(),
-        crossings: record,
+        crossings: SideFile::streamed(&side),
     };
     let mut csv = String::from("iteration,E_rho,E_d,E,crossings\n");
     for f in &outcome.log {
@@ -880,16 +886,36 @@ pub fn encode(
     }
     let ron = crowd_core::files::to_stage_ron(&patterns).into_bytes();
     let writes = vec![
-        (side, bytes),
         (out.with_file_name("optimize.csv"), csv.into_bytes()),
         (out.to_path_buf(), ron),
     ];
-    (patterns, writes)
+    Ok((patterns, side, writes))
 }
 
-/// `regions.bin` beside `out`: every region's result, for the next build in this folder.
-pub fn encode_regions(out: &std::path::Path, solved: &[Solved]) -> (std::path::PathBuf, Vec<u8>) {
-    (out.with_file_name(REGIONS_FILE), known::encode(solved))
+/// `regions.bin` beside `out` for these results, streamed to its temporary name (86 MB at
+/// the million, never held as bytes).
+pub fn write_regions(
+    out: &std::path::Path,
+    solved: &[Solved],
+) -> crowd_core::Result<crowd_core::files::StreamedFile> {
+    stream(&out.with_file_name(REGIONS_FILE), |w| {
+        known::write(w, solved)
+    })
+}
+
+/// The file `path` will be, written by `write` to its temporary name through a buffer (so
+/// that its hash is taken over large pieces, not a record at a time).
+fn stream(
+    path: &std::path::Path,
+    write: impl FnOnce(&mut dyn std::io::Write) -> std::io::Result<()>,
+) -> crowd_core::Result<crowd_core::files::StreamedFile> {
+    let mut file = crowd_core::files::Streamed::create(path)?;
+    let mut buffered = std::io::BufWriter::with_capacity(1 << 16, &mut file);
+    write(&mut buffered)
+        .and_then(|()| std::io::Write::flush(&mut buffered))
+        .map_err(|e| crowd_core::Error::io(path, "write", e))?;
+    drop(buffered);
+    file.finish()
 }
 
 #[cfg(test)]

@@ -368,3 +368,75 @@ proptest! {
         );
     }
 }
+
+/// A shard holds only the crossings of its patches' borders and of two rings of patches round
+/// them (`HeldCrossings::window`), numbered as the world numbers them: its patches and their
+/// ring are matched, and seen by keys, exactly as with the world's whole list, and a crossing
+/// it does not hold is never read as another.
+#[test]
+fn a_shards_window_of_the_crossings_matches_its_patches_as_the_whole_list_does() {
+    use crowd_core::patterns::HeldCrossings;
+    use crowd_core::shard::{border_window, with_neighbours};
+    // 96 m x 80 m: 12 x 10 patches of 8 m, people everywhere.
+    let (w, h) = (96, 80);
+    let mut maps = MergedMaps::empty(w, h, 1.0);
+    maps.walkers = Grid::filled(w, h, 0.3);
+    let inputs = crowd_graph::GraphInputs::counted(400, 8.0);
+    let graph = crowd_graph::build_graph(&maps, &inputs, Hash::of(b"w"), &()).unwrap();
+    let settings = OptimizeSettings {
+        max_iterations: 20,
+        ..OptimizeSettings::default()
+    };
+    let matching = MatchSettings::default();
+    let world = optimize(&graph, &settings, &matching, 20.0, 3, &()).crossings;
+    // A shard's run of patches: rows 4 and 5.
+    let own: Vec<usize> = (0..graph.patches.len())
+        .filter(|&p| (4..6).contains(&graph.patches[p].cell.row))
+        .collect();
+    let ring = with_neighbours(&graph, &own);
+    let reach = with_neighbours(&graph, &ring);
+    let held = HeldCrossings::whole(world.clone()).window(border_window(&graph, &reach));
+    let numbers = held.view().numbers();
+    assert!(
+        numbers.start > 0 && (numbers.end as usize) < world.len(),
+        "the window is a part of the world's list ({numbers:?} of {})",
+        world.len()
+    );
+    for (k, c) in held.view().indexed() {
+        assert_eq!(*c, world[k as usize], "crossing {k} keeps its world number");
+    }
+    let match_inputs = crowd_match::Inputs {
+        period_s: 20.0,
+        seed: 3,
+        settings: matching.clone(),
+    };
+    let standers = crowd_core::patterns::Measured {
+        density: 0.0,
+        direction: None,
+        standers: 1,
+    };
+    let measured = vec![standers; graph.patches.len()];
+    let by_window = crowd_match::match_patches(&graph, &held, &measured, &match_inputs, &(), &ring);
+    let by_world = crowd_match::match_patches(&graph, &world, &measured, &match_inputs, &(), &ring);
+    assert_eq!(by_window, by_world, "the ring's motion");
+    let (seen_window, seen_world) = (
+        crowd_core::patch_keys::Seen::new(&graph, &held),
+        crowd_core::patch_keys::Seen::new(&graph, &world),
+    );
+    for &p in &ring {
+        assert_eq!(
+            seen_window.tables[p], seen_world.tables[p],
+            "patch {p}'s table"
+        );
+        assert_eq!(
+            seen_window.surroundings(p),
+            seen_world.surroundings(p),
+            "patch {p}'s surroundings"
+        );
+    }
+    // A crossing beyond the window is not taken for another.
+    assert!(held.view().get(numbers.end).is_none());
+    assert!(held.view().get(numbers.start - 1).is_none());
+    let beyond = std::panic::catch_unwind(|| held.view()[numbers.end as usize].t);
+    assert!(beyond.is_err(), "indexing beyond the window panics");
+}

@@ -31,7 +31,7 @@ mod testing {
 }
 
 use crowd_core::config::SmoothSettings;
-use crowd_core::patterns::Crossing;
+use crowd_core::patterns::Crossings;
 use crowd_core::trajectories::{ControlPoint, PatchMotion, SmoothingSummary, Trajectory};
 use crowd_core::{Hash, Hasher, PatchGraph};
 use crowd_geometry::{Patch, Segment};
@@ -146,15 +146,15 @@ pub fn input_hash(graph: &Hash, patterns: &Hash, collided: &Hash, inputs: &Input
 }
 
 /// Smooths every patch, in parallel; deterministic.
-pub fn smooth(
+pub fn smooth<'a>(
     graph: &PatchGraph,
-    crossings: &[Crossing],
+    crossings: impl Into<Crossings<'a>>,
     motion: &[PatchMotion],
     inputs: &Inputs,
     progress: &dyn crowd_core::Progress,
 ) -> (Vec<PatchMotion>, SmoothingSummary) {
     let all: Vec<usize> = (0..motion.len()).collect();
-    let results = smooth_patches(graph, crossings, motion, inputs, progress, &all);
+    let results = smooth_patches(graph, crossings.into(), motion, inputs, progress, &all);
     let summary = summary_of(results.iter().map(|r| r.1));
     (results.into_iter().map(|r| r.0).collect(), summary)
 }
@@ -162,16 +162,16 @@ pub fn smooth(
 /// [`smooth`] of `patches` only, each with its counts (smoothed, kept straight, dropped
 /// points), in the order given: a shard's part ([`shard`]). `motion` needs only those patches
 /// and their neighbours (the pieces that meet at their crossings); the others may be empty.
-pub fn smooth_patches(
+pub fn smooth_patches<'a>(
     graph: &PatchGraph,
-    crossings: &[Crossing],
+    crossings: impl Into<Crossings<'a>>,
     motion: &[PatchMotion],
     inputs: &Inputs,
     progress: &dyn crowd_core::Progress,
     patches: &[usize],
 ) -> Vec<(PatchMotion, [u64; 3])> {
     progress.begin("smooth", patches.len() as u64);
-    let smoother = Smoother::new(graph, crossings, motion, inputs);
+    let smoother = Smoother::new(graph, crossings.into(), motion, inputs);
     patches
         .par_iter()
         .map(|&p| {
@@ -190,13 +190,14 @@ pub struct Smoother<'a> {
     motion: &'a [PatchMotion],
     inputs: &'a Inputs,
     limits: curve::Limits,
-    velocities: Vec<DVec2>,
+    /// Per crossing held, from the first held ([`crossing_velocities`]).
+    velocities: Velocities,
 }
 
 impl<'a> Smoother<'a> {
     pub fn new(
         graph: &'a PatchGraph,
-        crossings: &[Crossing],
+        crossings: Crossings<'_>,
         motion: &'a [PatchMotion],
         inputs: &'a Inputs,
     ) -> Smoother<'a> {
@@ -215,7 +216,7 @@ impl<'a> Smoother<'a> {
             motion,
             inputs,
             limits,
-            velocities: crossing_velocities(crossings.len(), motion),
+            velocities: crossing_velocities(crossings.numbers(), motion),
         }
     }
 
@@ -265,8 +266,13 @@ pub fn summary_of(counts: impl Iterator<Item = [u64; 3]>) -> SmoothingSummary {
 /// to the planned velocity instead, curves ran up to half a metre ahead of or behind their
 /// lines near the border (before the bands, 9,172 of 12,944 `ring` curves then broke a
 /// clearance).
-pub fn crossing_velocities(count: usize, motion: &[PatchMotion]) -> Vec<DVec2> {
-    let mut sum = vec![DVec2::ZERO; count];
+///
+/// Only the crossings `held` (the world's numbers a shard holds: all of them in a whole
+/// build) have one; a trajectory's end elsewhere (a neighbour's, beyond the shard's window)
+/// adds to none.
+pub fn crossing_velocities(held: std::ops::Range<u32>, motion: &[PatchMotion]) -> Velocities {
+    let first = held.start;
+    let mut sum = vec![DVec2::ZERO; held.len()];
     for tr in motion.iter().flat_map(|m| &m.trajectories) {
         let p = &tr.points;
         let piece = |a: &ControlPoint, b: &ControlPoint| {
@@ -278,20 +284,43 @@ pub fn crossing_velocities(count: usize, motion: &[PatchMotion]) -> Vec<DVec2> {
             }
             .velocity()
         };
-        if let Some(v) = sum.get_mut(tr.entry as usize) {
+        let at = |c: u32| c.checked_sub(first).map(|k| k as usize);
+        if let Some(v) = at(tr.entry).and_then(|k| sum.get_mut(k)) {
             *v += 0.5 * piece(&p[0], &p[1]);
         }
-        if let Some(v) = sum.get_mut(tr.exit as usize) {
+        if let Some(v) = at(tr.exit).and_then(|k| sum.get_mut(k)) {
             *v += 0.5 * piece(&p[p.len() - 2], &p[p.len() - 1]);
         }
     }
-    sum
+    Velocities { first, list: sum }
+}
+
+/// [`crossing_velocities`]: the velocity of each crossing held, by its world number.
+pub struct Velocities {
+    first: u32,
+    list: Vec<DVec2>,
+}
+
+impl Velocities {
+    /// Crossing `c`'s velocity; one not held is a bug (a patch smoothed outside its shard's
+    /// window), which panics.
+    fn of(&self, c: u32) -> DVec2 {
+        let k = c.checked_sub(self.first).map(|k| k as usize);
+        match k.and_then(|k| self.list.get(k)) {
+            Some(&v) => v,
+            None => panic!(
+                "crossing {c} is not held (from {}, {} held)",
+                self.first,
+                self.list.len()
+            ),
+        }
+    }
 }
 
 /// Smooths one patch's walkers: `[smoothed, kept straight, dropped points]` with the motion.
 fn smooth_patch(
     trajectories: &[Trajectory],
-    velocities: &[DVec2],
+    velocities: &Velocities,
     limits: &curve::Limits,
     max_speed: f64,
     patch: &Patch,
@@ -312,7 +341,7 @@ fn smooth_patch(
     let curve_of = |i: usize| {
         curves[i].get_or_init(|| {
             let tr = &trajectories[i];
-            let v = |c: u32| velocities[c as usize];
+            let v = |c: u32| velocities.of(c);
             curve::Curve::new(tr, v(tr.entry), v(tr.exit), limits)
         })
     };
