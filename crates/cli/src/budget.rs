@@ -33,7 +33,7 @@
 //! | --- | ---: | ---: | ---: |
 //! | painting (one region), a shard of 4 (`--threads 1`) | 95,000 | 599 MB | 650 MB |
 //! | painting (one region), a shard of 8 | 95,000 | 596-599 MB | 644 MB |
-//! | the million (regions of 16), a shard of 8 | 1,016,000 | 0.53-0.58 GB (681-693 MB before issue 20's fifteenth part) | 0.82 GB |
+//! | the million (regions of 16), a shard of 8 | 1,016,000 | 0.46-0.49 GB (681-693 MB before issue 20's fifteenth part, 0.53-0.58 GB before its sixteenth) | 0.82 GB |
 //! | painting, the gather of 4 shards | 95,000 | 1.14-1.17 GB | 1.23 GB |
 //! | the million, the gather of 8 shards | 1,016,000 | 1.10-1.13 GB (1.30-1.38 GB before) | 1.82 GB |
 //!
