@@ -10,7 +10,7 @@ use crate::stages;
 use anyhow::Result;
 use crowd_core::config::PipelineFile;
 use crowd_core::maps::MergeFile;
-use crowd_core::patterns::{Crossings, HeldCrossings, Patterns};
+use crowd_core::patterns::{Crossing, HeldCrossings, Patterns};
 use crowd_core::trajectories::{PatchMotion, TrajectoriesFile, check_motion};
 use crowd_core::{Hash, MergedMaps, PatchGraph};
 use std::collections::BTreeMap;
@@ -21,7 +21,7 @@ use std::sync::Arc;
 /// A stage's patterns: the file and its crossings.
 pub type PatternsOf = (Patterns, HeldCrossings);
 /// Stage 3's file as read: the patterns and the world's crossings.
-type FileOf = (Patterns, Vec<crowd_core::patterns::Crossing>);
+type FileOf = (Patterns, Vec<Crossing>);
 /// A trajectories file (stages 4, 5, 6) and its motion.
 pub type MotionOf = (TrajectoriesFile, Vec<PatchMotion>);
 use crowd_core::trajectories::LazyMotion;
@@ -155,8 +155,10 @@ impl<'p> Artifacts<'p> {
         Ok(self.graph.clone().expect("just loaded"))
     }
 
-    pub fn made_patterns(&mut self, patterns: PatternsOf) -> Result<()> {
-        self.keep_patterns(patterns)
+    /// Keeps the patterns stage 3 made: the world's crossings, or a shard's window of them
+    /// ([`Artifacts::shard_window`]).
+    pub fn made_patterns(&mut self, patterns: PatternsOf) {
+        self.patterns = Some(Rc::new(patterns));
     }
 
     /// Keeps stage 3's patterns read from `path`, refused unless they fit the graph.
@@ -166,24 +168,42 @@ impl<'p> Artifacts<'p> {
         self.keep_patterns((patterns, HeldCrossings::whole(crossings)))
     }
 
-    /// Keeps the patterns: a shard (of stages 4-6) only the crossings its patches and the two
-    /// rings of patches round them reach (its stage 4 matches a ring, and its keys and stage 6
-    /// read that ring's crossings), after dealing the patches to shards by the whole list.
+    /// Keeps the patterns read from a file: a shard only its window of the crossings.
     fn keep_patterns(&mut self, (patterns, crossings): PatternsOf) -> Result<()> {
+        let graph = self.graph()?;
         let crossings = match self.split {
-            Split::Shard(shard) if !self.regions_only => {
-                let graph = self.graph()?;
-                let costs = costs_of(&graph, crossings.view());
-                let own: Vec<usize> = shard.run(&costs).collect();
-                let ring = crowd_core::shard::with_neighbours(&graph, &own);
-                let reach = crowd_core::shard::with_neighbours(&graph, &ring);
-                self.shard_costs = Some(Rc::new(costs));
-                crossings.window(crowd_core::shard::border_window(&graph, &reach))
+            Split::Shard(_) if !self.regions_only => {
+                let walkers = walkers_of(&graph, crossings.view().indexed().map(|(_, c)| c));
+                match self.shard_window(&walkers)? {
+                    Some(borders) => crossings.window(borders),
+                    None => crossings,
+                }
             }
             _ => crossings,
         };
-        self.patterns = Some(Rc::new((patterns, crossings)));
+        self.made_patterns((patterns, crossings));
         Ok(())
+    }
+
+    /// For a shard of stages 4-6: deals the patches to shards by `walkers` (each patch's, the
+    /// world's crossings that enter it, so that every shard deals the same) and gives the
+    /// borders whose crossings it keeps: those of its patches and of the two rings of patches
+    /// round them (its stage 4 matches a ring, and the ring's keys and stage 6 read the ring's
+    /// crossings). `None` for any other build, which keeps them all.
+    pub fn shard_window(&mut self, walkers: &[usize]) -> Result<Option<std::ops::Range<u32>>> {
+        let Split::Shard(shard) = self.split else {
+            return Ok(None);
+        };
+        if self.regions_only {
+            return Ok(None);
+        }
+        let graph = self.graph()?;
+        let costs = crowd_core::shard::costs(walkers.len(), |p| walkers[p]);
+        let own: Vec<usize> = shard.run(&costs).collect();
+        let ring = crowd_core::shard::with_neighbours(&graph, &own);
+        let reach = crowd_core::shard::with_neighbours(&graph, &ring);
+        self.shard_costs = Some(Rc::new(costs));
+        Ok(Some(crowd_core::shard::border_window(&graph, &reach)))
     }
 
     /// Stage 3's patterns and crossings.
@@ -224,7 +244,8 @@ impl<'p> Artifacts<'p> {
         }
         // From stage 3, so that a shard knows its patches before it matches them.
         let (graph, patterns) = (self.graph()?, self.patterns()?);
-        let costs = Rc::new(costs_of(&graph, patterns.1.view()));
+        let walkers = walkers_of(&graph, patterns.1.view().indexed().map(|(_, c)| c));
+        let costs = Rc::new(crowd_core::shard::costs(walkers.len(), |p| walkers[p]));
         self.shard_costs = Some(costs.clone());
         Ok(costs)
     }
@@ -262,12 +283,12 @@ impl<'p> Artifacts<'p> {
     }
 }
 
-/// What each patch costs a shard, from stage 3's crossings (the walkers that enter it): the
-/// world's whole list, for every shard to deal the same.
-fn costs_of(graph: &PatchGraph, crossings: Crossings<'_>) -> Vec<u64> {
+/// Each patch's walkers: the crossings that enter it (what dealing patches to shards costs
+/// them by, [`crowd_core::shard::costs`]).
+fn walkers_of<'a>(graph: &PatchGraph, crossings: impl Iterator<Item = &'a Crossing>) -> Vec<usize> {
     let mut walkers = vec![0usize; graph.patches.len()];
-    for (_, c) in crossings.indexed() {
+    for c in crossings {
         walkers[c.ends(graph).1.patch.0 as usize] += 1;
     }
-    crowd_core::shard::costs(walkers.len(), |p| walkers[p])
+    walkers
 }

@@ -374,24 +374,16 @@ fn optimize(a: &mut Artifacts, out: &Path, hash: Hash, ui: &Ui) -> Result<Ran> {
         }
         Split::Whole => {}
     }
-    let mut outcome = crowd_optimize::optimize_reusing(
-        &graph,
-        &s.settings,
-        &s.matching,
-        s.period_s,
-        s.seed,
-        known,
-        &bar,
-    );
-    if outcome.crossings.is_empty() {
+    let at = (s.period_s, s.seed);
+    let outcome = crowd_optimize::solve_world(&graph, &s.settings, &s.matching, at, known, &bar);
+    if outcome.crossing_count() == 0 {
         crate::warnings::no_walker(&graph, a.pipeline)?;
     }
-    // The regions' cache first, then the regions let go before the patterns are written:
-    // the million's shard held both at stage 3's peak (0.69 GB; 0.62-0.66 GB so). Both
-    // binary files are streamed to disk, not held as bytes (0.19 GB at the million).
+    // Both binary files are streamed to disk, not held as bytes (0.19 GB at the million),
+    // and the world's list of crossings is made only if this build keeps it whole.
     let regions = crowd_optimize::write_regions(out, &outcome.solved)?;
-    drop(std::mem::take(&mut outcome.solved));
     let (patterns, side, writes) = crowd_optimize::encode(out, &outcome, &s, hash)?;
+    let crossings = held_crossings(a, &graph, &outcome)?;
     let note = format!(
         "E = {:.4}, {} of {} regions optimised ({} reused)",
         outcome.error.e,
@@ -401,13 +393,40 @@ fn optimize(a: &mut Artifacts, out: &Path, hash: Hash, ui: &Ui) -> Result<Ran> {
     ) + &from_parts
         .map(|(regions, parts)| format!("; {regions} in {parts} shard parts"))
         .unwrap_or_default();
-    let crossings = crowd_core::patterns::HeldCrossings::whole(outcome.crossings);
-    a.made_patterns((patterns, crossings))?;
+    drop(outcome);
+    a.made_patterns((patterns, crossings));
     Ok(Ran {
         note: Some(note),
         streamed: vec![side, regions],
         ..Ran::files(writes)
     })
+}
+
+/// What this build keeps of stage 3's crossings: the world's list, or a shard's window of it
+/// ([`Artifacts::shard_window`], dealt by the world's), taken from `outcome` without the
+/// world's list (the million's is 0.1 GB).
+fn held_crossings(
+    a: &mut Artifacts,
+    graph: &crowd_core::PatchGraph,
+    outcome: &crowd_optimize::Outcome,
+) -> Result<crowd_core::patterns::HeldCrossings> {
+    use crowd_core::patterns::HeldCrossings;
+    let mut walkers = vec![0usize; graph.patches.len()];
+    if matches!(a.split, Split::Shard(_)) {
+        outcome.visit_crossings(|_, c| walkers[c.ends(graph).1.patch.0 as usize] += 1);
+    }
+    let Some(borders) = a.shard_window(&walkers)? else {
+        return Ok(HeldCrossings::whole(outcome.list_crossings()));
+    };
+    let (mut before, mut list) = (0, Vec::new());
+    outcome.visit_crossings(|_, c| {
+        if c.border < borders.start {
+            before += 1;
+        } else if borders.contains(&c.border) {
+            list.push(*c);
+        }
+    });
+    Ok(HeldCrossings::of_borders(before, list, borders))
 }
 
 /// A shard's share of stage 3 (`--shard I/N --until optimize`): its run of the regions

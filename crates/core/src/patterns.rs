@@ -243,9 +243,20 @@ impl HeldCrossings {
         let list = self.list;
         let lo = list.partition_point(|c| c.border < borders.start);
         let hi = list.partition_point(|c| c.border < borders.end);
+        HeldCrossings::of_borders(self.first + lo as u32, list[lo..hi].to_vec(), borders)
+    }
+
+    /// The crossings of borders `borders`, all of them in the world's order (`list`), the
+    /// first of them being the world's crossing `first` (the count of the world's crossings on
+    /// borders before them).
+    pub fn of_borders(
+        first: u32,
+        list: Vec<Crossing>,
+        borders: std::ops::Range<u32>,
+    ) -> HeldCrossings {
         HeldCrossings {
-            first: self.first + lo as u32,
-            list: list[lo..hi].to_vec(),
+            first,
+            list,
             borders: (borders.start, borders.end),
         }
     }
@@ -420,24 +431,38 @@ pub fn write_crossings<W: std::io::Write + ?Sized>(
     out: &mut W,
     crossings: &[Crossing],
 ) -> std::io::Result<()> {
+    write_crossings_header(out, crossings.len())?;
+    crossings.iter().try_for_each(|c| write_crossing(out, c))
+}
+
+/// The start of [`encode_crossings`]'s bytes for `count` crossings, each then written by
+/// [`write_crossing`]: for crossings visited in order, never listed.
+pub fn write_crossings_header<W: std::io::Write + ?Sized>(
+    out: &mut W,
+    count: usize,
+) -> std::io::Result<()> {
     out.write_all(MAGIC)?;
-    out.write_all(&(crossings.len() as u32).to_le_bytes())?;
-    for c in crossings {
-        let mut record = [0u8; RECORD];
-        record[..4].copy_from_slice(&c.border.to_le_bytes());
-        record[4] = match c.way {
-            Way::AToB => 0,
-            Way::BToA => 1,
-        };
-        for (k, v) in [c.s, c.t, c.velocity.x, c.velocity.y]
-            .into_iter()
-            .enumerate()
-        {
-            record[5 + 8 * k..13 + 8 * k].copy_from_slice(&v.to_le_bytes());
-        }
-        out.write_all(&record)?;
+    out.write_all(&(count as u32).to_le_bytes())
+}
+
+/// One crossing's record of [`encode_crossings`]'s bytes.
+pub fn write_crossing<W: std::io::Write + ?Sized>(
+    out: &mut W,
+    c: &Crossing,
+) -> std::io::Result<()> {
+    let mut record = [0u8; RECORD];
+    record[..4].copy_from_slice(&c.border.to_le_bytes());
+    record[4] = match c.way {
+        Way::AToB => 0,
+        Way::BToA => 1,
+    };
+    for (k, v) in [c.s, c.t, c.velocity.x, c.velocity.y]
+        .into_iter()
+        .enumerate()
+    {
+        record[5 + 8 * k..13 + 8 * k].copy_from_slice(&v.to_le_bytes());
     }
-    Ok(())
+    out.write_all(&record)
 }
 
 pub fn decode_crossings(path: &std::path::Path, bytes: &[u8]) -> Result<Vec<Crossing>> {

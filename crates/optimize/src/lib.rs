@@ -66,6 +66,119 @@ pub struct Outcome {
     pub reused: usize,
     /// Every region's result, for the next build to reuse ([`Known`]).
     pub solved: Vec<Solved>,
+    /// Where the world's crossings are in `solved` and the seams, before (or without) their
+    /// list: [`Outcome::visit_crossings`].
+    listing: Listing,
+}
+
+impl Outcome {
+    /// How many crossings the world has.
+    pub fn crossing_count(&self) -> usize {
+        self.listing.count
+    }
+
+    /// Every crossing of the world in its list's order (by border, then time), with its
+    /// number, without putting the list together: a shard keeps only its window of it, and
+    /// `patterns.bin` is written from it (the million's list is 0.1 GB).
+    pub fn visit_crossings(&self, mut visit: impl FnMut(u32, &Crossing)) {
+        let mut k = 0u32;
+        let mut border = Vec::new();
+        let entries = &self.listing.entries;
+        let mut i = 0;
+        while i < entries.len() {
+            let b = entries[i].border;
+            border.clear();
+            // One border's crossings from every source that has some (seams first, then the
+            // regions in order), then sorted by time: the stable sort by border and time of
+            // all of them one after the other, one border at a time.
+            while i < entries.len() && entries[i].border == b {
+                let e = &entries[i];
+                let list = match e.source {
+                    Source::Seam => &self.listing.seams[b as usize][..],
+                    Source::Region(r) => &self.solved[r as usize].crossings,
+                };
+                let run = &list[e.start as usize..(e.start + e.count) as usize];
+                border.extend(run.iter().map(|c| Crossing { border: b, ..*c }));
+                i += 1;
+            }
+            border.sort_by(|a, b| a.t.total_cmp(&b.t));
+            for c in &border {
+                visit(k, c);
+                k += 1;
+            }
+        }
+    }
+
+    /// The world's list of crossings.
+    pub fn list_crossings(&self) -> Vec<Crossing> {
+        let mut list = Vec::with_capacity(self.listing.count);
+        self.visit_crossings(|_, c| list.push(*c));
+        list
+    }
+}
+
+/// Where each border's crossings are: in the seams (by world border) or in a region's result
+/// (a run of its crossings, in its own numbering of borders), in the world's border order.
+#[derive(Debug, Clone, Default)]
+struct Listing {
+    seams: Vec<Vec<Crossing>>,
+    entries: Vec<Entry>,
+    count: usize,
+}
+
+#[derive(Debug, Clone, Copy)]
+struct Entry {
+    border: u32,
+    source: Source,
+    start: u32,
+    count: u32,
+}
+
+#[derive(Debug, Clone, Copy)]
+enum Source {
+    Seam,
+    Region(u32),
+}
+
+impl Listing {
+    /// The listing of the seams' crossings and the regions' (`placed[r]` maps region `r`'s
+    /// borders to the world's).
+    fn new(seams: Vec<Vec<Crossing>>, placed: &[&Placed], solved: &[&Solved]) -> Listing {
+        let mut entries = Vec::new();
+        for (b, list) in seams.iter().enumerate() {
+            if !list.is_empty() {
+                entries.push(Entry {
+                    border: b as u32,
+                    source: Source::Seam,
+                    start: 0,
+                    count: list.len() as u32,
+                });
+            }
+        }
+        for (r, (place, solved)) in placed.iter().zip(solved).enumerate() {
+            let list = &solved.crossings;
+            let mut start = 0;
+            while start < list.len() {
+                let local = list[start].border;
+                let end = start + list[start..].partition_point(|c| c.border == local);
+                entries.push(Entry {
+                    border: place.borders[local as usize] as u32,
+                    source: Source::Region(r as u32),
+                    start: start as u32,
+                    count: (end - start) as u32,
+                });
+                start = end;
+            }
+        }
+        // Stable: a border's runs stay in the order of the sources (seams, then regions).
+        entries.sort_by_key(|e| e.border);
+        let count = entries.iter().map(|e| e.count as usize).sum();
+        Listing {
+            seams,
+            entries,
+            count,
+        }
+    }
 }
 
 /// A patch's two error terms: requested minus measured density, and, if the patch asks for a
@@ -202,6 +315,23 @@ pub fn optimize_reusing(
     matching: &MatchSettings,
     period_s: f64,
     seed: u64,
+    known: Known,
+    progress: &dyn Progress,
+) -> Outcome {
+    let at = (period_s, seed);
+    let mut outcome = solve_world(graph, settings, matching, at, known, progress);
+    outcome.crossings = outcome.list_crossings();
+    outcome
+}
+
+/// [`optimize_reusing`] without the world's list of crossings (`Outcome::crossings` is left
+/// empty): what stage 3 writes is visited in the list's order ([`Outcome::visit_crossings`]),
+/// and a shard keeps only its window of it.
+pub fn solve_world(
+    graph: &PatchGraph,
+    settings: &OptimizeSettings,
+    matching: &MatchSettings,
+    (period_s, seed): (f64, u64),
     known: Known,
     progress: &dyn Progress,
 ) -> Outcome {
@@ -402,12 +532,12 @@ fn gather(
         standers: 0,
     };
     let mut measured = vec![unmeasured; graph.patches.len()];
-    // At its size: grown by doubling, the million's 0.1 GB of crossings took 0.17 GB.
-    let seam_count: usize = seams.iter().map(Vec::len).sum();
-    let total = seam_count + regions.iter().map(|r| r.1.crossings.len()).sum::<usize>();
-    let mut crossings: Vec<Crossing> = Vec::with_capacity(total);
-    crossings.extend(seams.into_iter().flatten());
-    let seam_count = seam_count as u64;
+    let seam_count = seams.iter().map(Vec::len).sum::<usize>() as u64;
+    let listing = {
+        let placed: Vec<&Placed> = regions.iter().map(|r| &r.0).collect();
+        let solved: Vec<&Solved> = regions.iter().map(|r| &r.1).collect();
+        Listing::new(seams, &placed, &solved)
+    };
     let steps = regions.iter().map(|r| r.1.log.len()).max().unwrap_or(1);
     let mut log = vec![Sums::default(); steps];
     let (mut iterations, mut converged, mut reused) = (0, true, 0);
@@ -416,10 +546,6 @@ fn gather(
         for (l, m) in own.zip(&solved.measured) {
             measured[region.patches[l]] = *m;
         }
-        crossings.extend(solved.crossings.iter().map(|c| Crossing {
-            border: region.borders[c.border as usize] as u32,
-            ..*c
-        }));
         for (i, sums) in log.iter_mut().enumerate() {
             if let Some(s) = solved.log.get(i).or(solved.log.last()) {
                 *sums += *s;
@@ -429,7 +555,6 @@ fn gather(
         converged &= solved.converged;
         reused += usize::from(*was_reused);
     }
-    crossings.sort_by(|a, b| a.border.cmp(&b.border).then(a.t.total_cmp(&b.t)));
     let area = graph.patch_area();
     let requested: Vec<f64> = graph
         .patches
@@ -454,7 +579,7 @@ fn gather(
     Outcome {
         error: scene_error(graph, &requested, &measured, rho_max),
         worst: worst_patches(graph, &requested, &measured, rho_max, 10),
-        crossings,
+        crossings: Vec::new(),
         measured,
         regression,
         log,
@@ -463,6 +588,7 @@ fn gather(
         regions: regions.len(),
         reused,
         solved: regions.into_iter().map(|r| r.1).collect(),
+        listing,
     }
 }
 
@@ -857,7 +983,15 @@ pub fn encode(
 )> {
     use crowd_core::files::{Header, SideFile};
     let side = stream(&out.with_extension("bin"), |w| {
-        crowd_core::patterns::write_crossings(w, &outcome.crossings)
+        use crowd_core::patterns::{write_crossing, write_crossings_header};
+        write_crossings_header(w, outcome.crossing_count())?;
+        let mut written = Ok(());
+        outcome.visit_crossings(|_, c| {
+            if written.is_ok() {
+                written = write_crossing(w, c);
+            }
+        });
+        written
     })?;
     let patterns = crowd_core::patterns::Patterns {
         header: Header::new(
