@@ -697,18 +697,21 @@ fn export_made_patch_by_patch_writes_what_export_of_the_held_motion_writes() {
             let hash = crowd_core::Hash::of(name.as_bytes());
             let held = crowd_export::simplify::motion(smoothed(out), tolerance);
             let whole =
-                crowd_export::export(&graph, &crossings, &held, &inputs, hash, BY_SIZE).unwrap();
+                crowd_export::export(&graph, crossings.clone(), &held, &inputs, hash, BY_SIZE)
+                    .unwrap();
             let made = Made::new(lazy.patches(), |p| {
                 Ok(crowd_export::simplify::patch(lazy.patch(p)?, tolerance))
             });
             let part =
-                crowd_export::export(&graph, &crossings, &made, &inputs, hash, RECORDS).unwrap();
+                crowd_export::export(&graph, crossings.clone(), &made, &inputs, hash, RECORDS)
+                    .unwrap();
             // A gathering build's: the points kept in a scratch file as they are made, and the
             // glTF's loops read back from it one at a time.
             let scratch = tempfile::tempdir().unwrap();
             let spilled = crowd_export::Handing::Spilled(scratch.path());
             let spilled =
-                crowd_export::export(&graph, &crossings, &made, &inputs, hash, spilled).unwrap();
+                crowd_export::export(&graph, crossings.clone(), &made, &inputs, hash, spilled)
+                    .unwrap();
             assert_eq!(whole.manifest, part.manifest, "{name} {region:?}");
             assert_eq!(whole.manifest, spilled.manifest, "{name} {region:?}");
             let whole_bytes = bytes_of(whole.library);

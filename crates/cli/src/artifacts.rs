@@ -216,6 +216,13 @@ impl<'p> Artifacts<'p> {
         Ok(self.patterns.clone().expect("just loaded"))
     }
 
+    /// Stage 3's patterns and crossings, taken out: for the last stage that reads them (export,
+    /// which lets the world's crossings go once its library has their records).
+    pub fn take_patterns(&mut self) -> Result<Rc<PatternsOf>> {
+        self.patterns()?;
+        Ok(self.patterns.take().expect("just loaded"))
+    }
+
     pub fn made_motion(&mut self, stage: &'static Stage, motion: MotionOf) {
         self.motion.insert(stage.output, Rc::new(motion));
     }

@@ -1040,7 +1040,14 @@ fn edit(a: &mut Artifacts, out: &Path, hash: Hash, ui: &Ui) -> Result<Ran> {
 }
 
 fn export(a: &mut Artifacts, out: &Path, hash: Hash, _: &Ui) -> Result<Ran> {
-    let (graph, patterns) = (a.graph()?, a.patterns()?);
+    let graph = a.graph()?;
+    // Taken, so that export lets the world's crossings go once the library has their records
+    // (before `world.glb`'s longest loop: 92 MB of the million's gather).
+    let patterns = a.take_patterns()?;
+    let crossings = std::rc::Rc::try_unwrap(patterns).map_or_else(
+        |shared| shared.1.world().to_vec(),
+        |(_, held)| held.into_world(),
+    );
     a.pipeline
         .check_region((graph.world.size_m.x, graph.world.size_m.y))?;
     let inputs = crowd_export::inputs(a.pipeline);
@@ -1060,8 +1067,7 @@ fn export(a: &mut Artifacts, out: &Path, hash: Hash, _: &Ui) -> Result<Ran> {
         let held = a.take_motion(stage)?;
         let motion = std::rc::Rc::try_unwrap(held).map_or_else(|shared| shared.1.clone(), |m| m.1);
         let kept = crowd_export::simplify::motion(motion, tolerance_m);
-        crowd_export::export(&graph, patterns.1.world(), &kept, &inputs, hash, handing)
-            .map_err(failed)?
+        crowd_export::export(&graph, crossings, &kept, &inputs, hash, handing).map_err(failed)?
     } else {
         // A gathering build: each patch read from the stage's files and thinned when export
         // asks, so neither the world's dense motion nor its thinned copy is held.
@@ -1070,8 +1076,7 @@ fn export(a: &mut Artifacts, out: &Path, hash: Hash, _: &Ui) -> Result<Ran> {
         let made = crowd_export::motion::Made::new(motion.patches(), |p| {
             Ok(crowd_export::simplify::patch(motion.patch(p)?, tolerance_m))
         });
-        crowd_export::export(&graph, patterns.1.world(), &made, &inputs, hash, handing)
-            .map_err(failed)?
+        crowd_export::export(&graph, crossings, &made, &inputs, hash, handing).map_err(failed)?
     };
     let gltf = (
         out.with_file_name(crowd_export::GLB_FILE),

@@ -271,11 +271,21 @@ impl HeldCrossings {
 
     /// The world's whole list; asked of a shard's window, a bug, which panics.
     pub fn world(&self) -> &[Crossing] {
+        self.expect_whole();
+        &self.list
+    }
+
+    /// [`HeldCrossings::world`], taken.
+    pub fn into_world(self) -> Vec<Crossing> {
+        self.expect_whole();
+        self.list
+    }
+
+    fn expect_whole(&self) {
         assert!(
             self.first == 0 && self.borders == (0, u32::MAX),
             "the world's crossings asked of a shard's window"
         );
-        &self.list
     }
 }
 

@@ -212,10 +212,11 @@ pub enum Handing<'a> {
 
 /// Stage 8's pure core: the library of the final trajectories, and its manifest. `motion` is
 /// the final motion thinned out by [`simplify::motion`] (or [`simplify::patch`] patch by patch)
-/// with [`tolerance_m`], held or made a patch at a time when asked ([`motion::Made`]).
+/// with [`tolerance_m`], held or made a patch at a time when asked ([`motion::Made`]). The
+/// crossings are let go once the library has their records, before `world.glb`.
 pub fn export<M: motion::Motion>(
     graph: &crowd_core::PatchGraph,
-    crossings: &[crowd_core::patterns::Crossing],
+    crossings: Vec<crowd_core::patterns::Crossing>,
     motion: &M,
     inputs: &Inputs,
     hash: Hash,
@@ -235,17 +236,18 @@ pub fn export<M: motion::Motion>(
     let (period_s, seed) = (inputs.period_s, inputs.seed);
     let (mut lib, eased_m, spilled) = match spill {
         Some(mut spill) => {
-            let made = (graph, crossings, motion, &summaries, &links);
+            let made = (graph, &crossings[..], motion, &summaries, &links);
             let (lib, eased_m) = library::build_into(made, (period_s, seed, short), &mut spill)?;
             (lib, eased_m, Some(spill.finish()?))
         }
         None => {
             let (lib, eased_m) = library::build(
-                graph, crossings, motion, &summaries, &links, period_s, seed, short,
+                graph, &crossings, motion, &summaries, &links, period_s, seed, short,
             )?;
             (lib, eased_m, None)
         }
     };
+    drop(crossings);
     let points = spilled.as_ref().map_or(lib.points.len(), |s| s.section().0);
     let region = inputs.settings.gltf_region;
     lib.world.turn_rate_deg_s = inputs.settings.turn_rate_deg_s as f32;
