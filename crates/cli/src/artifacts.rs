@@ -170,27 +170,27 @@ impl<'p> Artifacts<'p> {
 
     /// Keeps the patterns read from a file: a shard only its window of the crossings.
     fn keep_patterns(&mut self, (patterns, crossings): PatternsOf) -> Result<()> {
-        let graph = self.graph()?;
-        let crossings = match self.split {
-            Split::Shard(_) if !self.regions_only => {
-                let walkers = walkers_of(&graph, crossings.view().indexed().map(|(_, c)| c));
-                match self.shard_window(&walkers)? {
-                    Some(borders) => crossings.window(borders),
-                    None => crossings,
-                }
-            }
-            _ => crossings,
+        let each = |count: &mut dyn FnMut(&Crossing)| {
+            crossings.view().indexed().for_each(|(_, c)| count(c));
+        };
+        let crossings = match self.shard_window(|graph| walkers_of(graph, each))? {
+            Some(borders) => crossings.window(borders),
+            None => crossings,
         };
         self.made_patterns((patterns, crossings));
         Ok(())
     }
 
     /// For a shard of stages 4-6: deals the patches to shards by `walkers` (each patch's, the
-    /// world's crossings that enter it, so that every shard deals the same) and gives the
-    /// borders whose crossings it keeps: those of its patches and of the two rings of patches
-    /// round them (its stage 4 matches a ring, and the ring's keys and stage 6 read the ring's
-    /// crossings). `None` for any other build, which keeps them all.
-    pub fn shard_window(&mut self, walkers: &[usize]) -> Result<Option<std::ops::Range<u32>>> {
+    /// world's crossings that enter it, [`walkers_of`], so that every shard deals the same;
+    /// counted only here) and gives the borders whose crossings it keeps: those of its patches
+    /// and of the two rings of patches round them (its stage 4 matches a ring, and the ring's
+    /// keys and stage 6 read the ring's crossings). `None` for any other build, which keeps
+    /// them all.
+    pub fn shard_window(
+        &mut self,
+        walkers: impl FnOnce(&PatchGraph) -> Vec<usize>,
+    ) -> Result<Option<std::ops::Range<u32>>> {
         let Split::Shard(shard) = self.split else {
             return Ok(None);
         };
@@ -198,6 +198,7 @@ impl<'p> Artifacts<'p> {
             return Ok(None);
         }
         let graph = self.graph()?;
+        let walkers = walkers(&graph);
         let costs = crowd_core::shard::costs(walkers.len(), |p| walkers[p]);
         let own: Vec<usize> = shard.run(&costs).collect();
         let ring = crowd_core::shard::with_neighbours(&graph, &own);
@@ -251,7 +252,10 @@ impl<'p> Artifacts<'p> {
         }
         // From stage 3, so that a shard knows its patches before it matches them.
         let (graph, patterns) = (self.graph()?, self.patterns()?);
-        let walkers = walkers_of(&graph, patterns.1.view().indexed().map(|(_, c)| c));
+        let each = |count: &mut dyn FnMut(&Crossing)| {
+            patterns.1.view().indexed().for_each(|(_, c)| count(c));
+        };
+        let walkers = walkers_of(&graph, each);
         let costs = Rc::new(crowd_core::shard::costs(walkers.len(), |p| walkers[p]));
         self.shard_costs = Some(costs.clone());
         Ok(costs)
@@ -291,11 +295,10 @@ impl<'p> Artifacts<'p> {
 }
 
 /// Each patch's walkers: the crossings that enter it (what dealing patches to shards costs
-/// them by, [`crowd_core::shard::costs`]).
-fn walkers_of<'a>(graph: &PatchGraph, crossings: impl Iterator<Item = &'a Crossing>) -> Vec<usize> {
+/// them by, [`crowd_core::shard::costs`]), of the crossings `each` hands to its counter (a
+/// list's, or stage 3's walk of the world's, [`crowd_optimize::Outcome::visit_crossings`]).
+pub fn walkers_of(graph: &PatchGraph, each: impl FnOnce(&mut dyn FnMut(&Crossing))) -> Vec<usize> {
     let mut walkers = vec![0usize; graph.patches.len()];
-    for c in crossings {
-        walkers[c.ends(graph).1.patch.0 as usize] += 1;
-    }
+    each(&mut |c| walkers[c.ends(graph).1.patch.0 as usize] += 1);
     walkers
 }

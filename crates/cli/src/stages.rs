@@ -383,7 +383,7 @@ fn optimize(a: &mut Artifacts, out: &Path, hash: Hash, ui: &Ui) -> Result<Ran> {
     // and the world's list of crossings is made only if this build keeps it whole.
     let regions = crowd_optimize::write_regions(out, &outcome.solved)?;
     let (patterns, side, writes) = crowd_optimize::encode(out, &outcome, &s, hash)?;
-    let crossings = held_crossings(a, &graph, &outcome)?;
+    let crossings = held_crossings(a, &outcome)?;
     let note = format!(
         "E = {:.4}, {} of {} regions optimised ({} reused)",
         outcome.error.e,
@@ -407,15 +407,13 @@ fn optimize(a: &mut Artifacts, out: &Path, hash: Hash, ui: &Ui) -> Result<Ran> {
 /// world's list (the million's is 0.1 GB).
 fn held_crossings(
     a: &mut Artifacts,
-    graph: &crowd_core::PatchGraph,
     outcome: &crowd_optimize::Outcome,
 ) -> Result<crowd_core::patterns::HeldCrossings> {
     use crowd_core::patterns::HeldCrossings;
-    let mut walkers = vec![0usize; graph.patches.len()];
-    if matches!(a.split, Split::Shard(_)) {
-        outcome.visit_crossings(|_, c| walkers[c.ends(graph).1.patch.0 as usize] += 1);
-    }
-    let Some(borders) = a.shard_window(&walkers)? else {
+    let each = |count: &mut dyn FnMut(&crowd_core::patterns::Crossing)| {
+        outcome.visit_crossings(|_, c| count(c));
+    };
+    let Some(borders) = a.shard_window(|graph| crate::artifacts::walkers_of(graph, each))? else {
         return Ok(HeldCrossings::whole(outcome.list_crossings()));
     };
     let (mut before, mut list) = (0, Vec::new());

@@ -392,6 +392,22 @@ impl Streamed {
         })
     }
 
+    /// The file `path` will be, written by `write` to its temporary name and finished: through
+    /// a buffer, so that a writer of small records (stage 3's crossings, 37 bytes each) hashes
+    /// large pieces, not a record at a time.
+    pub fn written_by(
+        path: &Path,
+        write: impl FnOnce(&mut dyn std::io::Write) -> std::io::Result<()>,
+    ) -> Result<StreamedFile> {
+        let mut file = Streamed::create(path)?;
+        let mut buffered = std::io::BufWriter::with_capacity(1 << 16, &mut file);
+        write(&mut buffered)
+            .and_then(|()| std::io::Write::flush(&mut buffered))
+            .map_err(|e| Error::io(path, "write", e))?;
+        drop(buffered);
+        file.finish()
+    }
+
     pub fn write(&mut self, bytes: &[u8]) -> Result<()> {
         use std::io::Write;
         self.hash.update(bytes);

@@ -982,7 +982,7 @@ pub fn encode(
     crowd_core::files::Writes,
 )> {
     use crowd_core::files::{Header, SideFile};
-    let side = stream(&out.with_extension("bin"), |w| {
+    let side = crowd_core::files::Streamed::written_by(&out.with_extension("bin"), |w| {
         use crowd_core::patterns::{write_crossing, write_crossings_header};
         write_crossings_header(w, outcome.crossing_count())?;
         let mut written = Ok(());
@@ -1032,24 +1032,9 @@ pub fn write_regions(
     out: &std::path::Path,
     solved: &[Solved],
 ) -> crowd_core::Result<crowd_core::files::StreamedFile> {
-    stream(&out.with_file_name(REGIONS_FILE), |w| {
+    crowd_core::files::Streamed::written_by(&out.with_file_name(REGIONS_FILE), |w| {
         known::write(w, solved)
     })
-}
-
-/// The file `path` will be, written by `write` to its temporary name through a buffer (so
-/// that its hash is taken over large pieces, not a record at a time).
-fn stream(
-    path: &std::path::Path,
-    write: impl FnOnce(&mut dyn std::io::Write) -> std::io::Result<()>,
-) -> crowd_core::Result<crowd_core::files::StreamedFile> {
-    let mut file = crowd_core::files::Streamed::create(path)?;
-    let mut buffered = std::io::BufWriter::with_capacity(1 << 16, &mut file);
-    write(&mut buffered)
-        .and_then(|()| std::io::Write::flush(&mut buffered))
-        .map_err(|e| crowd_core::Error::io(path, "write", e))?;
-    drop(buffered);
-    file.finish()
 }
 
 #[cfg(test)]
