@@ -527,7 +527,7 @@ impl LazyMotion {
         let f = &self.files[self.files.partition_point(|f| f.first <= p) - 1];
         let span = f.index.spans[p - f.first].0.clone();
         let mut bytes = vec![0u8; span.len()];
-        read_at(&f.file, &mut bytes, span.start as u64)
+        crate::files::read_at(&f.file, &mut bytes, span.start as u64)
             .map_err(|e| Error::io(&f.side, "read", e))?;
         let mut r = Reader {
             bytes: &bytes,
@@ -546,26 +546,6 @@ impl LazyMotion {
             .collect();
         all.into_iter().collect()
     }
-}
-
-/// Fills `buf` from `file` at `offset`, from any thread (no shared cursor).
-#[cfg(unix)]
-fn read_at(file: &std::fs::File, buf: &mut [u8], offset: u64) -> std::io::Result<()> {
-    std::os::unix::fs::FileExt::read_exact_at(file, buf, offset)
-}
-
-#[cfg(windows)]
-fn read_at(file: &std::fs::File, mut buf: &mut [u8], mut offset: u64) -> std::io::Result<()> {
-    while !buf.is_empty() {
-        match std::os::windows::fs::FileExt::seek_read(file, buf, offset)? {
-            0 => return Err(std::io::ErrorKind::UnexpectedEof.into()),
-            n => {
-                buf = &mut buf[n..];
-                offset += n as u64;
-            }
-        }
-    }
-    Ok(())
 }
 
 /// The error of a side file whose bytes are not what [`encode_motion`] writes.

@@ -1,13 +1,15 @@
 //! The library's points kept in a scratch file as stage 8 makes them ([`Spill`]), so that a
-//! gathering build never holds the world's (the million's 0.77 GB): `world.glb` reads a loop's
-//! back at a time ([`Spilled::loop_library`]), and `library.crowd` copies them in their place
-//! ([`Spilled::copy_to`]).
+//! gathering build never holds the world's (the million's 0.77 GB): `world.glb`'s headings
+//! read a loop's back a trajectory at a time ([`LoopPoints`]), and `library.crowd` copies them
+//! in their place ([`Spilled::copy_to`]).
 
 use crate::ExportError;
 use crate::library::PointSink;
+use crowd_core::files::read_at;
+use crowd_runtime::Point;
 use crowd_runtime::crc::Crc32;
-use crowd_runtime::{Library, Point, Trajectory};
-use std::io::{Read, Seek, SeekFrom, Write};
+use crowd_runtime::turn::LoopPoints;
+use std::io::Write;
 use std::sync::Mutex;
 
 /// Points written to a scratch file as they are made, with their bytes' checksum.
@@ -34,9 +36,10 @@ impl Spill {
     pub fn finish(self) -> Result<Spilled, ExportError> {
         let file = self.file.into_inner().map_err(|e| e.into_error());
         Ok(Spilled {
-            file: Mutex::new(file.map_err(ExportError::Scratch)?),
+            file: file.map_err(ExportError::Scratch)?,
             count: self.count,
             crc: self.crc.finish(),
+            failed: Mutex::new(None),
         })
     }
 }
@@ -59,19 +62,24 @@ impl PointSink for Spill {
     }
 }
 
-/// The points of a [`Spill`], in a file of their PNTS bytes.
+/// The points of a [`Spill`], in a file of their PNTS bytes, read from any thread.
 #[derive(Debug)]
 pub struct Spilled {
-    file: Mutex<std::fs::File>,
+    file: std::fs::File,
     count: usize,
     crc: u32,
+    /// The first read of the file that failed, for [`Spilled::failure`]: the heading model
+    /// reads a loop's points through [`LoopPoints`], which cannot fail.
+    failed: Mutex<Option<std::io::Error>>,
 }
-
-/// Points read back from the scratch file at a time for a loop's library.
-const BLOCK_POINTS: usize = 1 << 17;
 
 /// Bytes copied from the scratch file at a time.
 const COPY_BYTES: usize = 4 << 20;
+
+/// Loops of this many keys or more have their headings made a window of runs at a time from
+/// the scratch file ([`LoopPoints::stream_keys`]), their keys never all at once: the held
+/// library's threshold, 8 million keys, would hold 0.2 GB of them.
+const STREAM_KEYS: usize = 1 << 20;
 
 impl Spilled {
     /// How many points, and their bytes' checksum (the PNTS section's).
@@ -81,32 +89,27 @@ impl Spilled {
 
     /// `n` points from point `first`.
     pub fn read(&self, first: usize, n: usize) -> std::io::Result<Vec<Point>> {
+        if first + n > self.count {
+            return Err(std::io::Error::new(
+                std::io::ErrorKind::UnexpectedEof,
+                format!("points {first}..{} of {}", first + n, self.count),
+            ));
+        }
         let mut bytes = vec![0u8; n * Point::BYTES];
-        let mut file = self.file.lock().unwrap_or_else(|e| e.into_inner());
-        file.seek(SeekFrom::Start((first * Point::BYTES) as u64))?;
-        file.read_exact(&mut bytes)?;
+        read_at(&self.file, &mut bytes, (first * Point::BYTES) as u64)?;
         Ok(bytes
             .chunks_exact(Point::BYTES)
             .map(Point::from_le_bytes)
             .collect())
     }
 
-    /// The library of loop `lp` of `index` (whose points these are) alone
-    /// ([`Library::loops`]).
-    pub fn loop_library(&self, index: &Library, lp: usize) -> std::io::Result<Library> {
-        // Its trajectories are asked for in the file's order: read a block at a time (one
-        // read a trajectory was a quarter of the million's export).
-        let mut block: (usize, Vec<Point>) = (0, Vec::new());
-        let read = |_, t: &Trajectory| {
-            let (first, n) = (t.first_point as usize, t.points as usize);
-            if first < block.0 || first + n > block.0 + block.1.len() {
-                let len = n.max(BLOCK_POINTS).min(self.count.saturating_sub(first));
-                block = (first, self.read(first, len.max(n))?);
-            }
-            let at = first - block.0;
-            Ok(block.1[at..at + n].to_vec())
-        };
-        index.loops_with(lp..lp + 1, read)
+    /// The first read that failed since the file was written, if one did: what was read
+    /// through [`LoopPoints`] is then not the points.
+    pub fn failure(&self) -> std::io::Result<()> {
+        match self.failed.lock().unwrap_or_else(|e| e.into_inner()).take() {
+            Some(e) => Err(e),
+            None => Ok(()),
+        }
     }
 
     /// Every point's bytes, handed to `sink` a piece at a time.
@@ -114,16 +117,34 @@ impl Spilled {
         &self,
         sink: &mut dyn FnMut(&[u8]) -> Result<(), E>,
     ) -> Result<(), E> {
-        let mut file = self.file.lock().unwrap_or_else(|e| e.into_inner());
-        file.seek(SeekFrom::Start(0))?;
-        let mut left = self.count * Point::BYTES;
-        let mut piece = vec![0u8; COPY_BYTES.min(left)];
-        while left > 0 {
-            let piece = &mut piece[..COPY_BYTES.min(left)];
-            file.read_exact(piece)?;
+        let total = self.count * Point::BYTES;
+        let mut piece = vec![0u8; COPY_BYTES.min(total)];
+        let mut at = 0;
+        while at < total {
+            let piece = &mut piece[..COPY_BYTES.min(total - at)];
+            read_at(&self.file, piece, at as u64)?;
             sink(piece)?;
-            left -= piece.len();
+            at += piece.len();
         }
         Ok(())
+    }
+}
+
+/// A loop's points read back a trajectory at a time, as `world.glb`'s headings walk the loop:
+/// the million's longest loop holds 0.34 GB of them.
+impl LoopPoints for Spilled {
+    fn with<R>(&self, first: u32, n: u32, read: impl FnOnce(&[Point]) -> R) -> R {
+        match self.read(first as usize, n as usize) {
+            Ok(points) => read(&points),
+            Err(e) => {
+                let mut failed = self.failed.lock().unwrap_or_else(|e| e.into_inner());
+                failed.get_or_insert(e);
+                read(&vec![Point { x: 0, y: 0, t: 0 }; n as usize])
+            }
+        }
+    }
+
+    fn stream_keys(&self) -> usize {
+        STREAM_KEYS
     }
 }

@@ -516,13 +516,14 @@ pub fn character_headings(lib: &crate::Library, ch: &crate::Character) -> PointH
     // so that each trajectory's points can be asked for ahead of their turn: the loop goes
     // from patch to patch, each trajectory's points a miss of the cache.
     let legs = loop_legs(lib, ch);
+    let lib = Source::held(lib);
     let runs = loop_runs(lib, &legs);
     legs_headings(lib, &legs, (&runs.0, runs.1, runs.2))
 }
 
 /// [`character_headings`] of a loop's `legs`, cut into `runs` ([`loop_runs`]).
-fn legs_headings(
-    lib: &crate::Library,
+fn legs_headings<P: LoopPoints + ?Sized>(
+    lib: Source<P>,
     legs: &[Leg],
     (runs, keys, pieces): (&[Run], usize, usize),
 ) -> PointHeadings {
@@ -570,14 +571,15 @@ pub fn take_packed_headings(
     out: &mut crate::PackedHeadings,
 ) {
     let legs = loop_legs(lib, ch);
-    let (runs, keys, pieces) = loop_runs(lib, &legs);
+    let held = Source::held(lib);
+    let (runs, keys, pieces) = loop_runs(held, &legs);
     if keys < STREAM_KEYS {
-        out.take(lib, ch, &legs_headings(lib, &legs, (&runs, keys, pieces)));
+        out.take(lib, ch, &legs_headings(held, &legs, (&runs, keys, pieces)));
         return;
     }
     let rate = f64::from(lib.world.turn_rate_deg_s).to_radians();
     let runs = (&runs[..], keys, pieces);
-    let packed = streamed_packed(lib, &legs, runs, (rate, WINDOW_RUNS), MARK_EVERY);
+    let packed = streamed_packed(held, &legs, runs, (rate, WINDOW_RUNS), MARK_EVERY);
     packed_at_points(&packed, &legs, &mut out.packed);
 }
 
@@ -593,12 +595,24 @@ pub fn stretch_headings(
     ch: &crate::Character,
     stretches: &[std::ops::Range<usize>],
 ) -> Vec<(Vec<f64>, Vec<bool>)> {
+    stretch_headings_in(lib, &lib.points[..], ch, stretches)
+}
+
+/// [`stretch_headings`] of a library whose points are read from `points` (`lib.points` is
+/// not read): the same bits, however they are read.
+pub fn stretch_headings_in<P: LoopPoints + ?Sized>(
+    lib: &crate::Library,
+    points: &P,
+    ch: &crate::Character,
+    stretches: &[std::ops::Range<usize>],
+) -> Vec<(Vec<f64>, Vec<bool>)> {
     debug_assert!(stretches.windows(2).all(|w| w[0].end <= w[1].start));
     let legs = loop_legs(lib, ch);
+    let lib = Source { lib, points };
     let (runs, keys, pieces) = loop_runs(lib, &legs);
     let runs = (&runs[..], keys, pieces);
     let rate = f64::from(lib.world.turn_rate_deg_s).to_radians();
-    if keys < STREAM_KEYS {
+    if keys < points.stream_keys() {
         let at_once = loop_keys(lib, &legs, runs);
         let h = headings_from(&at_once.times, &at_once.directions, rate);
         return (stretches.iter())
@@ -628,8 +642,8 @@ fn pieces_of(walking: &[bool], keys: &std::ops::Range<usize>) -> Vec<bool> {
 /// [`stretch_headings`] of a long loop: its laps through [`StretchLaps`] (the headings in full
 /// over the stretches and at every `every`th key) and its walk flags kept over the
 /// stretches as the first walk through finds them.
-fn streamed_stretches(
-    lib: &crate::Library,
+fn streamed_stretches<P: LoopPoints + ?Sized>(
+    lib: Source<P>,
     legs: &[Leg],
     runs: (&[Run], usize, usize),
     (rate, window): (f64, usize),
@@ -715,6 +729,66 @@ fn key_headings_at_points(mut h: Vec<f64>, legs: &[Leg]) -> Vec<f64> {
     h
 }
 
+/// Where the heading model reads a loop's points: the library's own list, or a file that
+/// holds them, read a trajectory at a time (stage 8 of a gathering build, which never holds
+/// the world's points: the million's longest loop alone is 0.34 GB of them).
+pub trait LoopPoints: Sync {
+    /// `read` of the `n` points from point `first` (a trajectory's).
+    fn with<R>(&self, first: u32, n: u32, read: impl FnOnce(&[crate::Point]) -> R) -> R;
+
+    /// Asks for the points from `first` ahead of their turn: a loop goes from patch to patch,
+    /// each trajectory's points a miss of the cache.
+    fn prefetch(&self, _first: u32) {}
+
+    /// Loops of this many keys or more are made a window of runs at a time, never their keys
+    /// all at once (25 bytes a key).
+    fn stream_keys(&self) -> usize {
+        STREAM_KEYS
+    }
+}
+
+impl LoopPoints for [crate::Point] {
+    fn with<R>(&self, first: u32, n: u32, read: impl FnOnce(&[crate::Point]) -> R) -> R {
+        read(&self[first as usize..(first + n) as usize])
+    }
+
+    fn prefetch(&self, first: u32) {
+        crate::sampler::prefetch(self.as_ptr().wrapping_add(first as usize));
+    }
+}
+
+/// A library's records (trajectories, patches, world), and where its points are read from.
+struct Source<'a, P: ?Sized> {
+    lib: &'a crate::Library,
+    points: &'a P,
+}
+
+impl<P: ?Sized> Clone for Source<'_, P> {
+    fn clone(&self) -> Self {
+        *self
+    }
+}
+
+impl<P: ?Sized> Copy for Source<'_, P> {}
+
+impl<'a> Source<'a, [crate::Point]> {
+    /// A library whose points are its own.
+    fn held(lib: &'a crate::Library) -> Self {
+        Source {
+            lib,
+            points: &lib.points[..],
+        }
+    }
+}
+
+impl<P: ?Sized> std::ops::Deref for Source<'_, P> {
+    type Target = crate::Library;
+
+    fn deref(&self) -> &crate::Library {
+        self.lib
+    }
+}
+
 /// The trajectories of `ch`'s loop in walking order.
 fn loop_legs(lib: &crate::Library, ch: &crate::Character) -> Vec<Leg> {
     let mut legs = Vec::with_capacity(ch.trajectories as usize);
@@ -749,7 +823,7 @@ struct LoopKeys {
 
 /// Where each run of [`LEGS_PER_RUN`] trajectories of the loop `legs` starts, and the loop's
 /// keys and pieces (a trajectory's first point is its predecessor's last: one key for both).
-fn loop_runs(lib: &crate::Library, legs: &[Leg]) -> (Vec<Run>, usize, usize) {
+fn loop_runs<P: LoopPoints + ?Sized>(lib: Source<P>, legs: &[Leg]) -> (Vec<Run>, usize, usize) {
     // Where each run of legs starts: its first leg, key, piece and tick, and the place of the
     // key before it (a trajectory's first piece starts at the one before's last key).
     let mut runs = Vec::new();
@@ -766,15 +840,14 @@ fn loop_runs(lib: &crate::Library, legs: &[Leg]) -> (Vec<Run>, usize, usize) {
             });
         }
         let n = leg.points as usize;
-        if n >= 2 || (j == 0 && n == 1) {
-            let last = lib.points[leg.first as usize + n - 1];
+        let last = (n > 0).then(|| lib.points.with(leg.first + leg.points - 1, 1, |p| p[0]));
+        if let Some(last) = last.filter(|_| n >= 2 || j == 0) {
             place = Some(lib.world_position(&lib.patches[leg.patch as usize], last));
         }
         key += if j == 0 { n } else { n.saturating_sub(1) };
         piece += n.saturating_sub(1);
         // Its duration: its last point's ticks (`Library::duration_ticks`).
-        let last = (leg.first as usize + n).checked_sub(1);
-        tick += u64::from(last.filter(|_| n > 0).map_or(0, |l| lib.points[l].t));
+        tick += u64::from(last.map_or(0, |l| l.t));
     }
     (runs, key, piece)
 }
@@ -782,8 +855,8 @@ fn loop_runs(lib: &crate::Library, legs: &[Leg]) -> (Vec<Run>, usize, usize) {
 /// The keys of the loop of trajectories `legs`, cut into `runs` ([`loop_runs`]), each run
 /// writing its own part of the lists, on every core where the caller has threads (painting's
 /// longest loop: 0.12 s on one).
-fn loop_keys(
-    lib: &crate::Library,
+fn loop_keys<P: LoopPoints + ?Sized>(
+    lib: Source<P>,
     legs: &[Leg],
     (runs, key, piece): (&[Run], usize, usize),
 ) -> LoopKeys {
@@ -835,8 +908,8 @@ const WINDOW_RUNS: usize = 64;
 
 /// One run's share of a loop's keys ([`LoopKeys`]): the times of its keys, and the directions
 /// and walk flags of the pieces that end at them.
-fn run_keys(
-    lib: &crate::Library,
+fn run_keys<P: LoopPoints + ?Sized>(
+    lib: Source<P>,
     legs: &[Leg],
     (runs, keys, pieces): (&[Run], usize, usize),
     r: usize,
@@ -859,8 +932,8 @@ fn run_keys(
 
 /// `each` of every run's keys in order ([`run_keys`]), `window` runs made at once; stops
 /// when `each` says so (false).
-fn each_run_keys(
-    lib: &crate::Library,
+fn each_run_keys<P: LoopPoints + ?Sized>(
+    lib: Source<P>,
     legs: &[Leg],
     runs: (&[Run], usize, usize),
     window: usize,
@@ -883,8 +956,8 @@ fn each_run_keys(
 /// may be runs ahead) and the walk flags, then each lap makes the keys again. The same bits
 /// as [`headings_from`] of [`loop_keys`], with the walk flags; the headings' list has room
 /// for `room` of them.
-fn streamed_headings(
-    lib: &crate::Library,
+fn streamed_headings<P: LoopPoints + ?Sized>(
+    lib: Source<P>,
     legs: &[Leg],
     runs: (&[Run], usize, usize),
     (rate, room): (f64, usize),
@@ -915,8 +988,8 @@ fn streamed_headings(
 /// ([`PackedLaps`]): the million's longest loop, 36 million keys, held 0.29 GB of headings
 /// and 36 MB of walk flags beside its packed ones, and now holds those alone (72 MB). The
 /// same bits as [`streamed_headings`]' packed.
-fn streamed_packed(
-    lib: &crate::Library,
+fn streamed_packed<P: LoopPoints + ?Sized>(
+    lib: Source<P>,
     legs: &[Leg],
     runs: (&[Run], usize, usize),
     (rate, window): (f64, usize),
@@ -955,8 +1028,8 @@ struct Through {
 
 /// The first walk through a loop's keys, a window of runs at a time ([`Through`]), handing
 /// each run's walk flags to `walking` in order; `None` when the loop never walks.
-fn walk_through(
-    lib: &crate::Library,
+fn walk_through<P: LoopPoints + ?Sized>(
+    lib: Source<P>,
     legs: &[Leg],
     runs: (&[Run], usize, usize),
     window: usize,
@@ -988,8 +1061,8 @@ fn walk_through(
 
 /// A long loop's laps ([`settle_laps`]), piece by piece through its runs' keys made a window
 /// of runs at a time, as `headings_from`'s, into `store`.
-fn streamed_laps<S: LapStore + ?Sized>(
-    lib: &crate::Library,
+fn streamed_laps<S: LapStore + ?Sized, P: LoopPoints + ?Sized>(
+    lib: Source<P>,
     legs: &[Leg],
     runs: (&[Run], usize, usize),
     (rate, window): (f64, usize),
@@ -1063,8 +1136,8 @@ struct Run {
 type KeysPart<'a> = (&'a mut [f64], &'a mut [f64], &'a mut [bool]);
 
 /// Writes the keys of `legs`, a run of a loop that starts at `run`, into its share.
-fn fill_keys(
-    lib: &crate::Library,
+fn fill_keys<P: LoopPoints + ?Sized>(
+    lib: Source<P>,
     legs: &[Leg],
     run: &Run,
     (times, directions, walking): KeysPart,
@@ -1073,28 +1146,30 @@ fn fill_keys(
     let mut last = run.before.unwrap_or_default();
     for (j, leg) in legs.iter().enumerate() {
         if let Some(ahead) = legs.get(j + PREFETCH_LEGS) {
-            crate::sampler::prefetch(lib.points.as_ptr().wrapping_add(ahead.first as usize));
+            lib.points.prefetch(ahead.first);
         }
         let patch = &lib.patches[leg.patch as usize];
-        let pts = &lib.points[leg.first as usize..(leg.first + leg.points) as usize];
         let loop_first = run.leg + j == 0;
-        for (i, p) in pts.iter().enumerate() {
-            if i > 0 || loop_first {
-                times[key] = (tick + u64::from(p.t)) as f64 * crate::TICK_S;
-                let place = lib.world_position(patch, *p);
-                if i > 0 {
-                    // From the key before: this trajectory's last point, or the one before's
-                    // last, in that trajectory's patch.
-                    let walks = piece_walks(lib, pts[i - 1], *p);
-                    walking[piece] = walks;
-                    directions[piece] = direction(last, place, walks);
-                    piece += 1;
+        let duration = lib.points.with(leg.first, leg.points, |pts| {
+            for (i, p) in pts.iter().enumerate() {
+                if i > 0 || loop_first {
+                    times[key] = (tick + u64::from(p.t)) as f64 * crate::TICK_S;
+                    let place = lib.world_position(patch, *p);
+                    if i > 0 {
+                        // From the key before: this trajectory's last point, or the one
+                        // before's last, in that trajectory's patch.
+                        let walks = piece_walks(&lib, pts[i - 1], *p);
+                        walking[piece] = walks;
+                        directions[piece] = direction(last, place, walks);
+                        piece += 1;
+                    }
+                    last = place;
+                    key += 1;
                 }
-                last = place;
-                key += 1;
             }
-        }
-        tick += u64::from(pts.last().map_or(0, |p| p.t));
+            pts.last().map_or(0, |p| p.t)
+        });
+        tick += u64::from(duration);
     }
 }
 
@@ -1464,9 +1539,9 @@ mod tests {
         for (legs, seed) in [(1, 1), (1023, 2), (1025, 3), (5000, 4)] {
             let (lib, ch) = one_long_loop(legs, seed);
             let legs_of = loop_legs(&lib, &ch);
-            let runs = loop_runs(&lib, &legs_of);
+            let runs = loop_runs(Source::held(&lib), &legs_of);
             let (runs, one) = (
-                loop_keys(&lib, &legs_of, (&runs.0, runs.1, runs.2)),
+                loop_keys(Source::held(&lib), &legs_of, (&runs.0, runs.1, runs.2)),
                 keys_in_one_go(&lib, &ch),
             );
             let bits = |v: &[f64]| v.iter().map(|a| a.to_bits()).collect::<Vec<u64>>();
@@ -1507,8 +1582,8 @@ mod tests {
             let (mut lib, ch) = one_long_loop_standing(legs, seed, still);
             lib.characters = vec![ch];
             let legs = loop_legs(&lib, &ch);
-            let runs = loop_runs(&lib, &legs);
-            let keys = loop_keys(&lib, &legs, (&runs.0, runs.1, runs.2));
+            let runs = loop_runs(Source::held(&lib), &legs);
+            let keys = loop_keys(Source::held(&lib), &legs, (&runs.0, runs.1, runs.2));
             let headings = headings_from(&keys.times, &keys.directions, rate);
             AtOnce {
                 lib,
@@ -1541,8 +1616,13 @@ mod tests {
             let made = AtOnce::new(legs, seed, still, rate);
             let bits = |v: &[f64]| v.iter().map(|a| a.to_bits()).collect::<Vec<u64>>();
             for window in [1, 2, 3, 64] {
-                let (streamed, walking) =
-                    streamed_headings(&made.lib, &made.legs, made.runs(), (rate, 0), window);
+                let (streamed, walking) = streamed_headings(
+                    Source::held(&made.lib),
+                    &made.legs,
+                    made.runs(),
+                    (rate, 0),
+                    window,
+                );
                 let case = format!("{legs} legs, {still} still, rate {rate}, window {window}");
                 assert_eq!(walking, made.keys.walking, "{case}");
                 assert_eq!(bits(&streamed), bits(&made.headings), "{case}");
@@ -1573,7 +1653,8 @@ mod tests {
             expected.take(lib, &at_once.ch, &model);
             for (window, every) in [(1, 1), (2, 7), (3, 4096), (64, 100), (64, MARK_EVERY)] {
                 let runs = at_once.runs();
-                let packed = streamed_packed(lib, legs_of, runs, (rate, window), every);
+                let packed =
+                    streamed_packed(Source::held(lib), legs_of, runs, (rate, window), every);
                 let mut made = crate::PackedHeadings::for_points(lib);
                 packed_at_points(&packed, legs_of, &mut made.packed);
                 let case = format!("{legs} legs, {still} still, rate {rate}, window {window}");
@@ -1608,8 +1689,13 @@ mod tests {
             for (window, every) in [(1, 1), (3, 7), (64, 4096)] {
                 for wanted in &stretches {
                     let runs = at_once.runs();
-                    let made =
-                        streamed_stretches(lib, legs_of, runs, (rate, window), (wanted, every));
+                    let made = streamed_stretches(
+                        Source::held(lib),
+                        legs_of,
+                        runs,
+                        (rate, window),
+                        (wanted, every),
+                    );
                     let case = format!("{legs} legs, {still} still, rate {rate}, {wanted:?}");
                     for (r, (made, walking)) in wanted.iter().zip(made) {
                         let expected = &at_once.headings[r.clone()];
@@ -1628,13 +1714,66 @@ mod tests {
         }
     }
 
+    /// A library's points kept apart from its records, read a trajectory at a time, with loops
+    /// of `stream` keys or more made a window at a time.
+    struct Elsewhere {
+        points: Vec<crate::Point>,
+        stream: usize,
+        reads: std::sync::atomic::AtomicUsize,
+    }
+
+    impl LoopPoints for Elsewhere {
+        fn with<R>(&self, first: u32, n: u32, read: impl FnOnce(&[crate::Point]) -> R) -> R {
+            self.reads
+                .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+            read(&self.points[first as usize..(first + n) as usize])
+        }
+
+        fn stream_keys(&self) -> usize {
+            self.stream
+        }
+    }
+
+    /// A loop's stretches made from points read elsewhere, a trajectory at a time (the records
+    /// alone in the library: its own list of points emptied), are the bits of its own points'
+    /// stretches, made at once or a window at a time.
+    #[test]
+    fn stretches_read_from_points_elsewhere_are_those_of_the_librarys_own_points() {
+        for (legs, seed, still, rate) in
+            [(1, 51, 0, 6.0), (3000, 52, 990, 6.0), (2500, 53, 500, 0.02)]
+        {
+            let at_once = AtOnce::new(legs, seed, still, rate);
+            let keys = at_once.runs.1;
+            let cut = |a: usize, b: usize| a.min(keys)..b.min(keys);
+            let wanted = [cut(0, 1), cut(5, 17), cut(17.max(keys - 1), keys)];
+            let mut lib = at_once.lib.clone();
+            lib.world.turn_rate_deg_s = rate.to_degrees() as f32;
+            let expected = stretch_headings(&lib, &at_once.ch, &wanted);
+            let points = std::mem::take(&mut lib.points);
+            for stream in [0, usize::MAX] {
+                let elsewhere = Elsewhere {
+                    points: points.clone(),
+                    stream,
+                    reads: Default::default(),
+                };
+                let made = stretch_headings_in(&lib, &elsewhere, &at_once.ch, &wanted);
+                assert_eq!(
+                    made, expected,
+                    "{legs} legs, {still} still, streamed from {stream}"
+                );
+                let reads = elsewhere.reads.into_inner();
+                assert!(reads >= legs, "{legs} legs read {reads} times");
+            }
+        }
+    }
+
     /// A loop's key headings put at its points in place are the points' headings copied out.
     #[test]
     fn key_headings_put_at_points_in_place_are_the_copied_ones() {
         for (legs, seed) in [(1, 21), (8, 22), (1500, 23)] {
             let (lib, ch) = one_long_loop(legs, seed);
             let legs_of = loop_legs(&lib, &ch);
-            let keys = loop_runs(&lib, &legs_of).1;
+            let keys = loop_runs(Source::held(&lib), &legs_of).1;
             let h: Vec<f64> = (0..keys).map(|k| k as f64 * 0.5).collect();
             let mut expected = Vec::new();
             let mut key = 0usize;

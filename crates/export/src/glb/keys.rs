@@ -11,7 +11,7 @@ use crate::glb::World;
 use crate::glb::plan::Plan;
 use crate::motion::{Held, Summaries};
 use crowd_runtime::TICK_S;
-use crowd_runtime::turn::{self, Piece};
+use crowd_runtime::turn::{self, LoopPoints, Piece};
 use glam::DVec2;
 
 /// Loop times closer than this (seconds) are one instant: a clip's window starts at a period's
@@ -188,92 +188,37 @@ impl Stretch {
 /// that `world.glb` and `crowd-runtime` face the same way.
 pub(super) fn loop_path(w: &World, held: &Held, plan: &Plan) -> crowd_core::Result<LoopPath> {
     let members = &w.links.loops[plan.lp];
-    let lib = LoopLibrary::of(w.library, plan.lp, members).map_err(|e| {
-        let scratch = std::path::Path::new("(the library's points, a scratch file)");
-        crowd_core::Error::io(scratch, "read", e)
-    })?;
-    let starts = Starts::of(w, &lib, members);
+    let lib = w.library.records();
+    let starts = Starts::of(w, members);
     // The headings walk the whole loop in order, and are kept over the stretches the slots
     // read (a long loop's only there: `turn::stretch_headings`). Made beside the path
     // (`rayon::join`) they took 0.4 s off painting's export, but a thread waiting there took
     // up other loops, and the million's export held 11.5 GB against 10.0: one after the
-    // other.
+    // other. A gathering build's points are read back from the scratch file as the headings
+    // walk the loop, never the whole loop's at once (the million's longest: 0.34 GB).
     let keys: Vec<std::ops::Range<usize>> = (plan.runs.iter())
         .map(|&(a, b)| starts.key[a]..starts.key[b + 1])
         .collect();
-    let headings = turn::stretch_headings(&lib.lib, lib.character(), &keys);
+    let ch = &lib.characters[plan.lp];
+    let headings = turn::stretch_headings_in(lib, &w.library, ch, &keys);
     let stretches = (plan.runs.iter().zip(headings))
         .map(|(&(a, b), (headings, walking))| {
-            let (times, points, turn_times) = stretch_keys(w, (held, &lib), plan, &starts, (a, b));
+            let (times, points, turn_times) = stretch_keys(w, held, plan, &starts, (a, b));
             Stretch {
                 times,
                 points,
                 headings,
                 walking,
                 turn_times,
-                rate: f64::from(lib.lib.world.turn_rate_deg_s).to_radians(),
+                rate: f64::from(lib.world.turn_rate_deg_s).to_radians(),
             }
         })
         .collect();
+    w.library.failure()?;
     Ok(LoopPath {
         stretches,
         clock: plan.clock,
     })
-}
-
-/// Loop `lp` of the library as its keys read it: the whole library held, or the loop's own
-/// library read back from stage 8's scratch file (`crowd_runtime::Library::loops`: its
-/// trajectories numbered anew in the library's order).
-struct LoopLibrary<'a> {
-    lib: std::borrow::Cow<'a, crowd_runtime::Library>,
-    /// The loop's character in `lib`.
-    ch: usize,
-    /// With the loop's own library, the whole library's records and the loop's trajectories'
-    /// (patch, number in the whole library), in the order of its own.
-    own: Option<(&'a crowd_runtime::Library, Vec<(u32, u32)>)>,
-}
-
-impl<'a> LoopLibrary<'a> {
-    fn of(
-        r: super::LibraryRef<'a>,
-        lp: usize,
-        members: &[usize],
-    ) -> std::io::Result<LoopLibrary<'a>> {
-        Ok(match r {
-            super::LibraryRef::Held(lib) => LoopLibrary {
-                lib: std::borrow::Cow::Borrowed(lib),
-                ch: lp,
-                own: None,
-            },
-            super::LibraryRef::Spilled(index, spilled) => {
-                let mut own: Vec<(u32, u32)> = (members.iter())
-                    .map(|&i| (index.trajectories[i].patch, i as u32))
-                    .collect();
-                own.sort_unstable();
-                LoopLibrary {
-                    lib: std::borrow::Cow::Owned(spilled.loop_library(index, lp)?),
-                    ch: 0,
-                    own: Some((index, own)),
-                }
-            }
-        })
-    }
-
-    fn character(&self) -> &crowd_runtime::Character {
-        &self.lib.characters[self.ch]
-    }
-
-    /// Trajectory `i` of the whole library.
-    fn trajectory(&self, i: usize) -> &crowd_runtime::Trajectory {
-        let at = match &self.own {
-            None => i,
-            Some((index, own)) => {
-                let key = (index.trajectories[i].patch, i as u32);
-                own.binary_search(&key).expect("a trajectory of the loop")
-            }
-        };
-        &self.lib.trajectories[at]
-    }
 }
 
 /// Where each of a loop's trajectories starts, and where the last ends (members + 1): its first
@@ -285,7 +230,8 @@ struct Starts {
 }
 
 impl Starts {
-    fn of(w: &World, lib: &LoopLibrary, members: &[usize]) -> Starts {
+    fn of(w: &World, members: &[usize]) -> Starts {
+        let lib = w.library.records();
         let mut starts = Starts {
             key: Vec::with_capacity(members.len() + 1),
             tick: Vec::with_capacity(members.len() + 1),
@@ -296,7 +242,12 @@ impl Starts {
             starts.tick.push(tick);
             let n = w.summaries.trajectories[i].points;
             key += if j == 0 { n } else { n.saturating_sub(1) };
-            tick += u64::from(lib.lib.duration_ticks(lib.trajectory(i)));
+            // Its duration: its last point's ticks (`Library::duration_ticks`).
+            let t = &lib.trajectories[i];
+            if t.points > 0 {
+                let last = t.first_point + t.points - 1;
+                tick += u64::from(w.library.with(last, 1, |p| p[0].t));
+            }
         }
         starts.key.push(key);
         starts.tick.push(tick);
@@ -313,7 +264,7 @@ impl Starts {
 /// ([`Plan::offsets`]), so every time is the same bits whatever the stretch.
 fn stretch_keys(
     w: &World,
-    (held, lib): (&Held, &LoopLibrary),
+    held: &Held,
     plan: &Plan,
     starts: &Starts,
     (a, b): (usize, usize),
@@ -346,14 +297,17 @@ fn stretch_keys(
             let (offset, tick) = (plan.offsets[j], starts.tick[j]);
             let t0 = tr.points[0].t;
             // The library's trajectory `i` holds the same points, quantised.
-            let quantised = lib.lib.points_of(lib.trajectory(i));
+            let quantised = &w.library.records().trajectories[i];
             let skip = usize::from(j > 0);
-            for (k, cp) in tr.points.iter().enumerate().skip(skip) {
-                t[key] = offset + cp.t - t0;
-                p[key] = origin + cp.pos;
-                q[key] = (tick + u64::from(quantised[k].t)) as f64 * TICK_S;
-                key += 1;
-            }
+            w.library
+                .with(quantised.first_point, quantised.points, |quantised| {
+                    for (k, cp) in tr.points.iter().enumerate().skip(skip) {
+                        t[key] = offset + cp.t - t0;
+                        p[key] = origin + cp.pos;
+                        q[key] = (tick + u64::from(quantised[k].t)) as f64 * TICK_S;
+                        key += 1;
+                    }
+                });
         }
     };
     if keys >= PARALLEL_KEYS {

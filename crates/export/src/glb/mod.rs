@@ -29,6 +29,7 @@ use crate::characters::Links;
 use crate::motion::{Held, Motion, Summaries};
 use buffers::{accessor, bytes_of, bytes_of_3, bytes_of_4, view};
 use crowd_core::PatchGraph;
+use crowd_runtime::turn::LoopPoints;
 use glam::DVec2;
 use gltf_json as json;
 use json::validation::Checked::Valid;
@@ -68,6 +69,41 @@ impl LibraryRef<'_> {
     pub fn records(&self) -> &crowd_runtime::Library {
         match self {
             LibraryRef::Held(lib) | LibraryRef::Spilled(lib, _) => lib,
+        }
+    }
+
+    /// The first read of the scratch file that failed, if one did ([`LoopPoints`] cannot).
+    fn failure(&self) -> crowd_core::Result<()> {
+        match self {
+            LibraryRef::Held(_) => Ok(()),
+            LibraryRef::Spilled(_, spilled) => spilled.failure().map_err(|e| {
+                let scratch = std::path::Path::new("(the library's points, a scratch file)");
+                crowd_core::Error::io(scratch, "read", e)
+            }),
+        }
+    }
+}
+
+/// The library's points where they are: its own list, or the scratch file.
+impl LoopPoints for LibraryRef<'_> {
+    fn with<R>(&self, first: u32, n: u32, read: impl FnOnce(&[crowd_runtime::Point]) -> R) -> R {
+        match self {
+            LibraryRef::Held(lib) => lib.points[..].with(first, n, read),
+            LibraryRef::Spilled(_, spilled) => spilled.with(first, n, read),
+        }
+    }
+
+    fn prefetch(&self, first: u32) {
+        match self {
+            LibraryRef::Held(lib) => lib.points[..].prefetch(first),
+            LibraryRef::Spilled(_, spilled) => spilled.prefetch(first),
+        }
+    }
+
+    fn stream_keys(&self) -> usize {
+        match self {
+            LibraryRef::Held(lib) => lib.points[..].stream_keys(),
+            LibraryRef::Spilled(_, spilled) => spilled.stream_keys(),
         }
     }
 }

@@ -170,16 +170,6 @@ impl Library {
         let points = |_, t: &Trajectory| Ok::<_, LoadError>(self.points_of(t).to_vec());
         loops_of(self, characters, points).expect("points in memory are at hand")
     }
-
-    /// [`Library::loops`] of a library whose points are elsewhere (`self.points` is not
-    /// read): each trajectory's (by its index here) as `read` reads them.
-    pub fn loops_with<E>(
-        &self,
-        characters: std::ops::Range<usize>,
-        read: impl FnMut(usize, &Trajectory) -> Result<Vec<Point>, E>,
-    ) -> Result<Library, E> {
-        loops_of(self, characters, read)
-    }
 }
 
 /// The library of loops `characters` of `lib` alone (see [`LibraryFile::loops`]), each
