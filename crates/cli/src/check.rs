@@ -163,18 +163,20 @@ pub fn findings(report: &CheckReport) -> Vec<String> {
 }
 
 /// The check `crowd build` runs after stage 8: skipped when `check.ron` is up to date (unless
-/// `force`), else run, with its summary said.
+/// `force`), else run, with its summary said. A gathering build's judges its parts one after
+/// the other whatever the world's size (`gathering`): it is the step a job runner sizes by its
+/// memory (the quarter of the million, just under [`SMALL_WORLD_BYTES`], held 1.15 GB at once).
 pub fn after_build(
     out: &Path,
     (max_speed, turn_rate_deg_s): (f64, f64),
-    force: bool,
+    (force, gathering): (bool, bool),
     ui: &Ui,
 ) -> Result<()> {
     let options = CheckOptions {
         stage: None,
         max_speed,
         turn_rate_deg_s,
-        at_once: None,
+        at_once: gathering.then_some(false),
     };
     let path = out.join(CHECK_FILE);
     if !force && fresh(out, &options)? {

@@ -471,7 +471,7 @@ pub fn run(cli: Cli) -> Result<()> {
                     file.pipeline.matching.max_speed,
                     file.pipeline.export.turn_rate_deg_s,
                 );
-                crate::check::after_build(&out, limits, force, &ui)?;
+                crate::check::after_build(&out, limits, (force, gather), &ui)?;
             }
             // Made from the same files, the report stands: an up-to-date build writes nothing.
             let scope = crate::report::Scope { last: until };
