@@ -628,6 +628,24 @@ pub fn stretch_headings_in<P: LoopPoints + ?Sized>(
     )
 }
 
+/// Character `ch`'s headings packed at each key of its loop, the walk bit that of the piece
+/// from the key (the bits [`take_packed_headings`] puts at its points), made a window of runs
+/// at a time through `points`, never the loop's points or headings in full: a reader that
+/// plays a long loop a part at a time puts each part's at its points
+/// (`LoopSkeleton::part`).
+pub fn packed_keys_in<P: LoopPoints + ?Sized>(
+    lib: &crate::Library,
+    points: &P,
+    ch: &crate::Character,
+) -> Vec<u16> {
+    let legs = loop_legs(lib, ch);
+    let lib = Source { lib, points };
+    let (runs, keys, pieces) = loop_runs(lib, &legs);
+    let rate = f64::from(lib.world.turn_rate_deg_s).to_radians();
+    let runs = (&runs[..], keys, pieces);
+    streamed_packed(lib, &legs, runs, (rate, WINDOW_RUNS), MARK_EVERY)
+}
+
 /// The pieces from the keys of `keys` but its last (piece `k` goes from key `k` to the next).
 fn pieces(keys: &std::ops::Range<usize>) -> std::ops::Range<usize> {
     keys.start..keys.end.saturating_sub(1).max(keys.start)

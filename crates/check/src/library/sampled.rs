@@ -76,9 +76,14 @@ pub(crate) fn sample_memo<S: Source>(
     let mut whole = Played::default();
     let mut kept = Vec::with_capacity(src.lib().walkers() as usize);
     let mut replayed = 0;
-    for run in super::source::loop_runs(src.lib(), src.budget()) {
-        let lib = src.loops(run)?;
-        let (shares, played) = sample_loops(&lib, (step, frames), memo);
+    for (run, long) in loop_runs(src) {
+        let (shares, played) = if long {
+            sample_long_loop(src, run.start, (step, frames), memo)?
+        } else {
+            let lib = src.loops(run)?;
+            let headings = headings(&lib);
+            sample_loops(&lib, headings, (step, frames), memo, None)
+        };
         for (_, share) in &shares {
             whole.merge(share);
         }
@@ -98,18 +103,112 @@ pub(crate) fn sample_memo<S: Source>(
     })
 }
 
-/// Each of `lib`'s walkers' share (by its key, in id order) over `frames` frames `step` apart,
-/// from `memo` or played; and how many were played.
-fn sample_loops(
-    lib: &Library,
+/// Each walker's share, by its key, in id order.
+type Shares = Vec<([u8; 32], Played)>;
+
+/// The library's loops in runs of about the check's budget of points
+/// (`source::loop_runs`), a loop of more alone and told so (true).
+fn loop_runs<S: Source>(src: &S) -> Vec<(std::ops::Range<usize>, bool)> {
+    let lib = src.lib();
+    let long = |c: usize| super::source::loop_points(lib, &lib.characters[c]) > src.budget();
+    let mut out = Vec::new();
+    for run in super::source::loop_runs(lib, src.budget()) {
+        let mut start = run.start;
+        for c in run.clone().filter(|&c| long(c)) {
+            if start < c {
+                out.push((start..c, false));
+            }
+            out.push((c..c + 1, true));
+            start = c + 1;
+        }
+        if start < run.end {
+            out.push((start..run.end, false));
+        }
+    }
+    out
+}
+
+/// Loop `c` of `src`, longer than the check's budget, played a group of its walkers at a
+/// time: each group with a library of the loop whose trajectories hold their points only
+/// where the group's walkers walk over the period (their windows, [`lap_window`]), the others
+/// standing in (`LibraryFile::loop_part`), and the loop's headings made once without its
+/// points. A loop threads through much of the world (the million's longest holds 36 million
+/// of its 96 million points): played whole, it was the gather's peak (0.36 GB of points
+/// besides its headings). Each walker's share is the bits it has played among all.
+fn sample_long_loop<S: Source>(
+    src: &S,
+    c: usize,
     (step, frames): (f64, u64),
     memo: &Recalled,
-) -> (Vec<([u8; 32], Played)>, usize) {
-    let headings = headings(lib);
+) -> Result<(Shares, usize), LoadError> {
+    let index = src.lib();
+    let ch = &index.characters[c];
+    let keys = src.loop_keys(c)?;
+    let order = loop_order_with(index, ch, |i| src.last_tick(i as usize));
+    let span = window_span(step, frames);
+    let windows: Vec<std::ops::Range<usize>> = (0..ch.laps)
+        .map(|lap| lap_window(index, ch, lap, &order, span).1)
+        .collect();
+    let points = |k: usize| index.trajectories[order[k % order.len()].0 as usize].points as usize;
+    let skeleton = src.loop_skeleton(c);
+    let (mut kept, mut played) = (Vec::with_capacity(ch.laps as usize), 0);
+    for laps in lap_groups(&windows, points, src.budget()) {
+        // The trajectories the group walks, in the library's (and the file's) order.
+        let mut walked: Vec<u32> = (laps.clone())
+            .flat_map(|lap| windows[lap as usize].clone())
+            .map(|k| order[k % order.len()].0)
+            .collect();
+        walked.sort_unstable();
+        walked.dedup();
+        let (part, headings) = src.loop_part(&skeleton, &walked, &keys)?;
+        let (shares, n) = sample_loops(&part, headings, (step, frames), memo, Some(laps));
+        kept.extend(shares);
+        played += n;
+    }
+    Ok((kept, played))
+}
+
+/// Consecutive laps whose windows hold about `budget` points together (at least one lap a
+/// group): a group's windows are one stretch of the loop, a lap's a period before the last's.
+fn lap_groups(
+    windows: &[std::ops::Range<usize>],
+    points: impl Fn(usize) -> usize,
+    budget: usize,
+) -> Vec<std::ops::Range<u32>> {
+    let mut groups = Vec::new();
+    let (mut start, mut held) = (0u32, 0usize);
+    for (lap, window) in windows.iter().enumerate() {
+        held += window.clone().map(&points).sum::<usize>();
+        if held >= budget {
+            groups.push(start..lap as u32 + 1);
+            (start, held) = (lap as u32 + 1, 0);
+        }
+    }
+    if (start as usize) < windows.len() {
+        groups.push(start..windows.len() as u32);
+    }
+    groups
+}
+
+/// Each of `lib`'s walkers' share (by its key, in id order) over `frames` frames `step` apart,
+/// from `memo` or played, with `headings` (`lib`'s); and how many were played. Only the
+/// walkers `only` where it says (a group of a long loop's, whose windows alone `lib` holds).
+fn sample_loops(
+    lib: &Library,
+    headings: PackedHeadings,
+    (step, frames): (f64, u64),
+    memo: &Recalled,
+    only: Option<std::ops::Range<u32>>,
+) -> (Shares, usize) {
     let (keys, fastest) = window_keys(lib, &headings, (step, frames));
-    let known: Vec<Option<Played>> = keys.iter().map(|k| memo.played(k)).collect();
-    let todo: Vec<u32> = (0..keys.len() as u32)
-        .filter(|&w| known[w as usize].is_none())
+    let ids = only.unwrap_or(0..keys.len() as u32);
+    let known: Vec<Option<Played>> = ids
+        .clone()
+        .map(|w| memo.played(&keys[w as usize]))
+        .collect();
+    let todo: Vec<u32> = ids
+        .clone()
+        .filter(|&w| known[(w - ids.start) as usize].is_none())
         .collect();
     let played = if todo.is_empty() {
         Vec::new()
@@ -123,14 +222,14 @@ fn sample_loops(
         play_all(&sampler, step, &jump2, frames)
     };
     let mut fresh = todo.iter().zip(played);
-    let kept: Vec<([u8; 32], Played)> = (keys.into_iter().zip(known).enumerate())
-        .map(|(w, (key, known))| {
+    let kept: Shares = (ids.zip(known))
+        .map(|(w, known)| {
             let share = known.unwrap_or_else(|| {
                 let (&id, p) = fresh.next().expect("a share for every walker played");
-                debug_assert_eq!(id as usize, w);
+                debug_assert_eq!(id, w);
                 p
             });
-            (key, share)
+            (keys[w as usize], share)
         })
         .collect();
     (kept, todo.len())
@@ -275,8 +374,7 @@ fn window_keys(
     global.extend_from_slice(&lib.world.period_ticks.to_le_bytes());
     global.extend_from_slice(&lib.world.turn_rate_deg_s.to_bits().to_le_bytes());
     global.extend_from_slice(&lib.world.patch_side_m.to_bits().to_le_bytes());
-    // The last frame's tick, past which no walker is placed.
-    let span = (frames as f64 * step / TICK_S).ceil() as u64 + 1;
+    let span = window_span(step, frames);
     let per_character: Vec<Vec<([u8; 32], f64)>> = (lib.characters.par_iter())
         .map(|ch| {
             let order = loop_order(lib, ch);
@@ -288,24 +386,68 @@ fn window_keys(
     per_character.into_iter().flatten().unzip()
 }
 
+/// The ticks a walker's window spans: to the last frame's tick, past which no walker is placed.
+fn window_span(step: f64, frames: u64) -> u64 {
+    (frames as f64 * step / TICK_S).ceil() as u64 + 1
+}
+
 /// A loop's trajectories in walking order, each with the tick it starts at from the loop's
 /// start (as the sampler's `Loops` keeps them).
 fn loop_order(lib: &Library, ch: &crowd_runtime::Character) -> Vec<(u32, u64)> {
+    loop_order_with(lib, ch, |i| {
+        lib.duration_ticks(&lib.trajectories[i as usize])
+    })
+}
+
+/// [`loop_order`] with each trajectory's duration (its last tick) from `last`: the records
+/// alone name the loop.
+fn loop_order_with(
+    lib: &Library,
+    ch: &crowd_runtime::Character,
+    last: impl Fn(u32) -> u32,
+) -> Vec<(u32, u64)> {
     let (mut at, mut tick) = (ch.first_trajectory, 0u64);
     (0..ch.trajectories)
         .map(|_| {
-            let tr = &lib.trajectories[at as usize];
             let this = (at, tick);
-            tick += u64::from(lib.duration_ticks(tr));
-            at = tr.next;
+            tick += u64::from(last(at));
+            at = lib.trajectories[at as usize].next;
             this
         })
         .collect()
 }
 
+/// Lap `lap` of loop `ch`'s window: how far into its loop the walker is at tick 0 (where the
+/// sampler's search puts it), and the positions in `order` of the trajectories it is on from
+/// then until a `span` of ticks has passed, and one more (a position past the loop's last is
+/// a pass round it later).
+fn lap_window(
+    lib: &Library,
+    ch: &crowd_runtime::Character,
+    lap: u32,
+    order: &[(u32, u64)],
+    span: u64,
+) -> (u64, std::ops::Range<usize>) {
+    let period = u64::from(lib.world.period_ticks);
+    let length = (u64::from(ch.laps) * period).max(1);
+    let start =
+        u64::from(lib.trajectories[ch.first_trajectory as usize].start) + u64::from(lap) * period;
+    let into = (length - start % length) % length;
+    if order.is_empty() {
+        return (into, 0..0);
+    }
+    let first = order.partition_point(|&(_, s)| s <= into).max(1) - 1;
+    let end = into + span;
+    // Every pass round the loop starts `length` later (so this ends, whatever the loop).
+    let past = (first..)
+        .find(|&k| (k / order.len()) as u64 * length + order[k % order.len()].1 > end)
+        .expect("a pass round the loop starts past any tick");
+    (into, first..past + 1)
+}
+
 /// Lap `lap` of loop `ch`'s window key and fastest piece (see [`window_keys`]): where the
-/// sampler's search puts it at tick 0, then its trajectories on until a `span` of ticks has
-/// passed, and one more.
+/// sampler's search puts it at tick 0, then the keys of the trajectories of its window
+/// ([`lap_window`]).
 fn window_key(
     lib: &Library,
     ch: &crowd_runtime::Character,
@@ -315,29 +457,17 @@ fn window_key(
     trajectories: &[([u8; 32], f64)],
     global: &[u8],
 ) -> ([u8; 32], f64) {
-    let period = u64::from(lib.world.period_ticks);
-    let length = (u64::from(ch.laps) * period).max(1);
-    let start =
-        u64::from(lib.trajectories[ch.first_trajectory as usize].start) + u64::from(lap) * period;
-    // How far into its loop the walker is at tick 0 (the sampler's `seek`), and the
-    // trajectory it is on.
-    let into = (length - start % length) % length;
+    let (into, window) = lap_window(lib, ch, lap, order, span);
     if order.is_empty() {
         return (*Hash::of(global).as_bytes(), 0.0);
     }
-    let first = order.partition_point(|&(_, s)| s <= into).max(1) - 1;
     let mut bytes = global.to_vec();
-    bytes.extend_from_slice(&(into - order[first].1).to_le_bytes());
-    let (end, mut fastest) = (into + span, 0.0f64);
-    for k in first.. {
-        let (traj, from_start) = order[k % order.len()];
-        let (key, speed) = &trajectories[traj as usize];
+    bytes.extend_from_slice(&(into - order[window.start].1).to_le_bytes());
+    let mut fastest = 0.0f64;
+    for k in window {
+        let (key, speed) = &trajectories[order[k % order.len()].0 as usize];
         bytes.extend_from_slice(key);
         fastest = fastest.max(*speed);
-        // Every pass round the loop starts `length` later (so this ends, whatever the loop).
-        if (k / order.len()) as u64 * length + from_start > end {
-            break;
-        }
     }
     (*Hash::of(&bytes).as_bytes(), fastest)
 }

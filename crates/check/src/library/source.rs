@@ -3,7 +3,7 @@
 //! holds a part of its points and not the world's (the million's: 0.77 GB, besides the
 //! headings and keys made from them).
 
-use crowd_runtime::{Library, LibraryFile, LoadError, Point, Window};
+use crowd_runtime::{Library, LibraryFile, LoadError, LoopSkeleton, PackedHeadings, Point, Window};
 use std::borrow::Cow;
 use std::ops::Range;
 
@@ -20,6 +20,21 @@ pub trait Source: Sync {
     fn loops(&self, characters: Range<usize>) -> Result<Cow<'_, Library>, LoadError>;
     /// About how many points the check holds at once (a library in memory: all of them).
     fn budget(&self) -> usize;
+    /// Loop `c`'s headings packed at its keys (`crowd_runtime::turn::packed_keys_in`), made
+    /// without holding the loop's points.
+    fn loop_keys(&self, c: usize) -> Result<Vec<u16>, LoadError>;
+    /// Loop `c` alone, every trajectory standing in (`LoopSkeleton`).
+    fn loop_skeleton(&self, c: usize) -> LoopSkeleton;
+    /// The loop of `skeleton` with the points of trajectories `kept` (by index here), the
+    /// others standing in, and its `keys` at the points held (`LoopSkeleton::part`).
+    fn loop_part(
+        &self,
+        skeleton: &LoopSkeleton,
+        kept: &[u32],
+        keys: &[u16],
+    ) -> Result<(Library, PackedHeadings), LoadError>;
+    /// Trajectory `i`'s last tick (its duration).
+    fn last_tick(&self, i: usize) -> u32;
 }
 
 /// The points at hand: a library's own, or a window read from its file.
@@ -67,6 +82,32 @@ impl Source for Library {
     fn budget(&self) -> usize {
         usize::MAX
     }
+
+    fn loop_keys(&self, c: usize) -> Result<Vec<u16>, LoadError> {
+        let ch = &self.characters[c];
+        Ok(crowd_runtime::turn::packed_keys_in(
+            self,
+            &self.points[..],
+            ch,
+        ))
+    }
+
+    fn loop_skeleton(&self, c: usize) -> LoopSkeleton {
+        Library::loop_skeleton(self, c)
+    }
+
+    fn loop_part(
+        &self,
+        skeleton: &LoopSkeleton,
+        kept: &[u32],
+        keys: &[u16],
+    ) -> Result<(Library, PackedHeadings), LoadError> {
+        Ok(Library::loop_part(self, skeleton, kept, keys))
+    }
+
+    fn last_tick(&self, i: usize) -> u32 {
+        self.duration_ticks(&self.trajectories[i])
+    }
 }
 
 /// A library left in its file, read a part of about `budget` points at a time.
@@ -98,6 +139,27 @@ impl<F: std::io::Read + std::io::Seek + Send> Source for InFile<F> {
 
     fn budget(&self) -> usize {
         self.budget
+    }
+
+    fn loop_keys(&self, c: usize) -> Result<Vec<u16>, LoadError> {
+        self.file.packed_loop_keys(c)
+    }
+
+    fn loop_skeleton(&self, c: usize) -> LoopSkeleton {
+        self.file.loop_skeleton(c)
+    }
+
+    fn loop_part(
+        &self,
+        skeleton: &LoopSkeleton,
+        kept: &[u32],
+        keys: &[u16],
+    ) -> Result<(Library, PackedHeadings), LoadError> {
+        self.file.loop_part(skeleton, kept, keys)
+    }
+
+    fn last_tick(&self, i: usize) -> u32 {
+        self.file.last_tick(i)
     }
 }
 

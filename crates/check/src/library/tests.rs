@@ -339,6 +339,30 @@ proptest::proptest! {
     }
 }
 
+/// A loop longer than the check's budget, played a group of its walkers at a time from the
+/// library's file (each group with its stretches of the loop alone, the rest standing in),
+/// gives every walker the share, key and figures, it has played among all: whatever the
+/// budget, however many laps a group holds.
+#[test]
+fn a_long_loop_played_a_group_at_a_time_from_its_file_is_the_loop_played_whole() {
+    for (n, at, bend) in [(12, 3, 2.0), (40, 17, 1.0), (64, 0, 0.0)] {
+        let lib = long_loop(n, (at, bend));
+        let whole = sampled::sample_memo(&lib, 0.02, &Recalled::default()).unwrap();
+        let bytes = lib.to_bytes();
+        for budget in [1, 7, 30, 100] {
+            let file = InFile {
+                file: crowd_runtime::LibraryFile::open(std::io::Cursor::new(&bytes)).unwrap(),
+                budget,
+            };
+            let parts = sampled::sample_memo(&file, 0.02, &Recalled::default()).unwrap();
+            let case = format!("{n} trajectories, bent at {at} by {bend}, budget {budget}");
+            assert_eq!(parts.kept, whole.kept, "{case}");
+            assert_eq!(parts.sampled, whole.sampled, "{case}");
+            assert_eq!(parts.replayed, whole.replayed, "{case}");
+        }
+    }
+}
+
 /// A jump is judged against the walker's own pace: a slow walker's 3 cm jump at its seam is
 /// one, though another walker of the library runs at 2 m/s (4 cm a frame).
 #[test]

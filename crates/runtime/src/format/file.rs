@@ -5,6 +5,7 @@
 //! million: 0.77 GB of points) holds the part, not the world.
 
 use super::container::POINTS;
+use super::part::LoopSkeleton;
 use super::read::{FromFile, PIECE_RECORDS, decode};
 use super::records::{Character, Library, Patch, Point, Trajectory};
 use super::rules::{Shape, invalid};
@@ -26,6 +27,8 @@ pub struct LibraryFile<F> {
     points: u64,
     /// Each trajectory's last tick, as the rules checked it.
     last: Vec<u32>,
+    /// The first read through [`LoopPoints`] that failed (which cannot say so itself).
+    failed: Mutex<Option<LoadError>>,
 }
 
 /// The points of a run of trajectories, read from a [`LibraryFile`].
@@ -74,6 +77,7 @@ impl<F: Read + Seek> LibraryFile<F> {
             file: Mutex::new(src.file),
             points_at,
             points,
+            failed: Mutex::new(None),
         })
     }
 
@@ -133,6 +137,32 @@ impl<F: Read + Seek> LibraryFile<F> {
         })
     }
 
+    /// Trajectory `i`'s last tick (its duration), as the rules checked it.
+    pub fn last_tick(&self, i: usize) -> u32 {
+        self.last[i]
+    }
+
+    /// Loop `c` alone with every trajectory standing in ([`LoopSkeleton`]), to play its walkers
+    /// a group at a time ([`LibraryFile::loop_part`]).
+    pub fn loop_skeleton(&self, c: usize) -> LoopSkeleton {
+        LoopSkeleton::new(&self.index, c, |i| self.last[i])
+    }
+
+    /// [`LoopSkeleton::part`] with the points of trajectories `kept` read from the file (and
+    /// checked to be what they were when it was opened).
+    pub fn loop_part(
+        &self,
+        skeleton: &LoopSkeleton,
+        kept: &[u32],
+        keys: &[u16],
+    ) -> Result<(Library, crate::PackedHeadings), LoadError> {
+        skeleton.part((&self.index, kept), keys, |i, t| {
+            let read = self.read(t.first_point as usize, t.points as usize)?;
+            self.unchanged(i, &read)?;
+            Ok(read)
+        })
+    }
+
     /// `count` points from PNTS index `first`.
     fn read(&self, first: usize, count: usize) -> Result<Vec<Point>, LoadError> {
         let mut bytes = vec![0u8; count * Point::BYTES];
@@ -170,6 +200,23 @@ impl Library {
         let points = |_, t: &Trajectory| Ok::<_, LoadError>(self.points_of(t).to_vec());
         loops_of(self, characters, points).expect("points in memory are at hand")
     }
+
+    /// [`LibraryFile::loop_skeleton`] of a library in memory.
+    pub fn loop_skeleton(&self, c: usize) -> LoopSkeleton {
+        LoopSkeleton::new(self, c, |i| self.duration_ticks(&self.trajectories[i]))
+    }
+
+    /// [`LibraryFile::loop_part`] of a library in memory: the same library and headings.
+    pub fn loop_part(
+        &self,
+        skeleton: &LoopSkeleton,
+        kept: &[u32],
+        keys: &[u16],
+    ) -> (Library, crate::PackedHeadings) {
+        let read = |_, t: &Trajectory| Ok(self.points_of(t).to_vec());
+        let part = skeleton.part((self, kept), keys, read);
+        part.expect("points in memory are at hand")
+    }
 }
 
 /// The library of loops `characters` of `lib` alone (see [`LibraryFile::loops`]), each
@@ -177,6 +224,17 @@ impl Library {
 fn loops_of<E>(
     lib: &Library,
     characters: std::ops::Range<usize>,
+    read: impl FnMut(usize, &Trajectory) -> Result<Vec<Point>, E>,
+) -> Result<Library, E> {
+    loops_sized(lib, characters, |_, t| t.points as usize, read)
+}
+
+/// [`loops_of`], where `read` hands over `size` points for each trajectory (by its index in
+/// `lib`): its own, or fewer standing in for them ([`LoopSkeleton`]).
+pub(super) fn loops_sized<E>(
+    lib: &Library,
+    characters: std::ops::Range<usize>,
+    size: impl Fn(usize, &Trajectory) -> usize,
     mut read: impl FnMut(usize, &Trajectory) -> Result<Vec<Point>, E>,
 ) -> Result<Library, E> {
     let mut mine: Vec<u32> = Vec::new();
@@ -217,7 +275,7 @@ fn loops_of<E>(
     // Made at its size: grown, the million's longest loop's (36 million points) were held
     // twice over as they were copied.
     let count = (mine.iter())
-        .map(|&i| lib.trajectories[i as usize].points as usize)
+        .map(|&i| size(i as usize, &lib.trajectories[i as usize]))
         .sum();
     let mut points = Vec::with_capacity(count);
     for (k, &i) in mine.iter().enumerate() {
@@ -233,6 +291,7 @@ fn loops_of<E>(
             exit: crossing(t.exit),
             next: local(t.next),
             first_point: points.len() as u32,
+            points: read.len() as u32,
             ..t
         });
         points.extend(read);
@@ -301,4 +360,33 @@ fn shapes<F: Read + Seek>(
         shapes[i as usize] = Shape::of(&held[skip..skip + t.points as usize]);
     }
     Ok(shapes)
+}
+
+impl<F: Read + Seek + Send> LibraryFile<F> {
+    /// Loop `c`'s headings packed at its keys ([`crate::turn::packed_keys_in`]), its points read
+    /// from the file a trajectory at a time as the heading model walks the loop: never the
+    /// loop's points (the million's longest: 36 million, 0.29 GB).
+    pub fn packed_loop_keys(&self, c: usize) -> Result<Vec<u16>, LoadError> {
+        let keys = crate::turn::packed_keys_in(&self.index, self, &self.index.characters[c]);
+        match self.failed.lock().unwrap_or_else(|e| e.into_inner()).take() {
+            Some(e) => Err(e),
+            None => Ok(keys),
+        }
+    }
+}
+
+/// A library's points read from its file a trajectory at a time, for the heading model
+/// ([`LibraryFile::packed_loop_keys`]); a read that fails is kept for it to report.
+impl<F: Read + Seek + Send> crate::turn::LoopPoints for LibraryFile<F> {
+    fn with<R>(&self, first: u32, n: u32, read: impl FnOnce(&[Point]) -> R) -> R {
+        let (first, n) = (first as usize, n as usize);
+        match self.read(first, n) {
+            Ok(points) => read(&points),
+            Err(e) => {
+                let mut failed = self.failed.lock().unwrap_or_else(|e| e.into_inner());
+                failed.get_or_insert(e);
+                read(&vec![Point { x: 0, y: 0, t: 0 }; n])
+            }
+        }
+    }
 }

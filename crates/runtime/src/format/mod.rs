@@ -6,17 +6,20 @@
 //! - `records.rs`: the records (`World`, `Patch`, `Point`, ...) and `Library`, what they mean;
 //! - `container.rs`: the header, the section table with its checksums, each record's bytes;
 //! - `file.rs`: a library left in its file, its points read a part at a time;
+//! - `part.rs`: a long loop's walkers played a group at a time, each group with its stretches;
 //! - `read.rs`: those read back from bytes or from a file, every slice bounded and checksum
 //!   checked;
 //! - `rules.rs`: every rule a loaded library must keep, which the sampler relies on.
 
 mod container;
 mod file;
+mod part;
 mod read;
 mod records;
 mod rules;
 
 pub use file::{LibraryFile, Window};
+pub use part::LoopSkeleton;
 pub use records::{Character, Crossing, Library, Patch, Point, Trajectory, World};
 
 /// The first 8 bytes of every library.
