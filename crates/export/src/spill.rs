@@ -8,9 +8,8 @@ use crate::library::PointSink;
 use crowd_core::files::read_at;
 use crowd_runtime::Point;
 use crowd_runtime::crc::Crc32;
-use crowd_runtime::turn::LoopPoints;
+use crowd_runtime::turn::{FirstFailure, LoopPoints};
 use std::io::Write;
-use std::sync::Mutex;
 
 /// Points written to a scratch file as they are made, with their bytes' checksum.
 pub struct Spill {
@@ -39,7 +38,7 @@ impl Spill {
             file: file.map_err(ExportError::Scratch)?,
             count: self.count,
             crc: self.crc.finish(),
-            failed: Mutex::new(None),
+            failed: FirstFailure::default(),
         })
     }
 }
@@ -70,7 +69,7 @@ pub struct Spilled {
     crc: u32,
     /// The first read of the file that failed, for [`Spilled::failure`]: the heading model
     /// reads a loop's points through [`LoopPoints`], which cannot fail.
-    failed: Mutex<Option<std::io::Error>>,
+    failed: FirstFailure<std::io::Error>,
 }
 
 /// Bytes copied from the scratch file at a time.
@@ -106,10 +105,7 @@ impl Spilled {
     /// The first read that failed since the file was written, if one did: what was read
     /// through [`LoopPoints`] is then not the points.
     pub fn failure(&self) -> std::io::Result<()> {
-        match self.failed.lock().unwrap_or_else(|e| e.into_inner()).take() {
-            Some(e) => Err(e),
-            None => Ok(()),
-        }
+        self.failed.take()
     }
 
     /// Every point's bytes, handed to `sink` a piece at a time.
@@ -134,14 +130,7 @@ impl Spilled {
 /// the million's longest loop holds 0.34 GB of them.
 impl LoopPoints for Spilled {
     fn with<R>(&self, first: u32, n: u32, read: impl FnOnce(&[Point]) -> R) -> R {
-        match self.read(first as usize, n as usize) {
-            Ok(points) => read(&points),
-            Err(e) => {
-                let mut failed = self.failed.lock().unwrap_or_else(|e| e.into_inner());
-                failed.get_or_insert(e);
-                read(&vec![Point { x: 0, y: 0, t: 0 }; n as usize])
-            }
-        }
+        (self.failed).hand(self.read(first as usize, n as usize), n, read)
     }
 
     fn stream_keys(&self) -> usize {

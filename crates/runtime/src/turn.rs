@@ -711,12 +711,17 @@ fn packed_at_points(keys: &[u16], legs: &[Leg], out: &mut [u16]) {
     for (j, leg) in legs.iter().enumerate() {
         key -= usize::from(j > 0);
         let (first, n) = (leg.first as usize, leg.points as usize);
-        let at = &mut out[first..first + n];
-        at.copy_from_slice(&keys[key..key + n]);
-        if let Some(last) = at.last_mut() {
-            *last &= !crate::sampler::WALKS;
-        }
+        leg_keys(&keys[key..key + n], &mut out[first..first + n]);
         key += n;
+    }
+}
+
+/// A trajectory's packed key headings put at its points `at`: a trajectory's last point has
+/// no piece from it, so no walk bit.
+pub(crate) fn leg_keys(keys: &[u16], at: &mut [u16]) {
+    at.copy_from_slice(keys);
+    if let Some(last) = at.last_mut() {
+        *last &= !crate::sampler::WALKS;
     }
 }
 
@@ -763,6 +768,15 @@ pub trait LoopPoints: Sync {
     fn stream_keys(&self) -> usize {
         STREAM_KEYS
     }
+
+    /// Ticks from trajectory `t`'s start to its end (`Library::duration_ticks`): its last
+    /// point's.
+    fn duration_ticks(&self, t: &crate::Trajectory) -> u32 {
+        match t.points {
+            0 => 0,
+            n => self.with(t.first_point + n - 1, 1, |p| p[0].t),
+        }
+    }
 }
 
 impl LoopPoints for [crate::Point] {
@@ -772,6 +786,48 @@ impl LoopPoints for [crate::Point] {
 
     fn prefetch(&self, first: u32) {
         crate::sampler::prefetch(self.as_ptr().wrapping_add(first as usize));
+    }
+}
+
+/// The first failed read of a [`LoopPoints`] over a reader that can fail (a file), which the
+/// heading model cannot be told of: it is handed zeros in the read's place, and the reader's
+/// owner refuses what was made once the walk is over ([`FirstFailure::take`]).
+#[derive(Debug)]
+pub struct FirstFailure<E>(std::sync::Mutex<Option<E>>);
+
+impl<E> Default for FirstFailure<E> {
+    fn default() -> Self {
+        FirstFailure(std::sync::Mutex::new(None))
+    }
+}
+
+impl<E> FirstFailure<E> {
+    /// `read` of the `n` points `points` read, or of zeros where the read failed (the failure
+    /// kept, unless one came before it).
+    pub fn hand<R>(
+        &self,
+        points: Result<Vec<crate::Point>, E>,
+        n: u32,
+        read: impl FnOnce(&[crate::Point]) -> R,
+    ) -> R {
+        match points {
+            Ok(points) => read(&points),
+            Err(e) => {
+                self.lock().get_or_insert(e);
+                read(&vec![crate::Point { x: 0, y: 0, t: 0 }; n as usize])
+            }
+        }
+    }
+
+    /// The failure kept, if a read failed since the last time this was asked.
+    pub fn take(&self) -> Result<(), E> {
+        self.lock().take().map_or(Ok(()), Err)
+    }
+
+    fn lock(&self) -> std::sync::MutexGuard<'_, Option<E>> {
+        self.0
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
     }
 }
 

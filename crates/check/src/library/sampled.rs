@@ -150,7 +150,7 @@ fn sample_long_loop<S: Source>(
         .map(|lap| lap_window(index, ch, lap, &order, span).1)
         .collect();
     let points = |k: usize| index.trajectories[order[k % order.len()].0 as usize].points as usize;
-    let skeleton = src.loop_skeleton(c);
+    let skeleton = crowd_runtime::LoopSkeleton::new(index, c, |i| src.last_tick(i));
     let (mut kept, mut played) = (Vec::with_capacity(ch.laps as usize), 0);
     for laps in lap_groups(&windows, points, src.budget()) {
         // The trajectories the group walks, in the library's (and the file's) order.
@@ -379,7 +379,10 @@ fn window_keys(
         .map(|ch| {
             let order = loop_order(lib, ch);
             (0..ch.laps)
-                .map(|lap| window_key(lib, ch, lap, &order, span, &trajectories, &global))
+                .map(|lap| {
+                    let window = lap_window(lib, ch, lap, &order, span);
+                    window_key(&order, window, &trajectories, &global)
+                })
                 .collect()
         })
         .collect();
@@ -445,19 +448,15 @@ fn lap_window(
     (into, first..past + 1)
 }
 
-/// Lap `lap` of loop `ch`'s window key and fastest piece (see [`window_keys`]): where the
-/// sampler's search puts it at tick 0, then the keys of the trajectories of its window
-/// ([`lap_window`]).
+/// A lap's window key and fastest piece (see [`window_keys`]), from its window in `order`
+/// ([`lap_window`]): where the sampler's search puts it at tick 0, then the keys of the
+/// trajectories of its window.
 fn window_key(
-    lib: &Library,
-    ch: &crowd_runtime::Character,
-    lap: u32,
     order: &[(u32, u64)],
-    span: u64,
+    (into, window): (u64, std::ops::Range<usize>),
     trajectories: &[([u8; 32], f64)],
     global: &[u8],
 ) -> ([u8; 32], f64) {
-    let (into, window) = lap_window(lib, ch, lap, order, span);
     if order.is_empty() {
         return (*Hash::of(global).as_bytes(), 0.0);
     }

@@ -23,8 +23,6 @@ pub trait Source: Sync {
     /// Loop `c`'s headings packed at its keys (`crowd_runtime::turn::packed_keys_in`), made
     /// without holding the loop's points.
     fn loop_keys(&self, c: usize) -> Result<Vec<u16>, LoadError>;
-    /// Loop `c` alone, every trajectory standing in (`LoopSkeleton`).
-    fn loop_skeleton(&self, c: usize) -> LoopSkeleton;
     /// The loop of `skeleton` with the points of trajectories `kept` (by index here), the
     /// others standing in, and its `keys` at the points held (`LoopSkeleton::part`).
     fn loop_part(
@@ -92,10 +90,6 @@ impl Source for Library {
         ))
     }
 
-    fn loop_skeleton(&self, c: usize) -> LoopSkeleton {
-        Library::loop_skeleton(self, c)
-    }
-
     fn loop_part(
         &self,
         skeleton: &LoopSkeleton,
@@ -143,10 +137,6 @@ impl<F: std::io::Read + std::io::Seek + Send> Source for InFile<F> {
 
     fn loop_keys(&self, c: usize) -> Result<Vec<u16>, LoadError> {
         self.file.packed_loop_keys(c)
-    }
-
-    fn loop_skeleton(&self, c: usize) -> LoopSkeleton {
-        self.file.loop_skeleton(c)
     }
 
     fn loop_part(

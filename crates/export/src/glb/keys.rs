@@ -242,12 +242,7 @@ impl Starts {
             starts.tick.push(tick);
             let n = w.summaries.trajectories[i].points;
             key += if j == 0 { n } else { n.saturating_sub(1) };
-            // Its duration: its last point's ticks (`Library::duration_ticks`).
-            let t = &lib.trajectories[i];
-            if t.points > 0 {
-                let last = t.first_point + t.points - 1;
-                tick += u64::from(w.library.with(last, 1, |p| p[0].t));
-            }
+            tick += u64::from(w.library.duration_ticks(&lib.trajectories[i]));
         }
         starts.key.push(key);
         starts.tick.push(tick);

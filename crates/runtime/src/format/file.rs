@@ -27,8 +27,8 @@ pub struct LibraryFile<F> {
     points: u64,
     /// Each trajectory's last tick, as the rules checked it.
     last: Vec<u32>,
-    /// The first read through [`LoopPoints`] that failed (which cannot say so itself).
-    failed: Mutex<Option<LoadError>>,
+    /// The first read through `LoopPoints` that failed (which cannot say so itself).
+    failed: crate::turn::FirstFailure<LoadError>,
 }
 
 /// The points of a run of trajectories, read from a [`LibraryFile`].
@@ -77,7 +77,7 @@ impl<F: Read + Seek> LibraryFile<F> {
             file: Mutex::new(src.file),
             points_at,
             points,
-            failed: Mutex::new(None),
+            failed: Default::default(),
         })
     }
 
@@ -142,12 +142,6 @@ impl<F: Read + Seek> LibraryFile<F> {
         self.last[i]
     }
 
-    /// Loop `c` alone with every trajectory standing in ([`LoopSkeleton`]), to play its walkers
-    /// a group at a time ([`LibraryFile::loop_part`]).
-    pub fn loop_skeleton(&self, c: usize) -> LoopSkeleton {
-        LoopSkeleton::new(&self.index, c, |i| self.last[i])
-    }
-
     /// [`LoopSkeleton::part`] with the points of trajectories `kept` read from the file (and
     /// checked to be what they were when it was opened).
     pub fn loop_part(
@@ -199,11 +193,6 @@ impl Library {
     pub fn loops(&self, characters: std::ops::Range<usize>) -> Library {
         let points = |_, t: &Trajectory| Ok::<_, LoadError>(self.points_of(t).to_vec());
         loops_of(self, characters, points).expect("points in memory are at hand")
-    }
-
-    /// [`LibraryFile::loop_skeleton`] of a library in memory.
-    pub fn loop_skeleton(&self, c: usize) -> LoopSkeleton {
-        LoopSkeleton::new(self, c, |i| self.duration_ticks(&self.trajectories[i]))
     }
 
     /// [`LibraryFile::loop_part`] of a library in memory: the same library and headings.
@@ -368,10 +357,7 @@ impl<F: Read + Seek + Send> LibraryFile<F> {
     /// loop's points (the million's longest: 36 million, 0.29 GB).
     pub fn packed_loop_keys(&self, c: usize) -> Result<Vec<u16>, LoadError> {
         let keys = crate::turn::packed_keys_in(&self.index, self, &self.index.characters[c]);
-        match self.failed.lock().unwrap_or_else(|e| e.into_inner()).take() {
-            Some(e) => Err(e),
-            None => Ok(keys),
-        }
+        self.failed.take().map(|()| keys)
     }
 }
 
@@ -379,14 +365,6 @@ impl<F: Read + Seek + Send> LibraryFile<F> {
 /// ([`LibraryFile::packed_loop_keys`]); a read that fails is kept for it to report.
 impl<F: Read + Seek + Send> crate::turn::LoopPoints for LibraryFile<F> {
     fn with<R>(&self, first: u32, n: u32, read: impl FnOnce(&[Point]) -> R) -> R {
-        let (first, n) = (first as usize, n as usize);
-        match self.read(first, n) {
-            Ok(points) => read(&points),
-            Err(e) => {
-                let mut failed = self.failed.lock().unwrap_or_else(|e| e.into_inner());
-                failed.get_or_insert(e);
-                read(&vec![Point { x: 0, y: 0, t: 0 }; n])
-            }
-        }
+        (self.failed).hand(self.read(first as usize, n as usize), n, read)
     }
 }

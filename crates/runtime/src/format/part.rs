@@ -76,11 +76,7 @@ impl LoopSkeleton {
         }
         let mut headings = crate::PackedHeadings::for_points(&lib);
         for (first, n, key) in held {
-            let at = &mut headings.packed[first..first + n];
-            at.copy_from_slice(&keys[key..key + n]);
-            if let Some(last) = at.last_mut() {
-                *last &= !crate::sampler::WALKS;
-            }
+            crate::turn::leg_keys(&keys[key..key + n], &mut headings.packed[first..first + n]);
         }
         Ok((lib, headings))
     }
