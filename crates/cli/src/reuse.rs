@@ -86,8 +86,15 @@ impl Prefetch {
         self.loading.retain(|(p, _)| p != stage_file);
     }
 
-    /// The last build's output at `stage_file`: as read ahead, or read now.
+    /// The last build's output at `stage_file`: as read ahead, or read now. Never on a worker
+    /// of the thread pool: the reading thread hashes on the pool, and a worker that waits for it
+    /// may be the one its hashing waits for (a worker that helped hash took up the wait, and a
+    /// stroke's rebuild hung).
     pub fn take(&mut self, stage_file: &Path) -> Option<Previous> {
+        assert!(
+            rayon::current_thread_index().is_none(),
+            "the last build's files are waited for outside the thread pool"
+        );
         match self.loading.iter().position(|(p, _)| p == stage_file) {
             Some(k) => self.loading.swap_remove(k).1.join().ok().flatten(),
             None => Previous::load(stage_file),

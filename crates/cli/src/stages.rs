@@ -791,14 +791,19 @@ fn smooth(a: &mut Artifacts, out: &Path, hash: Hash, ui: &Ui) -> Result<Ran> {
     }
     let collided = a.take_motion(&COLLIDE)?;
     let seen = Seen::new(&graph, &patterns.1);
-    // The last build's side file is read (and its hash checked) meanwhile.
+    // The last build's side file is read (and its hash checked) meanwhile, and waited for on
+    // this thread, not on a worker of the pool (`reuse::Prefetch::take`).
     let motion: &[PatchMotion] = &collided.1;
-    let mut ahead = std::mem::take(&mut a.previous);
-    let (keys, previous) = rayon::join(
-        || crowd_smooth::patch_keys(&seen, |p| Ok(Cow::Borrowed(&motion[p])), &inputs),
-        || ahead.take(out),
-    );
-    a.previous = ahead;
+    let (keys, previous) = std::thread::scope(|s| {
+        let keys =
+            s.spawn(|| crowd_smooth::patch_keys(&seen, |p| Ok(Cow::Borrowed(&motion[p])), &inputs));
+        let previous = a.previous.take(out);
+        let keys = keys.join();
+        (
+            keys.unwrap_or_else(|panic| std::panic::resume_unwind(panic)),
+            previous,
+        )
+    });
     let keys = keys?;
     let counted = |counts: [u64; 3]| counts.iter().flat_map(|c| c.to_le_bytes()).collect();
     let mut done = reuse::reusable(previous.as_ref(), &keys, &seen.tables);
