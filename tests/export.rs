@@ -317,6 +317,7 @@ fn bytes_of(library: crowd_export::LibraryBytes) -> Vec<u8> {
     match library {
         crowd_export::LibraryBytes::Held(bytes) => bytes,
         crowd_export::LibraryBytes::Records(lib) => lib.to_bytes(),
+        crowd_export::LibraryBytes::Handed(..) => panic!("its bytes were handed over"),
         crowd_export::LibraryBytes::Spilled(lib, spilled) => {
             let mut bytes = Vec::new();
             let points = |sink: &mut dyn FnMut(&[u8]) -> std::io::Result<()>| spilled.copy_to(sink);
@@ -712,9 +713,42 @@ fn export_made_patch_by_patch_writes_what_export_of_the_held_motion_writes() {
             let spilled =
                 crowd_export::export(&graph, crossings.clone(), &made, &inputs, hash, spilled)
                     .unwrap();
+            // Handed over as soon as made: the same bytes, and the size and hash they have.
+            let handed_bytes = std::sync::Mutex::new(Vec::new());
+            let hand = |bytes: Vec<u8>| *handed_bytes.lock().unwrap() = bytes;
+            let handed = crowd_export::Handing::Handed(&hand);
+            let handed =
+                crowd_export::export(&graph, crossings.clone(), &held, &inputs, hash, handed)
+                    .unwrap();
+            let handed_bytes = handed_bytes.into_inner().unwrap();
+            let crowd_export::LibraryBytes::Handed(size, bytes_hash) = handed.library else {
+                panic!("{name} {region:?}: a small library's bytes are handed over");
+            };
+            assert_eq!(
+                (size, bytes_hash),
+                (
+                    handed_bytes.len() as u64,
+                    crowd_core::Hash::of(&handed_bytes)
+                )
+            );
+            assert_eq!(whole.manifest, handed.manifest, "{name} {region:?}");
+            assert!(
+                whole.glb == handed.glb,
+                "{name} {region:?}: world.glb differs"
+            );
+            let (writes, _) = crowd_export::writes(Path::new("out/export.ron"), handed).unwrap();
+            let names: Vec<_> = writes.iter().map(|w| w.0.clone()).collect();
+            assert_eq!(
+                names,
+                [Path::new("out/world.glb"), Path::new("out/export.ron")]
+            );
             assert_eq!(whole.manifest, part.manifest, "{name} {region:?}");
             assert_eq!(whole.manifest, spilled.manifest, "{name} {region:?}");
             let whole_bytes = bytes_of(whole.library);
+            assert!(
+                whole_bytes == handed_bytes,
+                "{name} {region:?}: library.crowd differs, handed over"
+            );
             assert!(
                 whole_bytes == bytes_of(part.library),
                 "{name} {region:?}: library.crowd differs"

@@ -1061,16 +1061,23 @@ fn export(a: &mut Artifacts, out: &Path, hash: Hash, _: &Ui) -> Result<Ran> {
     // the library a piece at a time whatever its size, as a world too large for one process
     // needs (and the shards' tests see that path).
     let dir = out.parent().unwrap_or(Path::new("."));
+    let library = out.with_file_name(crowd_export::LIBRARY_FILE);
+    // Else a library's bytes are written on a thread of their own as soon as they are made.
+    let writing = std::sync::Mutex::new(None);
+    let hand = |bytes: Vec<u8>| {
+        let started = files::Writing::start(&library, bytes);
+        *writing.lock().unwrap_or_else(|e| e.into_inner()) = Some(started);
+    };
     let handing = match a.split {
         Split::Gather => crowd_export::Handing::Spilled(dir),
-        _ => crowd_export::Handing::BySize,
+        _ => crowd_export::Handing::Handed(&hand),
     };
     let export = if a.holds_motion(stage) {
         // Each patch's dense keyframes are freed as it is thinned.
         let held = a.take_motion(stage)?;
         let motion = std::rc::Rc::try_unwrap(held).map_or_else(|shared| shared.1.clone(), |m| m.1);
         let kept = crowd_export::simplify::motion(motion, tolerance_m);
-        crowd_export::export(&graph, crossings, &kept, &inputs, hash, handing).map_err(failed)?
+        crowd_export::export(&graph, crossings, &kept, &inputs, hash, handing)
     } else {
         // A gathering build: each patch read from the stage's files and thinned when export
         // asks, so neither the world's dense motion nor its thinned copy is held.
@@ -1079,17 +1086,33 @@ fn export(a: &mut Artifacts, out: &Path, hash: Hash, _: &Ui) -> Result<Ran> {
         let made = crowd_export::motion::Made::new(motion.patches(), |p| {
             Ok(crowd_export::simplify::patch(motion.patch(p)?, tolerance_m))
         });
-        crowd_export::export(&graph, crossings, &made, &inputs, hash, handing).map_err(failed)?
+        crowd_export::export(&graph, crossings, &made, &inputs, hash, handing)
     };
+    // Waited for whether the export failed or not: no thread is left writing.
+    let handed = writing.into_inner().unwrap_or_else(|e| e.into_inner());
+    let handed = handed.map(files::Writing::finish).transpose();
+    let export = export.map_err(failed)?;
+    let handed = handed?;
     let gltf = (
         out.with_file_name(crowd_export::GLB_FILE),
         export.manifest.gltf_hash(),
     );
-    let library = out.with_file_name(crowd_export::LIBRARY_FILE);
     let (lib, spilled) = match export.library {
-        crowd_export::LibraryBytes::Held(_) => {
+        crowd_export::LibraryBytes::Held(_) | crowd_export::LibraryBytes::Handed(..) => {
             let (writes, file) = crowd_export::writes(out, export).map_err(failed)?;
-            let ran = Ran::files(writes).knowing(library, file.library_hash);
+            if let Some(h) = handed.as_ref().filter(|h| h.hash != file.library_hash) {
+                bail!(
+                    "{}: written with hash {}, but its bytes were made with hash {}",
+                    library.display(),
+                    h.hash.short(),
+                    file.library_hash.short()
+                );
+            }
+            let ran = Ran {
+                streamed: handed.into_iter().collect(),
+                ..Ran::files(writes)
+            };
+            let ran = ran.knowing(library, file.library_hash);
             return Ok(ran.knowing(gltf.0, gltf.1));
         }
         crowd_export::LibraryBytes::Records(lib) => (lib, None),

@@ -517,6 +517,39 @@ impl Drop for StreamedFile {
     }
 }
 
+/// A file's bytes written to its temporary name on a thread of their own (as a [`Streamed`]
+/// file's), while the caller goes on; [`Writing::finish`] waits for them.
+pub struct Writing {
+    path: std::path::PathBuf,
+    thread: std::io::Result<std::thread::JoinHandle<Result<StreamedFile>>>,
+}
+
+impl Writing {
+    /// Starts writing `bytes` as the file that will be `path`.
+    pub fn start(path: &Path, bytes: Vec<u8>) -> Writing {
+        let to = path.to_path_buf();
+        let thread = std::thread::Builder::new().spawn(move || {
+            let mut file = Streamed::create(&to)?;
+            file.write(&bytes)?;
+            file.finish()
+        });
+        Writing {
+            path: path.to_path_buf(),
+            thread,
+        }
+    }
+
+    /// The file written and on disk, at its temporary name.
+    pub fn finish(self) -> Result<StreamedFile> {
+        match self.thread {
+            Ok(thread) => thread
+                .join()
+                .unwrap_or_else(|panic| std::panic::resume_unwind(panic)),
+            Err(e) => Err(Error::io(&self.path, "write", e)),
+        }
+    }
+}
+
 /// Writes `bytes` to `path` through a temporary file in the same folder and a rename.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     write_atomic_with(path, |w| w.write_all(bytes))

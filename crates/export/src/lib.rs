@@ -135,6 +135,9 @@ pub enum LibraryBytes {
     /// Its records but the points, which are in a scratch file ([`Handing::Spilled`]), to be
     /// written a piece at a time (`crowd_runtime::Library::write_with_points`).
     Spilled(crowd_runtime::Library, spill::Spilled),
+    /// Its size and hash: its bytes were handed over as soon as they were made
+    /// ([`Handing::Handed`]).
+    Handed(u64, Hash),
 }
 
 impl Manifest {
@@ -196,11 +199,16 @@ pub fn tolerance_m(inputs: &Inputs) -> f64 {
 const POINTS_BYTES_BESIDE_GLB: usize = 32 << 20;
 
 /// How stage 8 hands `library.crowd` over.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Clone, Copy)]
 pub enum Handing<'a> {
     /// Its bytes, made beside `world.glb`, for a library under 32 million points; a larger
     /// one's records ([`LibraryBytes`]).
     BySize,
+    /// As [`Handing::BySize`], but the bytes are given to this as soon as they are made, not
+    /// held until `world.glb` is done: its longest loop keeps one core busy while the other
+    /// is idle, time in which they can be written (painting's stroke: 88 MB, a quarter of a
+    /// second that its check waited for).
+    Handed(&'a (dyn Fn(Vec<u8>) + Sync)),
     /// Its records, whatever its size (the tests of [`LibraryBytes::Records`]).
     Records,
     /// Its records but the points, kept in a scratch file in this folder as they are made,
@@ -272,9 +280,25 @@ pub fn export<M: motion::Motion>(
     // made here: its records are handed over, to be written a piece at a time. Made beside the
     // glTF, its bytes raised the million's peak by their size (0.9 GB); made after it, they
     // were held beside the records (0.9 GB again).
-    let beside = handing == Handing::BySize && points < POINTS_BYTES_BESIDE_GLB;
+    let hand = match handing {
+        Handing::Handed(to) => Some(to),
+        _ => None,
+    };
+    let beside =
+        matches!(handing, Handing::BySize | Handing::Handed(_)) && points < POINTS_BYTES_BESIDE_GLB;
     let (bytes, glb) = if beside {
-        let (bytes, glb) = rayon::join(|| lib.to_bytes(), glb);
+        let made = || {
+            let bytes = lib.to_bytes();
+            match hand {
+                Some(to) => {
+                    let made = (bytes.len() as u64, Hash::of(&bytes));
+                    to(bytes);
+                    Err(made)
+                }
+                None => Ok(bytes),
+            }
+        };
+        let (bytes, glb) = rayon::join(made, glb);
         (Some(bytes), glb?)
     } else {
         (None, glb()?)
@@ -300,7 +324,8 @@ pub fn export<M: motion::Motion>(
         time_error_s: if eased_m > 0.0 { 1.5 } else { 0.5 } * crowd_runtime::TICK_S,
     };
     let library = match (bytes, spilled) {
-        (Some(bytes), _) => LibraryBytes::Held(bytes),
+        (Some(Ok(bytes)), _) => LibraryBytes::Held(bytes),
+        (Some(Err((size, hash))), _) => LibraryBytes::Handed(size, hash),
         (None, Some(spilled)) => LibraryBytes::Spilled(lib, spilled),
         (None, None) => LibraryBytes::Records(lib),
     };
@@ -311,9 +336,10 @@ pub fn export<M: motion::Motion>(
     })
 }
 
-/// Stage 8's files: the library, then `export.ron` (written last, so that a manifest always
-/// names a library that is there). A large library's bytes are made here, whole: a build
-/// writes them a piece at a time instead (`crowd build`'s export).
+/// Stage 8's files: the library (unless it was handed over already), `world.glb`, then
+/// `export.ron` (written last, so that a manifest always names a library that is there). A
+/// large library's bytes are made here, whole: a build writes them a piece at a time instead
+/// (`crowd build`'s export).
 pub fn writes(
     out: &std::path::Path,
     export: Export,
@@ -326,6 +352,12 @@ pub fn writes(
     } = export;
     let library = match library {
         LibraryBytes::Held(bytes) => bytes,
+        LibraryBytes::Handed(size, hash) => {
+            let file = manifest.file((size, hash));
+            let ron = crowd_core::files::to_stage_ron(&file).into_bytes();
+            let writes = vec![(dir.join(GLB_FILE), glb), (out.to_path_buf(), ron)];
+            return Ok((writes, file));
+        }
         LibraryBytes::Records(lib) => lib.to_bytes(),
         LibraryBytes::Spilled(lib, spilled) => {
             let mut bytes = Vec::new();
