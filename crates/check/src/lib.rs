@@ -106,7 +106,14 @@ pub fn check_world(
         period_s,
         crossings,
     };
-    let judged = judge(&world, None, &Recalled::default(), strips::STRIP_PIECES)?;
+    let none = None::<&mut memo::StageWriter<std::io::Sink>>;
+    let judged = judge(
+        &world,
+        None,
+        &Recalled::default(),
+        strips::STRIP_PIECES,
+        none,
+    )?;
     Ok(judged.report)
 }
 
@@ -122,7 +129,9 @@ pub struct World<'a> {
 /// A stage file's check, and what of it a later check may take.
 pub struct Judged {
     pub report: CheckReport,
-    pub memo: memo::StagePart,
+    /// The pairs each patch owns, by key (none without the stage's keys): the end of the
+    /// memo's stage part, whose own shares the check wrote as it took them.
+    pub pairs: memo::OwnedPairs,
     /// Patches whose own share, and whose pairs, were judged again (not taken from the memo).
     pub redone: (usize, usize),
 }
@@ -130,21 +139,24 @@ pub struct Judged {
 /// [`check_world`], taking from `memo` every patch whose share is unchanged: with `keys` (the
 /// stage's patch keys, which pin each patch's motion and crossings), a patch's own share is
 /// found by its key and its pairs by its key and those within reach. The report is the same
-/// bytes as a check of the whole world.
-pub fn check_world_memo(
+/// bytes as a check of the whole world. Each patch's own share is written to `out` as it is
+/// taken (a memo begun for every patch of the graph with `keys`, for none without).
+pub fn check_world_memo<W: std::io::Write>(
     world: &World,
     keys: Option<&[Hash]>,
     memo: &Recalled,
+    out: Option<&mut memo::StageWriter<W>>,
 ) -> crowd_core::Result<Judged> {
-    judge(world, keys, memo, strips::STRIP_PIECES)
+    judge(world, keys, memo, strips::STRIP_PIECES, out)
 }
 
 /// [`check_world_memo`] with strips of about `budget` pieces.
-fn judge(
+fn judge<W: std::io::Write>(
     w: &World,
     keys: Option<&[Hash]>,
     memo: &Recalled,
     budget: u64,
+    mut out: Option<&mut memo::StageWriter<W>>,
 ) -> crowd_core::Result<Judged> {
     let graph = w.graph;
     let n = graph.patches.len();
@@ -152,80 +164,115 @@ fn judge(
         .crossings
         .map(|c| crowd_core::patch_keys::Seen::new(graph, c).tables);
     let own_keys = keys.map(|k| own_keys(w, k));
-    let own = own_shares(w, tables.as_deref(), own_keys.as_deref(), memo)?;
-    let extents: Vec<strips::Extent> = own.iter().map(|o| o.0.extent).collect();
+    if let Some(out) = &out {
+        let shares = if own_keys.is_some() { n } else { 0 };
+        assert_eq!(
+            out.own_left(),
+            shares,
+            "a memo begun for every patch's own share"
+        );
+    }
+    // The motion figures are added up as each patch's share is taken, in patch order.
+    let mut measure =
+        (w.crossings.zip(tables.as_ref())).map(|(c, _)| motion::Measure::new(c.numbers()));
+    let own = own_shares(w, tables.as_deref(), own_keys.as_deref(), memo, |p, o| {
+        if let (Some(m), Some(t), Some(tally)) = (&mut measure, &tables, &o.tally) {
+            let tally = tally
+                .unpack()
+                .expect("a tally packed here or checked in its memo");
+            m.add(p, &tally, &t[p]);
+        }
+        if let (Some(out), Some(k)) = (out.as_deref_mut(), &own_keys) {
+            out.own(k[p].as_bytes(), o);
+        }
+    })?;
+    let extents = &own.extents[..];
     let walls = walls(graph);
     let reach = 2.0 * graph.radius_m + 1.0 + 1e-6;
-    let near = strips::within_reach(&extents, reach, graph.world.patch_side_m);
+    let near = strips::within_reach(extents, reach, graph.world.patch_side_m);
     let pair_keys = own_keys
         .as_ref()
-        .map(|k| pair_keys(graph, k, (&extents, &near), (&walls, reach)));
+        .map(|k| pair_keys(graph, k, (extents, &near), (&walls, reach)));
     let known: Vec<Option<world::Pairs>> = match &pair_keys {
         Some(k) => k.iter().map(|k| memo.pairs(k)).collect(),
         None => vec![None; n],
     };
-    let (pairs, judged_pairs) = owned_pairs(w, (&extents, &near), &walls, known, budget)?;
+    let (pairs, judged_pairs) = owned_pairs(w, (extents, &near), &walls, known, budget)?;
     let total = pairs
         .iter()
         .fold(world::Pairs::default(), |a, b| a.merge(*b));
-    let measure = (w.crossings.zip(tables.as_ref())).map(|(c, t)| {
-        let mut m = motion::Measure::new(c.numbers());
-        for (p, (o, _)) in own.iter().enumerate() {
-            if let Some(tally) = &o.tally {
-                let tally = tally
-                    .unpack()
-                    .expect("a tally packed here or checked in its memo");
-                m.add(p, &tally, &t[p]);
-            }
-        }
-        m.finish()
-    });
     let c = total.clearance(graph.radius_m, w.period_s);
     let report = CheckReport {
         collisions: c.collisions,
         across_borders: c.across_borders,
         min_clearance_m: c.min_clearance_m,
         worst_at: c.worst_at,
-        walkers: own.iter().map(|o| o.0.walkers).sum(),
+        walkers: own.walkers,
         segments: extents.iter().map(|e| e.pieces).sum(),
         stage: String::new(),
-        motion: measure,
+        motion: measure.map(motion::Measure::finish),
         library: None,
         gltf: None,
         input_hash: None,
     };
-    let redone = (own.iter().filter(|o| o.1).count(), judged_pairs);
-    let memo = match (own_keys, pair_keys) {
-        (Some(ok), Some(pk)) => memo::StagePart {
-            own: (ok.iter().zip(own))
-                .map(|(k, o)| (*k.as_bytes(), o.0))
-                .collect(),
-            pairs: (pk.iter().zip(pairs))
+    let pairs = match pair_keys {
+        Some(pk) => memo::OwnedPairs(
+            (pk.iter().zip(pairs))
                 .map(|(k, p)| (*k.as_bytes(), p))
                 .collect(),
-        },
-        _ => memo::StagePart::default(),
+        ),
+        None => memo::OwnedPairs::default(),
     };
     Ok(Judged {
         report,
-        memo,
-        redone,
+        pairs,
+        redone: (own.measured, judged_pairs),
     })
 }
 
-/// Every patch's own share, from `memo` by its key or measured (with whether it was).
+/// What a check keeps of the patches' own shares once each is handed on: where each patch's
+/// characters go, how many walk, and how many shares were measured (not taken from the memo).
+struct OwnTaken {
+    extents: Vec<strips::Extent>,
+    walkers: u64,
+    measured: usize,
+}
+
+/// Patches whose own shares are taken at once (in parallel), then handed on in patch order:
+/// the world's were held until its pairs were judged (the million's: 0.2 GB).
+const OWN_RUN: usize = 4096;
+
+/// Every patch's own share, from `memo` by its key or measured, handed to `each` in patch
+/// order a run of patches at a time.
 fn own_shares(
     w: &World,
     tables: Option<&[crowd_core::patch_keys::Table]>,
     own_keys: Option<&[Hash]>,
     memo: &Recalled,
-) -> crowd_core::Result<Vec<(Own, bool)>> {
-    in_order((0..w.graph.patches.len()).into_par_iter().map(|p| {
-        if let Some(o) = own_keys.and_then(|k| memo.take_own(&k[p])) {
-            return Ok((o, false));
+    mut each: impl FnMut(usize, &Own),
+) -> crowd_core::Result<OwnTaken> {
+    let n = w.graph.patches.len();
+    let mut taken = OwnTaken {
+        extents: Vec::with_capacity(n),
+        walkers: 0,
+        measured: 0,
+    };
+    for start in (0..n).step_by(OWN_RUN) {
+        let run = start..(start + OWN_RUN).min(n);
+        let shares = in_order(run.clone().into_par_iter().map(|p| {
+            if let Some(o) = own_keys.and_then(|k| memo.take_own(&k[p])) {
+                return Ok((o, false));
+            }
+            Ok((own_share(w, tables, p)?, true))
+        }))?;
+        for (p, (o, measured)) in run.zip(shares) {
+            taken.extents.push(o.extent);
+            taken.walkers += o.walkers;
+            taken.measured += usize::from(measured);
+            each(p, &o);
         }
-        Ok((own_share(w, tables, p)?, true))
-    }))
+    }
+    Ok(taken)
 }
 
 /// Patch `p`'s own share, measured: where its characters go, how many walk, and (with the
@@ -456,6 +503,14 @@ pub(crate) mod tests {
             .collect()
     }
 
+    /// A check of a stage file in a test: its report, what it judged again, and the bytes of
+    /// the memo it wrote.
+    pub(crate) struct TestJudged {
+        pub report: CheckReport,
+        pub redone: (usize, usize),
+        pub memo: Vec<u8>,
+    }
+
     /// `motion` checked by strips of `budget` pieces, with `keys` and `memo`.
     pub(crate) fn judged(
         graph: &PatchGraph,
@@ -463,14 +518,22 @@ pub(crate) mod tests {
         keys: Option<&[Hash]>,
         memo: &Recalled,
         budget: u64,
-    ) -> Judged {
+    ) -> TestJudged {
         let world = World {
             graph,
             source: &motion,
             period_s: 20.0,
             crossings: Some((&[][..]).into()),
         };
-        judge(&world, keys, memo, budget).unwrap()
+        let shares = keys.map_or(0, <[Hash]>::len);
+        let mut out = memo::StageWriter::start(Vec::new(), shares);
+        let judged = judge(&world, keys, memo, budget, Some(&mut out)).unwrap();
+        let memo = (out.pairs(&judged.pairs).unwrap().finish(None)).unwrap();
+        TestJudged {
+            report: judged.report,
+            redone: judged.redone,
+            memo,
+        }
     }
 
     /// Each patch's key: the hash of its motion's bytes.
@@ -518,8 +581,7 @@ pub(crate) mod tests {
             }
             let none = Recalled::default();
             let first = judged(&graph, &before, Some(&content_keys(&before)), &none, 300);
-            let bytes = memo::Memo::of(Some(first.memo), None).to_bytes();
-            let memo = memo::Memo::from_bytes(&bytes).unwrap().recall();
+            let memo = memo::Memo::from_bytes(&first.memo).unwrap().recall();
             let again = judged(&graph, &after, Some(&content_keys(&after)), &memo, 300);
             let whole = judged(&graph, &after, None, &none, u64::MAX);
             proptest::prop_assert_eq!(&again.report, &whole.report);
@@ -527,8 +589,7 @@ pub(crate) mod tests {
             proptest::prop_assert_eq!(again.redone.0, changed);
             proptest::prop_assert!(again.redone.1 >= 3 && again.redone.1 < 40, "{:?}", again.redone);
             // Nothing changed: nothing judged again.
-            let bytes = memo::Memo::of(Some(again.memo), None).to_bytes();
-            let memo = memo::Memo::from_bytes(&bytes).unwrap().recall();
+            let memo = memo::Memo::from_bytes(&again.memo).unwrap().recall();
             let same = judged(&graph, &after, Some(&content_keys(&after)), &memo, 0);
             proptest::prop_assert_eq!(&same.report, &whole.report);
             proptest::prop_assert_eq!(same.redone, (0, 0));
@@ -548,7 +609,7 @@ pub(crate) mod tests {
             &Recalled::default(),
             0,
         );
-        let bytes = memo::Memo::of(Some(first.memo), None).to_bytes();
+        let bytes = first.memo;
         assert!(memo::Memo::from_bytes(&bytes).is_some());
         let cuts = (0..bytes.len())
             .step_by(37)

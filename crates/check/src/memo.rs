@@ -185,6 +185,11 @@ impl StagePart {
     }
 }
 
+/// The pairs each patch owns, by key, as a check of a stage file judged them: the end of a
+/// memo's stage part ([`StageWriter::pairs`]).
+#[derive(Default)]
+pub struct OwnedPairs(pub(crate) Vec<([u8; 32], Pairs)>);
+
 /// The library's part of a memo: each patch's pairs by their key, and each walker's share of
 /// the sampler's figures by its window's key.
 #[derive(Default)]
@@ -272,21 +277,12 @@ impl Bytes {
     }
 }
 
-/// A memo written as a check goes, in its file's order: the stage file's part, then the
-/// library's. A large world's check writes the stage file's part as soon as it is judged and
-/// lets it go before it judges the library (the million's: 0.2 GB of patches' shares, held
-/// through the library's check, at its peak).
+/// A memo written as a check goes, in its file's order: the stage file's part
+/// ([`StageWriter`]), then the library's. A large world's check ends the stage file's part
+/// before it judges the library.
 pub struct MemoWriter<W: std::io::Write>(Sink<W>);
 
 impl<W: std::io::Write> MemoWriter<W> {
-    /// Starts the memo in `out` with the stage file's part (`None`: the check judged none).
-    pub fn start(out: W, stage: Option<&StagePart>) -> std::io::Result<MemoWriter<W>> {
-        match stage {
-            Some(s) => MemoWriter::begin(out, (&s.own, &s.pairs)),
-            None => MemoWriter::begin(out, (&[], &[])),
-        }
-    }
-
     /// Ends the memo with the library's part (`None`: the check judged no library), and its
     /// hash; `out` is handed back.
     pub fn finish(self, library: Option<&LibraryPart>) -> std::io::Result<W> {
@@ -297,16 +293,11 @@ impl<W: std::io::Write> MemoWriter<W> {
     }
 
     fn begin(out: W, (own, pairs): StageLists) -> std::io::Result<MemoWriter<W>> {
-        let mut sink = Sink {
-            buf: Bytes(Vec::with_capacity(SINK_BYTES)),
-            hash: Hash::pieces(),
-            out,
-        };
-        sink.buf.0.extend_from_slice(MAGIC);
-        sink.buf.u32(crate::VERSION);
-        sink.keyed(own)?;
-        sink.keyed(pairs)?;
-        Ok(MemoWriter(sink))
+        let mut stage = StageWriter::start(out, own.len());
+        for (key, o) in own {
+            stage.own(key, o);
+        }
+        stage.pairs_of(pairs)
     }
 
     fn end(self, (pairs, played): LibraryLists) -> std::io::Result<W> {
@@ -317,6 +308,78 @@ impl<W: std::io::Write> MemoWriter<W> {
         let (_, hash) = sink.hash.finish();
         sink.out.write_all(hash.as_bytes())?;
         Ok(sink.out)
+    }
+}
+
+/// A memo begun with the stage file's own shares, written as a check takes them, one patch
+/// after another in patch order: the million's 0.2 GB of shares were held until its pairs were
+/// judged, at the gathering check's peak. Then its pairs ([`StageWriter::pairs`]) and the
+/// library's part ([`MemoWriter::finish`]).
+pub struct StageWriter<W: std::io::Write> {
+    sink: Sink<W>,
+    /// Shares still to come (the count is written first).
+    left: usize,
+    /// The first failure to write, reported by [`StageWriter::pairs`].
+    failed: Option<std::io::Error>,
+}
+
+impl<W: std::io::Write> StageWriter<W> {
+    /// Starts the memo in `out`, for the own shares of `own` patches.
+    pub fn start(out: W, own: usize) -> StageWriter<W> {
+        let mut sink = Sink {
+            buf: Bytes(Vec::with_capacity(SINK_BYTES)),
+            hash: Hash::pieces(),
+            out,
+        };
+        sink.buf.0.extend_from_slice(MAGIC);
+        sink.buf.u32(crate::VERSION);
+        sink.buf.u64(own as u64);
+        StageWriter {
+            sink,
+            left: own,
+            failed: None,
+        }
+    }
+
+    /// How many own shares are still to come.
+    pub fn own_left(&self) -> usize {
+        self.left
+    }
+
+    /// The next patch's own share, by its key. A failure to write is kept for
+    /// [`StageWriter::pairs`].
+    pub(crate) fn own(&mut self, key: &[u8; 32], own: &Own) {
+        assert!(
+            self.left > 0,
+            "no more own shares than the memo was begun for"
+        );
+        self.left -= 1;
+        if self.failed.is_none()
+            && let Err(e) = self.sink.record(key, own)
+        {
+            self.failed = Some(e);
+        }
+    }
+
+    /// The stage file's part ended with the pairs each patch owns, by key; refused if a write
+    /// failed, or if shares are missing (the memo would not read back).
+    pub fn pairs(self, pairs: &OwnedPairs) -> std::io::Result<MemoWriter<W>> {
+        self.pairs_of(&pairs.0)
+    }
+
+    fn pairs_of(mut self, pairs: &[([u8; 32], Pairs)]) -> std::io::Result<MemoWriter<W>> {
+        if let Some(e) = self.failed {
+            return Err(e);
+        }
+        if self.left > 0 {
+            let message = format!("{} own shares missing from the memo", self.left);
+            return Err(std::io::Error::new(
+                std::io::ErrorKind::InvalidData,
+                message,
+            ));
+        }
+        self.sink.keyed(pairs)?;
+        Ok(MemoWriter(self.sink))
     }
 }
 
@@ -341,11 +404,17 @@ impl<W: std::io::Write> Sink<W> {
     fn keyed<T: Record>(&mut self, items: &[([u8; 32], T)]) -> std::io::Result<()> {
         self.buf.u64(items.len() as u64);
         for (key, item) in items {
-            self.buf.0.extend_from_slice(key);
-            item.put(&mut self.buf);
-            if self.buf.0.len() >= SINK_BYTES {
-                self.spill()?;
-            }
+            self.record(key, item)?;
+        }
+        Ok(())
+    }
+
+    /// One record of a list, after its key.
+    fn record<T: Record>(&mut self, key: &[u8; 32], item: &T) -> std::io::Result<()> {
+        self.buf.0.extend_from_slice(key);
+        item.put(&mut self.buf);
+        if self.buf.0.len() >= SINK_BYTES {
+            self.spill()?;
         }
         Ok(())
     }

@@ -10,7 +10,7 @@ use crate::stages::{self, GRAPH_FILE, PATTERNS_FILE};
 use crate::ui::Ui;
 use anyhow::{Context, Result, bail};
 use crowd_check::library::{InFile, Source};
-use crowd_check::memo::{self, Memo, MemoWriter, Recalled};
+use crowd_check::memo::{Memo, MemoWriter, Recalled, StageWriter};
 use crowd_check::{CheckReport, Judged, ProductFigures};
 use crowd_core::config::PipelineFile;
 use crowd_core::files;
@@ -301,21 +301,24 @@ fn measure(
         .transpose()
     };
     let gltf = || gltf(dir, &graph, &walls, limit);
+    // The new memo is begun with each patch's own share as the stage file's check takes it.
     let memo_path = dir.join(MEMO_FILE);
+    let shares = stage.keys.as_ref().map_or(0, Vec::len);
+    let mut begun = StageWriter::start(files::Streamed::create(&memo_path)?, shares);
     let (stage, (library, gltf), writer) = if small {
         let (stage, products) = rayon::join(
-            || stage_figures(&graph, stage, &memo),
+            || stage_figures(&graph, stage, &memo, &mut begun),
             || rayon::join(|| library(&memo), gltf),
         );
-        let stage = stage?;
-        let writer = start_memo(&memo_path, &stage.memo)?;
+        let mut stage = stage?;
+        let writer = end_stage(begun, &mut stage, &memo_path)?;
         (stage, products, writer)
     } else {
-        let mut stage = stage_figures(&graph, stage, &memo)?;
+        let mut stage = stage_figures(&graph, stage, &memo, &mut begun)?;
         // The stage file's shares are looked up no more (the million's: 0.3 GB), and its
-        // part of the new memo is written and let go before the library is judged (0.2 GB).
+        // part of the new memo is ended before the library is judged.
         memo.forget_stage();
-        let writer = start_memo(&memo_path, &std::mem::take(&mut stage.memo))?;
+        let writer = end_stage(begun, &mut stage, &memo_path)?;
         (stage, (library(&memo), gltf()), writer)
     };
     drop(memo);
@@ -413,20 +416,30 @@ impl StageFiles {
 
 /// The check of a stage's trajectories, with their motion figures: decoded a strip of the
 /// world at a time (`crowd_check::check_world`).
-/// The check's new memo, begun at `path`'s temporary name with the stage file's part.
-fn start_memo(path: &Path, stage: &memo::StagePart) -> Result<MemoWriter<files::Streamed>> {
-    let file = files::Streamed::create(path)?;
-    MemoWriter::start(file, Some(stage)).map_err(|e| crowd_core::Error::io(path, "write", e).into())
+/// The stage file's part of the new memo at `path`, ended with the pairs `judged` holds (let
+/// go).
+fn end_stage(
+    begun: StageWriter<files::Streamed>,
+    judged: &mut Judged,
+    path: &Path,
+) -> Result<MemoWriter<files::Streamed>> {
+    let pairs = std::mem::take(&mut judged.pairs);
+    (begun.pairs(&pairs)).map_err(|e| crowd_core::Error::io(path, "write", e).into())
 }
 
-fn stage_figures(graph: &PatchGraph, s: StageFiles, memo: &Recalled) -> Result<Judged> {
+fn stage_figures(
+    graph: &PatchGraph,
+    s: StageFiles,
+    memo: &Recalled,
+    out: &mut StageWriter<files::Streamed>,
+) -> Result<Judged> {
     let world = crowd_check::World {
         graph,
         source: &s.motion,
         period_s: s.file.period_s,
         crossings: Some((&s.crossings).into()),
     };
-    let mut judged = crowd_check::check_world_memo(&world, s.keys.as_deref(), memo)?;
+    let mut judged = crowd_check::check_world_memo(&world, s.keys.as_deref(), memo, Some(out))?;
     judged.report.stage = s.stage.kind.to_string();
     Ok(judged)
 }
