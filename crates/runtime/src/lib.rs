@@ -17,7 +17,8 @@ pub mod turn;
 pub use crc::crc32;
 pub use error::LoadError;
 pub use format::{
-    Character, Crossing, Library, LibraryFile, LoopSkeleton, MAGIC, MAX_PERIODS_PER_TRAJECTORY,
-    Patch, Point, QUANT_STEPS, TICK_S, Trajectory, VERSION, Window, World,
+    Character, Crossing, Library, LibraryFile, LoopPart, LoopSkeleton, MAGIC,
+    MAX_PERIODS_PER_TRAJECTORY, Patch, Point, QUANT_STEPS, TICK_S, Trajectory, VERSION, Window,
+    World,
 };
 pub use sampler::{PackedHeadings, Sample, Sampler, packed_heading};

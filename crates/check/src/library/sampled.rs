@@ -150,7 +150,7 @@ fn sample_long_loop<S: Source>(
         .map(|lap| lap_window(index, ch, lap, &order, span).1)
         .collect();
     let points = |k: usize| index.trajectories[order[k % order.len()].0 as usize].points as usize;
-    let skeleton = crowd_runtime::LoopSkeleton::new(index, c, |i| src.last_tick(i));
+    let mut skeleton = crowd_runtime::LoopSkeleton::new(index, c, |i| src.last_tick(i));
     let (mut kept, mut played) = (Vec::with_capacity(ch.laps as usize), 0);
     for laps in lap_groups(&windows, points, src.budget()) {
         // The trajectories the group walks, in the library's (and the file's) order.
@@ -160,7 +160,7 @@ fn sample_long_loop<S: Source>(
             .collect();
         walked.sort_unstable();
         walked.dedup();
-        let (part, headings) = src.loop_part(&skeleton, &walked, &keys)?;
+        let (part, headings) = src.loop_part(&mut skeleton, &walked, &keys)?;
         let (shares, n) = sample_loops(&part, headings, (step, frames), memo, Some(laps));
         kept.extend(shares);
         played += n;

@@ -3,7 +3,9 @@
 //! holds a part of its points and not the world's (the million's: 0.77 GB, besides the
 //! headings and keys made from them).
 
-use crowd_runtime::{Library, LibraryFile, LoadError, LoopSkeleton, PackedHeadings, Point, Window};
+use crowd_runtime::{
+    Library, LibraryFile, LoadError, LoopPart, LoopSkeleton, PackedHeadings, Point, Window,
+};
 use std::borrow::Cow;
 use std::ops::Range;
 
@@ -25,12 +27,12 @@ pub trait Source: Sync {
     fn loop_keys(&self, c: usize) -> Result<Vec<u16>, LoadError>;
     /// The loop of `skeleton` with the points of trajectories `kept` (by index here), the
     /// others standing in, and its `keys` at the points held (`LoopSkeleton::part`).
-    fn loop_part(
+    fn loop_part<'s>(
         &self,
-        skeleton: &LoopSkeleton,
+        skeleton: &'s mut LoopSkeleton,
         kept: &[u32],
         keys: &[u16],
-    ) -> Result<(Library, PackedHeadings), LoadError>;
+    ) -> Result<(LoopPart<'s>, PackedHeadings), LoadError>;
     /// Trajectory `i`'s last tick (its duration).
     fn last_tick(&self, i: usize) -> u32;
 }
@@ -90,12 +92,12 @@ impl Source for Library {
         ))
     }
 
-    fn loop_part(
+    fn loop_part<'s>(
         &self,
-        skeleton: &LoopSkeleton,
+        skeleton: &'s mut LoopSkeleton,
         kept: &[u32],
         keys: &[u16],
-    ) -> Result<(Library, PackedHeadings), LoadError> {
+    ) -> Result<(LoopPart<'s>, PackedHeadings), LoadError> {
         Ok(Library::loop_part(self, skeleton, kept, keys))
     }
 
@@ -139,12 +141,12 @@ impl<F: std::io::Read + std::io::Seek + Send> Source for InFile<F> {
         self.file.packed_loop_keys(c)
     }
 
-    fn loop_part(
+    fn loop_part<'s>(
         &self,
-        skeleton: &LoopSkeleton,
+        skeleton: &'s mut LoopSkeleton,
         kept: &[u32],
         keys: &[u16],
-    ) -> Result<(Library, PackedHeadings), LoadError> {
+    ) -> Result<(LoopPart<'s>, PackedHeadings), LoadError> {
         self.file.loop_part(skeleton, kept, keys)
     }
 

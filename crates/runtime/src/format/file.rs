@@ -5,7 +5,7 @@
 //! million: 0.77 GB of points) holds the part, not the world.
 
 use super::container::POINTS;
-use super::part::LoopSkeleton;
+use super::part::{LoopPart, LoopSkeleton};
 use super::read::{FromFile, PIECE_RECORDS, decode};
 use super::records::{Character, Library, Patch, Point, Trajectory};
 use super::rules::{Shape, invalid};
@@ -144,12 +144,12 @@ impl<F: Read + Seek> LibraryFile<F> {
 
     /// [`LoopSkeleton::part`] with the points of trajectories `kept` read from the file (and
     /// checked to be what they were when it was opened).
-    pub fn loop_part(
+    pub fn loop_part<'s>(
         &self,
-        skeleton: &LoopSkeleton,
+        skeleton: &'s mut LoopSkeleton,
         kept: &[u32],
         keys: &[u16],
-    ) -> Result<(Library, crate::PackedHeadings), LoadError> {
+    ) -> Result<(LoopPart<'s>, crate::PackedHeadings), LoadError> {
         skeleton.part((&self.index, kept), keys, |i, t| {
             let read = self.read(t.first_point as usize, t.points as usize)?;
             self.unchanged(i, &read)?;
@@ -196,12 +196,12 @@ impl Library {
     }
 
     /// [`LibraryFile::loop_part`] of a library in memory: the same library and headings.
-    pub fn loop_part(
+    pub fn loop_part<'s>(
         &self,
-        skeleton: &LoopSkeleton,
+        skeleton: &'s mut LoopSkeleton,
         kept: &[u32],
         keys: &[u16],
-    ) -> (Library, crate::PackedHeadings) {
+    ) -> (LoopPart<'s>, crate::PackedHeadings) {
         let read = |_, t: &Trajectory| Ok(self.points_of(t).to_vec());
         let part = skeleton.part((self, kept), keys, read);
         part.expect("points in memory are at hand")

@@ -19,7 +19,7 @@ mod records;
 mod rules;
 
 pub use file::{LibraryFile, Window};
-pub use part::LoopSkeleton;
+pub use part::{LoopPart, LoopSkeleton};
 pub use records::{Character, Crossing, Library, Patch, Point, Trajectory, World};
 
 /// The first 8 bytes of every library.

@@ -55,29 +55,66 @@ impl LoopSkeleton {
     /// the skeleton was made of) as `read` reads them, the others standing in; and the loop's
     /// headings packed at its keys, `keys` (`crate::turn::packed_keys_in`), at the points
     /// held, as `crate::turn::take_packed_headings` puts them (no walk bit at a trajectory's
-    /// last point).
+    /// last point). Made in the skeleton itself, which it is again once the part is dropped: a
+    /// copy of the loop's records for each group was the million's 52 MB.
     pub fn part(
-        &self,
+        &mut self,
         (whole, kept): (&Library, &[u32]),
         keys: &[u16],
         mut read: impl FnMut(usize, &Trajectory) -> Result<Vec<Point>, LoadError>,
-    ) -> Result<(Library, crate::PackedHeadings), LoadError> {
-        let mut lib = self.lib.clone();
-        // Each trajectory held: where its points are in `lib`, how many, its first key.
+    ) -> Result<(LoopPart<'_>, crate::PackedHeadings), LoadError> {
+        let mut part = LoopPart {
+            points: self.lib.points.len(),
+            saved: Vec::with_capacity(kept.len()),
+            skeleton: self,
+        };
+        // Each trajectory held: where its points are in the library, how many, its first key.
         let mut held = Vec::with_capacity(kept.len());
         for &i in kept {
-            let at = self.trajectories.binary_search_by_key(&i, |e| e.0);
-            let (_, k, key) = self.trajectories[at.expect("a trajectory of the loop")];
+            let trajectories = &part.skeleton.trajectories;
+            let at = trajectories.binary_search_by_key(&i, |e| e.0);
+            let (_, k, key) = trajectories[at.expect("a trajectory of the loop")];
             let points = read(i as usize, &whole.trajectories[i as usize])?;
+            let lib = &mut part.skeleton.lib;
             let tr = &mut lib.trajectories[k as usize];
+            part.saved.push((k, tr.first_point, tr.points));
             (tr.first_point, tr.points) = (lib.points.len() as u32, points.len() as u32);
             held.push((lib.points.len(), points.len(), key));
             lib.points.extend(points);
         }
-        let mut headings = crate::PackedHeadings::for_points(&lib);
+        let mut headings = crate::PackedHeadings::for_points(&part);
         for (first, n, key) in held {
             crate::turn::leg_keys(&keys[key..key + n], &mut headings.packed[first..first + n]);
         }
-        Ok((lib, headings))
+        Ok((part, headings))
+    }
+}
+
+/// A part of a [`LoopSkeleton`] ([`LoopSkeleton::part`]): the skeleton's library with some of
+/// its trajectories' points, made the skeleton again when dropped.
+pub struct LoopPart<'a> {
+    skeleton: &'a mut LoopSkeleton,
+    /// The skeleton's points before the part's were added, and each trajectory given its own
+    /// points with where its stand-ins were.
+    points: usize,
+    saved: Vec<(u32, u32, u32)>,
+}
+
+impl std::ops::Deref for LoopPart<'_> {
+    type Target = Library;
+
+    fn deref(&self) -> &Library {
+        &self.skeleton.lib
+    }
+}
+
+impl Drop for LoopPart<'_> {
+    fn drop(&mut self) {
+        let lib = &mut self.skeleton.lib;
+        for &(k, first_point, points) in &self.saved {
+            let tr = &mut lib.trajectories[k as usize];
+            (tr.first_point, tr.points) = (first_point, points);
+        }
+        lib.points.truncate(self.points);
     }
 }
