@@ -141,6 +141,7 @@ pub struct Judged {
 /// found by its key and its pairs by its key and those within reach. The report is the same
 /// bytes as a check of the whole world. Each patch's own share is written to `out` as it is
 /// taken (a memo begun for every patch of the graph with `keys`, for none without).
+/// [`shares`] then [`pairs`], for a caller that keeps the crossings through both.
 pub fn check_world_memo<W: std::io::Write>(
     world: &World,
     keys: Option<&[Hash]>,
@@ -156,8 +157,29 @@ fn judge<W: std::io::Write>(
     keys: Option<&[Hash]>,
     memo: &Recalled,
     budget: u64,
-    mut out: Option<&mut memo::StageWriter<W>>,
+    out: Option<&mut memo::StageWriter<W>>,
 ) -> crowd_core::Result<Judged> {
+    let shares = shares(w, keys, memo, out)?;
+    pairs_in(w, shares, memo, budget)
+}
+
+/// A stage file's own shares, taken ([`shares`]): all that its pairs are then judged with
+/// ([`pairs`]), the crossings let go.
+pub struct Shares {
+    own: OwnTaken,
+    own_keys: Option<Vec<Hash>>,
+    motion: Option<motion::MotionFigures>,
+}
+
+/// The first half of [`check_world_memo`]: every patch's own share, from `memo` or measured,
+/// written to `out` as it is taken, and the motion figures. The world's crossings are read no
+/// more after it (the million's: 92 MB, which the strips' pairs need not hold).
+pub fn shares<W: std::io::Write>(
+    w: &World,
+    keys: Option<&[Hash]>,
+    memo: &Recalled,
+    mut out: Option<&mut memo::StageWriter<W>>,
+) -> crowd_core::Result<Shares> {
     let graph = w.graph;
     let n = graph.patches.len();
     let tables = w
@@ -186,6 +208,28 @@ fn judge<W: std::io::Write>(
             out.own(k[p].as_bytes(), o);
         }
     })?;
+    Ok(Shares {
+        own,
+        own_keys,
+        motion: measure.map(motion::Measure::finish),
+    })
+}
+
+/// The second half of [`check_world_memo`]: the pairs each patch owns, from `memo` or judged a
+/// strip at a time, and the report. `w`'s crossings are not read (they may be `None`).
+pub fn pairs(w: &World, shares: Shares, memo: &Recalled) -> crowd_core::Result<Judged> {
+    pairs_in(w, shares, memo, strips::STRIP_PIECES)
+}
+
+/// [`pairs`] with strips of about `budget` pieces.
+fn pairs_in(w: &World, s: Shares, memo: &Recalled, budget: u64) -> crowd_core::Result<Judged> {
+    let graph = w.graph;
+    let n = graph.patches.len();
+    let Shares {
+        own,
+        own_keys,
+        motion,
+    } = s;
     let extents = &own.extents[..];
     let walls = walls(graph);
     let reach = 2.0 * graph.radius_m + 1.0 + 1e-6;
@@ -210,7 +254,7 @@ fn judge<W: std::io::Write>(
         walkers: own.walkers,
         segments: extents.iter().map(|e| e.pieces).sum(),
         stage: String::new(),
-        motion: measure.map(motion::Measure::finish),
+        motion,
         library: None,
         gltf: None,
         input_hash: None,

@@ -433,14 +433,32 @@ fn stage_figures(
     memo: &Recalled,
     out: &mut StageWriter<files::Streamed>,
 ) -> Result<Judged> {
+    let StageFiles {
+        stage,
+        file,
+        motion,
+        crossings,
+        keys,
+    } = s;
+    let shares = {
+        let world = crowd_check::World {
+            graph,
+            source: &motion,
+            period_s: file.period_s,
+            crossings: Some((&crossings).into()),
+        };
+        crowd_check::shares(&world, keys.as_deref(), memo, Some(out))?
+    };
+    // The crossings are read no more: let go before the strips' pairs (the million's 92 MB).
+    drop(crossings);
     let world = crowd_check::World {
         graph,
-        source: &s.motion,
-        period_s: s.file.period_s,
-        crossings: Some((&s.crossings).into()),
+        source: &motion,
+        period_s: file.period_s,
+        crossings: None,
     };
-    let mut judged = crowd_check::check_world_memo(&world, s.keys.as_deref(), memo, Some(out))?;
-    judged.report.stage = s.stage.kind.to_string();
+    let mut judged = crowd_check::pairs(&world, shares, memo)?;
+    judged.report.stage = stage.kind.to_string();
     Ok(judged)
 }
 
