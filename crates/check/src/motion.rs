@@ -468,8 +468,8 @@ impl Measure {
             end.1 = e.v;
         }
         // Each crossing lies on one border, in the tables of its two patches.
+        let held = self.held.clone();
         for &(start, count) in &table.0 {
-            let held = self.held.clone();
             for c in (start..start + count).filter(|c| held.contains(c)) {
                 let slot = self.open.entry(c).or_default();
                 slot.patches += 1;
@@ -494,6 +494,7 @@ impl Measure {
         self.tally.vertex(s.left.1, s.entered.1);
     }
 
+    /// The figures, once every patch was added.
     pub fn finish(mut self) -> MotionFigures {
         // Crossings one of whose patches was never taken (a check of part of the world).
         let open: Vec<Slot> = std::mem::take(&mut self.open).into_values().collect();
@@ -581,6 +582,117 @@ mod tests {
             for cut in 0..packed.0.len() {
                 prop_assert!(PackedTally(packed.0[..cut].into()).unpack().is_none(), "cut at {}", cut);
             }
+        }
+    }
+
+    /// A world of `cols` x `rows` patches in a row-major grid, a border between each two side
+    /// by side, with `per_border[b]` crossings on border `b` (numbered border after border):
+    /// each patch's table, its runs in border order.
+    fn grid_tables(cols: u32, rows: u32, per_border: &[u32]) -> (Vec<Table>, Vec<(u32, u32)>) {
+        let mut borders = Vec::new();
+        for r in 0..rows {
+            for c in 0..cols {
+                let p = r * cols + c;
+                if c + 1 < cols {
+                    borders.push((p, p + 1));
+                }
+                if r + 1 < rows {
+                    borders.push((p, p + cols));
+                }
+            }
+        }
+        let mut tables = vec![Table::default(); (cols * rows) as usize];
+        let mut first = 0;
+        for (b, &(a, z)) in borders.iter().enumerate() {
+            let count = per_border[b % per_border.len()];
+            for p in [a, z] {
+                tables[p as usize].0.push((first, count));
+            }
+            first += count;
+        }
+        (tables, borders)
+    }
+
+    proptest! {
+        /// The border figures are the same whatever order the patches are taken in, and are
+        /// those of every crossing judged at once: matched when entered once and left once
+        /// (by either of its patches), the largest change of velocity among those, and every
+        /// other crossing held unmatched, a crossing never walked included. A patch never
+        /// taken (a part of the world) leaves its crossings to be judged at the end.
+        #[test]
+        fn measured_in_any_order_the_crossings_are_judged_as_all_at_once(
+            (cols, rows) in (1u32..5, 1u32..5),
+            per_border in proptest::collection::vec(0u32..4, 1..5),
+            ends in proptest::collection::vec((0u32..64, any::<bool>(), any::<bool>(), -3i8..4, -3i8..4), 0..120),
+            order_seed in any::<u64>(),
+            window in (0u32..8, 0u32..80),
+            untaken in 0usize..40,
+        ) {
+            let (tables, borders) = grid_tables(cols, rows, &per_border);
+            let world: u32 = (0..borders.len()).map(|b| per_border[b % per_border.len()]).sum();
+            prop_assume!(world > 0);
+            // Each end at a crossing, from one of its border's two patches.
+            let border_of = |c: u32| {
+                let mut first = 0;
+                (0..borders.len())
+                    .find(|&b| {
+                        first += per_border[b % per_border.len()];
+                        c < first
+                    })
+                    .expect("a crossing of a border")
+            };
+            let mut tallies: Vec<PatchTally> = (0..tables.len())
+                .map(|_| PatchTally {
+                    walking: 0,
+                    in_band: 0,
+                    accel: Vec::new(),
+                    turn: Vec::new(),
+                    fastest: (0.0, None),
+                    ends: Vec::new(),
+                    pos_err: 0.0,
+                    time_err: 0.0,
+                })
+                .collect();
+            let mut counts = vec![(0u32, DVec2::ZERO, 0u32, DVec2::ZERO); world as usize];
+            for &(c, side, entry, vx, vy) in &ends {
+                let c = c % world;
+                let (a, z) = borders[border_of(c)];
+                let p = if side { a } else { z } as usize;
+                let v = DVec2::new(f64::from(vx), f64::from(vy));
+                let local = tables[p].local(c);
+                tallies[p].ends.push(End { local, entry, v });
+                if p == untaken {
+                    continue;
+                }
+                let k = &mut counts[c as usize];
+                if entry { (k.0, k.1) = (k.0 + 1, v) } else { (k.2, k.3) = (k.2 + 1, v) }
+            }
+            let held = window.0.min(world)..(window.0 + window.1).min(world);
+            let measured = |order: &[usize]| {
+                let mut m = Measure::new(held.clone());
+                for &p in order {
+                    m.add(p, &tallies[p], &tables[p]);
+                }
+                m.finish()
+            };
+            let in_order: Vec<usize> = (0..tables.len()).filter(|&p| p != untaken).collect();
+            let mut shuffled = in_order.clone();
+            let mut state = order_seed | 1;
+            for i in (1..shuffled.len()).rev() {
+                state ^= state << 13;
+                state ^= state >> 7;
+                state ^= state << 17;
+                shuffled.swap(i, (state % (i as u64 + 1)) as usize);
+            }
+            let figures = measured(&in_order);
+            prop_assert_eq!(&measured(&shuffled), &figures);
+            let matched: Vec<&(u32, DVec2, u32, DVec2)> = (held.clone())
+                .map(|c| &counts[c as usize])
+                .filter(|k| k.0 == 1 && k.2 == 1)
+                .collect();
+            prop_assert_eq!(figures.unmatched_crossings, held.len() as u64 - matched.len() as u64);
+            let jump = matched.iter().map(|k| (k.1 - k.3).length()).fold(0.0, f64::max);
+            prop_assert_eq!(figures.max_border_velocity_jump, jump);
         }
     }
 
