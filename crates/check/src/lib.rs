@@ -136,22 +136,8 @@ pub struct Judged {
     pub redone: (usize, usize),
 }
 
-/// [`check_world`], taking from `memo` every patch whose share is unchanged: with `keys` (the
-/// stage's patch keys, which pin each patch's motion and crossings), a patch's own share is
-/// found by its key and its pairs by its key and those within reach. The report is the same
-/// bytes as a check of the whole world. Each patch's own share is written to `out` as it is
-/// taken (a memo begun for every patch of the graph with `keys`, for none without).
-/// [`shares`] then [`pairs`], for a caller that keeps the crossings through both.
-pub fn check_world_memo<W: std::io::Write>(
-    world: &World,
-    keys: Option<&[Hash]>,
-    memo: &Recalled,
-    out: Option<&mut memo::StageWriter<W>>,
-) -> crowd_core::Result<Judged> {
-    judge(world, keys, memo, strips::STRIP_PIECES, out)
-}
-
-/// [`check_world_memo`] with strips of about `budget` pieces.
+/// [`check_world`], taking from `memo` every patch whose share is unchanged ([`shares`], then
+/// [`pairs`]), with strips of about `budget` pieces.
 fn judge<W: std::io::Write>(
     w: &World,
     keys: Option<&[Hash]>,
@@ -171,9 +157,12 @@ pub struct Shares {
     motion: Option<motion::MotionFigures>,
 }
 
-/// The first half of [`check_world_memo`]: every patch's own share, from `memo` or measured,
-/// written to `out` as it is taken, and the motion figures. The world's crossings are read no
-/// more after it (the million's: 92 MB, which the strips' pairs need not hold).
+/// A check of a stage file that takes from `memo` every patch whose share is unchanged, its
+/// first half: with `keys` (the stage's patch keys, which pin each patch's motion and
+/// crossings), a patch's own share is found by its key; each is written to `out` as it is
+/// taken (a memo begun for every patch of the graph with `keys`, for none without), and the
+/// motion figures are made. The world's crossings are read no more after it (the million's:
+/// 92 MB, which the strips' pairs need not hold).
 pub fn shares<W: std::io::Write>(
     w: &World,
     keys: Option<&[Hash]>,
@@ -195,8 +184,7 @@ pub fn shares<W: std::io::Write>(
         );
     }
     // The motion figures are added up as each patch's share is taken, in patch order.
-    let mut measure =
-        (w.crossings.zip(tables.as_ref())).map(|(c, _)| motion::Measure::new(c.numbers()));
+    let mut measure = w.crossings.map(|c| motion::Measure::new(c.numbers()));
     let own = own_shares(w, tables.as_deref(), own_keys.as_deref(), memo, |p, o| {
         if let (Some(m), Some(t), Some(tally)) = (&mut measure, &tables, &o.tally) {
             let tally = tally
@@ -215,8 +203,10 @@ pub fn shares<W: std::io::Write>(
     })
 }
 
-/// The second half of [`check_world_memo`]: the pairs each patch owns, from `memo` or judged a
-/// strip at a time, and the report. `w`'s crossings are not read (they may be `None`).
+/// The second half of [`shares`]' check: the pairs each patch owns, found by its key and
+/// those of the patches within reach or judged a strip at a time, and the report, the same
+/// bytes as a check of the whole world ([`check_world`]). `w`'s crossings are not read (they
+/// may be `None`).
 pub fn pairs(w: &World, shares: Shares, memo: &Recalled) -> crowd_core::Result<Judged> {
     pairs_in(w, shares, memo, strips::STRIP_PIECES)
 }

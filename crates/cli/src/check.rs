@@ -414,8 +414,6 @@ impl StageFiles {
     }
 }
 
-/// The check of a stage's trajectories, with their motion figures: decoded a strip of the
-/// world at a time (`crowd_check::check_world`).
 /// The stage file's part of the new memo at `path`, ended with the pairs `judged` holds (let
 /// go).
 fn end_stage(
@@ -427,6 +425,8 @@ fn end_stage(
     (begun.pairs(&pairs)).map_err(|e| crowd_core::Error::io(path, "write", e).into())
 }
 
+/// The check of a stage's trajectories, with their motion figures: decoded a strip of the
+/// world at a time (`crowd_check::shares`, then `crowd_check::pairs`).
 fn stage_figures(
     graph: &PatchGraph,
     s: StageFiles,

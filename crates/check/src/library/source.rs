@@ -25,6 +25,11 @@ pub trait Source: Sync {
     /// Loop `c`'s headings packed at its keys (`crowd_runtime::turn::packed_keys_in`), made
     /// without holding the loop's points.
     fn loop_keys(&self, c: usize) -> Result<Vec<u16>, LoadError>;
+    /// Trajectory `i`'s points.
+    fn trajectory_points(&self, i: usize) -> Result<Vec<Point>, LoadError>;
+    /// Trajectory `i`'s last tick (its duration).
+    fn last_tick(&self, i: usize) -> u32;
+
     /// The loop of `skeleton` with the points of trajectories `kept` (by index here), the
     /// others standing in, and its `keys` at the points held (`LoopSkeleton::part`).
     fn loop_part<'s>(
@@ -32,9 +37,10 @@ pub trait Source: Sync {
         skeleton: &'s mut LoopSkeleton,
         kept: &[u32],
         keys: &[u16],
-    ) -> Result<(LoopPart<'s>, PackedHeadings), LoadError>;
-    /// Trajectory `i`'s last tick (its duration).
-    fn last_tick(&self, i: usize) -> u32;
+    ) -> Result<(LoopPart<'s>, PackedHeadings), LoadError> {
+        let read = |i: usize, _: &crowd_runtime::Trajectory| self.trajectory_points(i);
+        skeleton.part((self.lib(), kept), keys, read)
+    }
 }
 
 /// The points at hand: a library's own, or a window read from its file.
@@ -92,13 +98,8 @@ impl Source for Library {
         ))
     }
 
-    fn loop_part<'s>(
-        &self,
-        skeleton: &'s mut LoopSkeleton,
-        kept: &[u32],
-        keys: &[u16],
-    ) -> Result<(LoopPart<'s>, PackedHeadings), LoadError> {
-        Ok(Library::loop_part(self, skeleton, kept, keys))
+    fn trajectory_points(&self, i: usize) -> Result<Vec<Point>, LoadError> {
+        Ok(self.points_of(&self.trajectories[i]).to_vec())
     }
 
     fn last_tick(&self, i: usize) -> u32 {
@@ -141,13 +142,8 @@ impl<F: std::io::Read + std::io::Seek + Send> Source for InFile<F> {
         self.file.packed_loop_keys(c)
     }
 
-    fn loop_part<'s>(
-        &self,
-        skeleton: &'s mut LoopSkeleton,
-        kept: &[u32],
-        keys: &[u16],
-    ) -> Result<(LoopPart<'s>, PackedHeadings), LoadError> {
-        self.file.loop_part(skeleton, kept, keys)
+    fn trajectory_points(&self, i: usize) -> Result<Vec<Point>, LoadError> {
+        self.file.trajectory_points(i)
     }
 
     fn last_tick(&self, i: usize) -> u32 {

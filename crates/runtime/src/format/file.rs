@@ -5,7 +5,6 @@
 //! million: 0.77 GB of points) holds the part, not the world.
 
 use super::container::POINTS;
-use super::part::{LoopPart, LoopSkeleton};
 use super::read::{FromFile, PIECE_RECORDS, decode};
 use super::records::{Character, Library, Patch, Point, Trajectory};
 use super::rules::{Shape, invalid};
@@ -142,19 +141,13 @@ impl<F: Read + Seek> LibraryFile<F> {
         self.last[i]
     }
 
-    /// [`LoopSkeleton::part`] with the points of trajectories `kept` read from the file (and
-    /// checked to be what they were when it was opened).
-    pub fn loop_part<'s>(
-        &self,
-        skeleton: &'s mut LoopSkeleton,
-        kept: &[u32],
-        keys: &[u16],
-    ) -> Result<(LoopPart<'s>, crate::PackedHeadings), LoadError> {
-        skeleton.part((&self.index, kept), keys, |i, t| {
-            let read = self.read(t.first_point as usize, t.points as usize)?;
-            self.unchanged(i, &read)?;
-            Ok(read)
-        })
+    /// Trajectory `i`'s points read from the file, refused if they are not what they were when
+    /// it was opened (a long loop's part, `LoopSkeleton::part`, reads them so).
+    pub fn trajectory_points(&self, i: usize) -> Result<Vec<Point>, LoadError> {
+        let t = &self.index.trajectories[i];
+        let read = self.read(t.first_point as usize, t.points as usize)?;
+        self.unchanged(i, &read)?;
+        Ok(read)
     }
 
     /// `count` points from PNTS index `first`.
@@ -194,18 +187,6 @@ impl Library {
         let points = |_, t: &Trajectory| Ok::<_, LoadError>(self.points_of(t).to_vec());
         loops_of(self, characters, points).expect("points in memory are at hand")
     }
-
-    /// [`LibraryFile::loop_part`] of a library in memory: the same library and headings.
-    pub fn loop_part<'s>(
-        &self,
-        skeleton: &'s mut LoopSkeleton,
-        kept: &[u32],
-        keys: &[u16],
-    ) -> (LoopPart<'s>, crate::PackedHeadings) {
-        let read = |_, t: &Trajectory| Ok(self.points_of(t).to_vec());
-        let part = skeleton.part((self, kept), keys, read);
-        part.expect("points in memory are at hand")
-    }
 }
 
 /// The library of loops `characters` of `lib` alone (see [`LibraryFile::loops`]), each
@@ -219,7 +200,7 @@ fn loops_of<E>(
 }
 
 /// [`loops_of`], where `read` hands over `size` points for each trajectory (by its index in
-/// `lib`): its own, or fewer standing in for them ([`LoopSkeleton`]).
+/// `lib`): its own, or fewer standing in for them ([`LoopSkeleton`](super::part::LoopSkeleton)).
 pub(super) fn loops_sized<E>(
     lib: &Library,
     characters: std::ops::Range<usize>,
