@@ -715,7 +715,10 @@ fn export_made_patch_by_patch_writes_what_export_of_the_held_motion_writes() {
                     .unwrap();
             // Handed over as soon as made: the same bytes, and the size and hash they have.
             let handed_bytes = std::sync::Mutex::new(Vec::new());
-            let hand = |bytes: Vec<u8>| *handed_bytes.lock().unwrap() = bytes;
+            let hand = |bytes: Vec<u8>, hash: crowd_core::Hash| {
+                assert_eq!(hash, crowd_core::Hash::of(&bytes), "handed with their hash");
+                *handed_bytes.lock().unwrap() = bytes;
+            };
             let handed = crowd_export::Handing::Handed(&hand);
             let handed =
                 crowd_export::export(&graph, crossings.clone(), &held, &inputs, hash, handed)

@@ -1064,8 +1064,8 @@ fn export(a: &mut Artifacts, out: &Path, hash: Hash, _: &Ui) -> Result<Ran> {
     let library = out.with_file_name(crowd_export::LIBRARY_FILE);
     // Else a library's bytes are written on a thread of their own as soon as they are made.
     let writing = std::sync::Mutex::new(None);
-    let hand = |bytes: Vec<u8>| {
-        let started = files::Writing::start(&library, bytes);
+    let hand = |bytes: Vec<u8>, hash: Hash| {
+        let started = files::Writing::start(&library, (bytes, hash));
         *writing.lock().unwrap_or_else(|e| e.into_inner()) = Some(started);
     };
     let handing = match a.split {
@@ -1100,14 +1100,6 @@ fn export(a: &mut Artifacts, out: &Path, hash: Hash, _: &Ui) -> Result<Ran> {
     let (lib, spilled) = match export.library {
         crowd_export::LibraryBytes::Held(_) | crowd_export::LibraryBytes::Handed(..) => {
             let (writes, file) = crowd_export::writes(out, export).map_err(failed)?;
-            if let Some(h) = handed.as_ref().filter(|h| h.hash != file.library_hash) {
-                bail!(
-                    "{}: written with hash {}, but its bytes were made with hash {}",
-                    library.display(),
-                    h.hash.short(),
-                    file.library_hash.short()
-                );
-            }
             let ran = Ran {
                 streamed: handed.into_iter().collect(),
                 ..Ran::files(writes)

@@ -517,21 +517,31 @@ impl Drop for StreamedFile {
     }
 }
 
-/// A file's bytes written to its temporary name on a thread of their own (as a [`Streamed`]
-/// file's), while the caller goes on; [`Writing::finish`] waits for them.
+/// A file's bytes written to its temporary name on a thread of their own, while the caller
+/// goes on, and then staged as a [`Streamed`] file is; [`Writing::finish`] waits for them.
 pub struct Writing {
     path: std::path::PathBuf,
     thread: std::io::Result<std::thread::JoinHandle<Result<StreamedFile>>>,
 }
 
 impl Writing {
-    /// Starts writing `bytes` as the file that will be `path`.
-    pub fn start(path: &Path, bytes: Vec<u8>) -> Writing {
+    /// Starts writing `bytes`, which hash to `hash` (the maker hashed them already), as the
+    /// file that will be `path`.
+    pub fn start(path: &Path, (bytes, hash): (Vec<u8>, crate::Hash)) -> Writing {
         let to = path.to_path_buf();
+        crate::Hash::forget_file(path);
         let thread = std::thread::Builder::new().spawn(move || {
-            let mut file = Streamed::create(&to)?;
-            file.write(&bytes)?;
-            file.finish()
+            let tmp = temporary(&to);
+            if let Err(e) = write_durably(&tmp, &bytes) {
+                let _ = std::fs::remove_file(&tmp);
+                return Err(Error::io(&to, "write", e));
+            }
+            Ok(StreamedFile {
+                path: to,
+                tmp: Some(tmp),
+                bytes: bytes.len() as u64,
+                hash,
+            })
         });
         Writing {
             path: path.to_path_buf(),

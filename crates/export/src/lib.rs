@@ -135,8 +135,8 @@ pub enum LibraryBytes {
     /// Its records but the points, which are in a scratch file ([`Handing::Spilled`]), to be
     /// written a piece at a time (`crowd_runtime::Library::write_with_points`).
     Spilled(crowd_runtime::Library, spill::Spilled),
-    /// Its size and hash: its bytes were handed over as soon as they were made
-    /// ([`Handing::Handed`]).
+    /// Its size and hash: its bytes were handed over (with their hash) as soon as they were
+    /// made ([`Handing::Handed`]), for whoever took them to write.
     Handed(u64, Hash),
 }
 
@@ -204,11 +204,12 @@ pub enum Handing<'a> {
     /// Its bytes, made beside `world.glb`, for a library under 32 million points; a larger
     /// one's records ([`LibraryBytes`]).
     BySize,
-    /// As [`Handing::BySize`], but the bytes are given to this as soon as they are made, not
-    /// held until `world.glb` is done: its longest loop keeps one core busy while the other
-    /// is idle, time in which they can be written (painting's stroke: 88 MB, a quarter of a
-    /// second that its check waited for).
-    Handed(&'a (dyn Fn(Vec<u8>) + Sync)),
+    /// As [`Handing::BySize`], but the bytes and their hash are given to this as soon as they
+    /// are made, not held until `world.glb` is done: its longest loop keeps one core busy
+    /// while the other is idle, time in which they can be written (painting's stroke: 88 MB, a
+    /// quarter of a second that its check waited for). A larger library's records are handed
+    /// over as with [`Handing::BySize`].
+    Handed(&'a (dyn Fn(Vec<u8>, Hash) + Sync)),
     /// Its records, whatever its size (the tests of [`LibraryBytes::Records`]).
     Records,
     /// Its records but the points, kept in a scratch file in this folder as they are made,
@@ -292,7 +293,7 @@ pub fn export<M: motion::Motion>(
             match hand {
                 Some(to) => {
                     let made = (bytes.len() as u64, Hash::of(&bytes));
-                    to(bytes);
+                    to(bytes, made.1);
                     Err(made)
                 }
                 None => Ok(bytes),
