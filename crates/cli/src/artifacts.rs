@@ -275,6 +275,14 @@ impl<'p> Artifacts<'p> {
         self.lazy.insert(stage.output, Rc::new(made));
     }
 
+    /// The motion `stage` made and left in files, taken out, if it did.
+    pub fn take_lazy_motion(
+        &mut self,
+        stage: &'static Stage,
+    ) -> Option<Rc<(TrajectoriesFile, LazyMotion)>> {
+        self.lazy.remove(stage.output)
+    }
+
     /// The motion `stage` made and left in files, if it did.
     pub fn lazy_motion(&self, stage: &'static Stage) -> Option<Rc<(TrajectoriesFile, LazyMotion)>> {
         self.lazy.get(stage.output).cloned()

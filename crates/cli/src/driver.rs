@@ -187,6 +187,9 @@ fn run_stages(
         for file in ran.streamed {
             pending.stage_streamed(file);
         }
+        for (path, bytes) in ran.shared {
+            pending.stage_shared(path, bytes);
+        }
         pending.stage(ran.writes);
         for (path, hash) in ran.hashes {
             pending.know(path, hash);
@@ -267,12 +270,16 @@ pub fn run_stage(
     let Ran {
         writes,
         streamed,
+        shared,
         note,
         ..
     } = (stage.run)(&mut artifacts, &out, hash, ui)?;
     let mut pending = files::Staging::new();
     for file in streamed {
         pending.stage_streamed(file);
+    }
+    for (path, bytes) in shared {
+        pending.stage_shared(path, bytes);
     }
     pending.stage(writes);
     pending.commit()?;

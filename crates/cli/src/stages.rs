@@ -14,8 +14,8 @@ use crowd_core::files::{self, Header};
 use crowd_core::maps::MergeFile;
 use crowd_core::patch_keys::Seen;
 use crowd_core::patterns::Patterns;
-use crowd_core::trajectories::SideMotion::Streamed;
-use crowd_core::trajectories::{LazyMotion, PatchMotion, TrajectoriesFile};
+use crowd_core::trajectories::SideMotion::{self, Streamed};
+use crowd_core::trajectories::{LazyMotion, MotionIndex, PatchMotion, TrajectoriesFile};
 use crowd_core::{Hash, PatchGraph};
 use rayon::prelude::*;
 use std::borrow::Cow;
@@ -805,39 +805,61 @@ fn smooth(a: &mut Artifacts, out: &Path, hash: Hash, ui: &Ui) -> Result<Ran> {
         )
     });
     let keys = keys?;
-    let counted = |counts: [u64; 3]| counts.iter().flat_map(|c| c.to_le_bytes()).collect();
-    let mut done = reuse::reusable(previous.as_ref(), &keys, &seen.tables);
-    let todo: Vec<usize> = (0..done.len()).filter(|&p| done[p].is_none()).collect();
+    // A patch whose key is unchanged stays the last build's bytes: copied and renumbered,
+    // never decoded (export reads the side file's bytes as it thins them).
+    let reused: Vec<Option<reuse::Encoded>> = (0..keys.len())
+        .map(|p| previous.as_ref()?.take_encoded(p, keys[p]))
+        .collect();
+    let todo: Vec<usize> = (0..reused.len()).filter(|&p| reused[p].is_none()).collect();
     let made = crowd_smooth::smooth_patches(&graph, &patterns.1, &collided.1, &inputs, &bar, &todo);
     // Stage 5's motion is read no more: let it go before the encoding.
     let collided_file = collided.0.clone();
     drop(collided);
-    for (&p, (m, counts)) in todo.iter().zip(made) {
-        done[p] = Some((m, counted(counts)));
-    }
-    let mut motion = Vec::with_capacity(done.len());
-    let mut counts = Vec::with_capacity(done.len());
-    let mut extra = Vec::with_capacity(done.len());
-    for d in done {
-        let (m, bytes) = d.expect("every patch smoothed or reused");
-        let count = |i: usize| {
-            bytes
-                .get(8 * i..8 * i + 8)
-                .and_then(|b| b.try_into().ok())
-                .map_or(0, u64::from_le_bytes)
+    let counted = |counts: [u64; 3]| counts.iter().flat_map(|c| c.to_le_bytes()).collect();
+    let mut made = made.into_iter().map(|(m, counts)| (m, counted(counts)));
+    let mut patches = Vec::with_capacity(reused.len());
+    let mut extra: Vec<Vec<u8>> = Vec::with_capacity(reused.len());
+    for r in &reused {
+        let (bytes, figures) = match r {
+            Some((bytes, was, figures)) => {
+                (reuse::PatchBytes::Reused(bytes, was), figures.to_vec())
+            }
+            None => {
+                let (motion, figures) = made.next().expect("every patch smoothed or reused");
+                (reuse::PatchBytes::Made(motion), figures)
+            }
         };
-        counts.push([count(0), count(1), count(2)]);
-        motion.push(m);
-        extra.push(bytes);
+        patches.push(bytes);
+        extra.push(figures);
     }
-    let summary = crowd_smooth::summary_of(counts.into_iter());
-    let (file, writes) = crowd_smooth::encode(out, &motion, summary, &collided_file, &inputs, hash);
+    let (bytes, sums) = reuse::side_bytes(&patches, &seen.tables);
+    drop(patches);
+    drop(reused);
+    drop(previous);
+    let count = |bytes: &[u8], i: usize| {
+        bytes
+            .get(8 * i..8 * i + 8)
+            .and_then(|b| b.try_into().ok())
+            .map_or(0, u64::from_le_bytes)
+    };
+    let counts = extra
+        .iter()
+        .map(|b| [count(b, 0), count(b, 1), count(b, 2)]);
+    let summary = crowd_smooth::summary_of(counts);
+    let mut summing = crowd_core::trajectories::Summing::new(inputs.period_s);
+    sums.iter().for_each(|s| summing.add_sums(s));
+    let encoded = SideMotion::Encoded(&bytes, summing.finish());
+    let (file, writes) = crowd_smooth::encode(out, encoded, summary, &collided_file, &inputs, hash);
+    let note = reuse::note(extra.len() - todo.len(), extra.len());
     let writes = with_keys(out, writes, file.motion.hash, keys, &seen.tables, extra);
-    let note = reuse::note(motion.len() - todo.len(), motion.len());
     let side = side_file(out, &file);
-    a.made_motion(&SMOOTH, (file, motion));
+    let index = MotionIndex::of(&side.0, &bytes)?;
+    let bytes = std::sync::Arc::new(bytes);
+    let motion = LazyMotion::of_bytes((out, &side.0), bytes.clone(), index);
+    a.made_lazy_motion(&SMOOTH, (file, motion));
     Ok(Ran {
         note: Some(note),
+        shared: vec![(side.0.clone(), bytes)],
         ..Ran::files(writes)
     }
     .knowing(side.0, side.1))
@@ -1077,6 +1099,19 @@ fn export(a: &mut Artifacts, out: &Path, hash: Hash, _: &Ui) -> Result<Ran> {
         let held = a.take_motion(stage)?;
         let motion = std::rc::Rc::try_unwrap(held).map_or_else(|shared| shared.1.clone(), |m| m.1);
         let kept = crowd_export::simplify::motion(motion, tolerance_m);
+        crowd_export::export(&graph, crossings, &kept, &inputs, hash, handing)
+    } else if a.split != Split::Gather {
+        // Left in its side file (a stroke's stage 6 holds its bytes): each patch decoded and
+        // thinned once, its dense keyframes freed as it is.
+        let lazy = a.take_lazy_motion(stage);
+        let lazy = lazy.map_or_else(|| lazy_motion(a, stage), Ok)?;
+        let motion = &lazy.1;
+        let kept: Vec<crowd_core::Result<PatchMotion>> = (0..motion.patches())
+            .into_par_iter()
+            .map(|p| Ok(crowd_export::simplify::patch(motion.patch(p)?, tolerance_m)))
+            .collect();
+        let kept = kept.into_iter().collect::<crowd_core::Result<Vec<_>>>()?;
+        drop(lazy);
         crowd_export::export(&graph, crossings, &kept, &inputs, hash, handing)
     } else {
         // A gathering build: each patch read from the stage's files and thinned when export

@@ -217,6 +217,22 @@ pub struct Staging {
     known: Vec<(std::path::PathBuf, crate::Hash)>,
 }
 
+/// Bytes a [`Staging`] writer writes: its own, or shared with the build.
+enum Shared {
+    Own(Vec<u8>),
+    Arc(std::sync::Arc<Vec<u8>>),
+}
+
+impl std::ops::Deref for Shared {
+    type Target = [u8];
+    fn deref(&self) -> &[u8] {
+        match self {
+            Shared::Own(bytes) => bytes,
+            Shared::Arc(bytes) => bytes,
+        }
+    }
+}
+
 /// What a [`Staging`] writer wrote: (temporary, final) paths in order, and the first failure.
 type Written = (Vec<(std::path::PathBuf, std::path::PathBuf)>, Option<Error>);
 
@@ -224,6 +240,9 @@ type Written = (Vec<(std::path::PathBuf, std::path::PathBuf)>, Option<Error>);
 /// [`Streamed`] to its temporary name already (temporary, final).
 enum Staged {
     Bytes(std::path::PathBuf, Vec<u8>),
+    /// Bytes that the build reads on meanwhile (a stroke's stage 6 side file, which export
+    /// thins).
+    Shared(std::path::PathBuf, std::sync::Arc<Vec<u8>>),
     Streamed(std::path::PathBuf, std::path::PathBuf),
 }
 
@@ -243,7 +262,8 @@ impl Staging {
                         let _ = std::fs::remove_file(tmp);
                         continue;
                     }
-                    Staged::Bytes(path, bytes) => (path, bytes),
+                    Staged::Bytes(path, bytes) => (path, Shared::Own(bytes)),
+                    Staged::Shared(path, bytes) => (path, Shared::Arc(bytes)),
                 };
                 if failed.is_some() {
                     continue; // the build fails at its commit; nothing more is written
@@ -273,6 +293,13 @@ impl Staging {
             // The writer ends only when the sender is dropped: it is there to receive.
             let _ = sender.send(Staged::Bytes(path, bytes));
         }
+    }
+
+    /// Queues `bytes` to be written now as `path` and put in place at the commit, read by the
+    /// build meanwhile.
+    pub fn stage_shared(&mut self, path: std::path::PathBuf, bytes: std::sync::Arc<Vec<u8>>) {
+        let sender = self.sender.as_ref().expect("staging before its commit");
+        let _ = sender.send(Staged::Shared(path, bytes));
     }
 
     /// Queues a file written already to its temporary name, to be put in place at the commit

@@ -8,6 +8,9 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
+mod encoded;
+pub use encoded::{PatchSums, renumber_encoded, sums_of_encoded};
+
 /// What a control point is for.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 pub enum PointKind {
@@ -218,7 +221,7 @@ const TRAJECTORY_BYTES: usize = 12;
 const POINT_BYTES: usize = 25;
 
 /// The bytes [`encode_patch`] writes for `p`.
-fn encoded_size(p: &PatchMotion) -> usize {
+pub fn encoded_size(p: &PatchMotion) -> usize {
     let points: usize = p.trajectories.iter().map(|t| t.points.len()).sum();
     8 + STANDER_BYTES * p.standers.len()
         + TRAJECTORY_BYTES * p.trajectories.len()
@@ -226,7 +229,7 @@ fn encoded_size(p: &PatchMotion) -> usize {
 }
 
 /// Writes one patch's motion into `out`, exactly [`encoded_size`] bytes.
-fn encode_patch(p: &PatchMotion, out: &mut [u8]) {
+pub fn encode_patch(p: &PatchMotion, out: &mut [u8]) {
     let mut at = 0;
     let mut put = |bytes: &[u8]| {
         out[at..at + bytes.len()].copy_from_slice(bytes);
@@ -480,9 +483,16 @@ struct LazyFile {
     path: std::path::PathBuf,
     /// The side file, named when its bytes are damaged.
     side: std::path::PathBuf,
-    file: std::fs::File,
+    from: Bytes,
     index: MotionIndex,
     first: usize,
+}
+
+/// Where a [`LazyFile`]'s bytes are: in its file, or held (the side file a build made and
+/// writes meanwhile).
+enum Bytes {
+    File(std::fs::File),
+    Held(std::sync::Arc<Vec<u8>>),
 }
 
 impl LazyMotion {
@@ -499,7 +509,7 @@ impl LazyMotion {
             files.push(LazyFile {
                 path,
                 side,
-                file,
+                from: Bytes::File(file),
                 index,
                 first,
             });
@@ -518,6 +528,25 @@ impl LazyMotion {
         LazyMotion::of_parts(vec![(path.to_path_buf(), side.to_path_buf(), index)])
     }
 
+    /// The motion of the side file `bytes` (of the stage file `path`, to be `side`), held:
+    /// `index` is [`MotionIndex::of`] them.
+    pub fn of_bytes(
+        (path, side): (&Path, &Path),
+        bytes: std::sync::Arc<Vec<u8>>,
+        index: MotionIndex,
+    ) -> LazyMotion {
+        LazyMotion {
+            patches: index.patches(),
+            files: vec![LazyFile {
+                path: path.to_path_buf(),
+                side: side.to_path_buf(),
+                from: Bytes::Held(bytes),
+                index,
+                first: 0,
+            }],
+        }
+    }
+
     pub fn patches(&self) -> usize {
         self.patches
     }
@@ -526,13 +555,18 @@ impl LazyMotion {
     pub fn patch(&self, p: usize) -> Result<PatchMotion> {
         let f = &self.files[self.files.partition_point(|f| f.first <= p) - 1];
         let span = f.index.spans[p - f.first].0.clone();
-        let mut bytes = vec![0u8; span.len()];
-        crate::files::read_at(&f.file, &mut bytes, span.start as u64)
-            .map_err(|e| Error::io(&f.side, "read", e))?;
-        let mut r = Reader {
-            bytes: &bytes,
-            at: 0,
+        let read;
+        let bytes = match &f.from {
+            Bytes::Held(held) => &held[span.clone()],
+            Bytes::File(file) => {
+                let mut bytes = vec![0u8; span.len()];
+                crate::files::read_at(file, &mut bytes, span.start as u64)
+                    .map_err(|e| Error::io(&f.side, "read", e))?;
+                read = bytes;
+                &read[..]
+            }
         };
+        let mut r = Reader { bytes, at: 0 };
         let m = decode_patch(&mut r).ok_or_else(|| damaged(&f.side, span.start + r.at))?;
         check_patch_motion(&f.path, p, &m)?;
         Ok(m)
@@ -712,12 +746,15 @@ impl Summing {
     }
 }
 
-/// The motion a stage file names: held, to be encoded beside it; or its side file streamed to
-/// its temporary name already ([`crate::files::Streamed`], at the owner's side file path: a
-/// gathering build's), with the summary of its motion.
+/// The motion a stage file names: held, to be encoded beside it; or its side file's bytes,
+/// streamed to its temporary name already ([`crate::files::Streamed`], at the owner's side
+/// file path: a gathering build's) or made and written by the owner (a stroke's stage 6, from
+/// the last build's bytes), with the summary of its motion.
 pub enum SideMotion<'a> {
     Held(&'a [PatchMotion]),
     Streamed(&'a crate::files::StreamedFile, MotionSummary),
+    /// Encoded already, to be written by the caller, with the summary of its motion.
+    Encoded(&'a [u8], MotionSummary),
 }
 
 impl<'a> From<&'a [PatchMotion]> for SideMotion<'a> {
@@ -749,6 +786,10 @@ pub fn encode_file<'a>(
             let bytes = encode_motion(motion);
             let (path, record) = SideFile::beside(out, &bytes);
             (summarize(motion, period_s), record, Some((path, bytes)))
+        }
+        SideMotion::Encoded(bytes, summary) => {
+            let (_, record) = SideFile::beside(out, bytes);
+            (summary, record, None)
         }
         SideMotion::Streamed(side, summary) => {
             let (path, mut record) = SideFile::beside(out, &[]);

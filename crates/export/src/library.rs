@@ -325,14 +325,24 @@ fn ease_ticks(
         a.pos.distance(b.pos) / (b.t - a.t).max(TICK_S)
     };
     let mut eased = 0.0f64;
-    for k in 1..points.len().saturating_sub(1) {
-        let allowed = exact_speed(k - 1).max(exact_speed(k));
+    if points.len() < 3 {
+        return eased;
+    }
+    // Each piece's speeds are made once and carried to the next point (they were half of a
+    // stroke's library): the same values, so the same choices, as made afresh at each point.
+    let (mut exact_before, mut before) = (exact_speed(0), speed(&points[0], &points[1]));
+    for k in 1..points.len() - 1 {
+        let exact_after = exact_speed(k);
+        let after = speed(&points[k], &points[k + 1]);
+        let allowed = exact_before.max(exact_after);
+        exact_before = exact_after;
+        if before.max(after) <= allowed {
+            before = after;
+            continue;
+        }
         let worst = |points: &[Point]| {
             speed(&points[k - 1], &points[k]).max(speed(&points[k], &points[k + 1]))
         };
-        if worst(points) <= allowed {
-            continue;
-        }
         let (lo, hi, now) = (points[k - 1].t, points[k + 1].t, points[k].t);
         let mut best = (worst(points), now);
         for shift in [-1i64, 1] {
@@ -352,6 +362,7 @@ fn ease_ticks(
             eased = eased.max(allowed * TICK_S);
         }
         points[k].t = best.1;
+        before = speed(&points[k], &points[k + 1]);
     }
     eased
 }
