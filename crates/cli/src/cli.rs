@@ -396,6 +396,17 @@ fn parse_region(text: &str) -> Result<(f64, f64, f64, f64), String> {
     }
 }
 
+impl Cli {
+    /// Whether this is a part of a build split over processes (`build --shard` or
+    /// `--gather`), whose peak memory is what sizes the jobs that run it.
+    pub fn is_split(&self) -> bool {
+        matches!(
+            &self.command,
+            Command::Build { shard: Some(_), .. } | Command::Build { gather: true, .. }
+        )
+    }
+}
+
 pub fn run(cli: Cli) -> Result<()> {
     if let Some(asked) = cli.threads {
         // More threads than cores only contend (a 0.4 s build took 30 s at 1000); outputs are
