@@ -619,3 +619,20 @@ pub fn run(cli: Cli) -> Result<()> {
     }
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::Cli;
+    use clap::Parser;
+
+    #[test]
+    fn only_a_shard_or_a_gather_is_a_build_split_over_processes() {
+        let split = |args: &[&str]| Cli::try_parse_from(args).unwrap().is_split();
+        assert!(split(&["crowd", "build", "--shard", "1/4"]));
+        assert!(split(&["crowd", "build", "--gather"]));
+        assert!(split(&["crowd", "-q", "build", "--pipeline", "p.ron", "--gather"]));
+        assert!(!split(&["crowd", "build"]));
+        assert!(!split(&["crowd", "build", "--force"]));
+        assert!(!split(&["crowd", "check", "out"]));
+    }
+}
