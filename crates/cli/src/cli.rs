@@ -630,7 +630,14 @@ mod tests {
         let split = |args: &[&str]| Cli::try_parse_from(args).unwrap().is_split();
         assert!(split(&["crowd", "build", "--shard", "1/4"]));
         assert!(split(&["crowd", "build", "--gather"]));
-        assert!(split(&["crowd", "-q", "build", "--pipeline", "p.ron", "--gather"]));
+        assert!(split(&[
+            "crowd",
+            "-q",
+            "build",
+            "--pipeline",
+            "p.ron",
+            "--gather"
+        ]));
         assert!(!split(&["crowd", "build"]));
         assert!(!split(&["crowd", "build", "--force"]));
         assert!(!split(&["crowd", "check", "out"]));

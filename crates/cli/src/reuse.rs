@@ -20,7 +20,7 @@ pub type Encoded<'a> = (&'a [u8], &'a Table, &'a [u8]);
 /// A stage's output of the last build, where its keys belong to it.
 pub struct Previous {
     keys: Keys,
-    bytes: Vec<u8>,
+    bytes: crowd_core::files::Mapped,
     index: MotionIndex,
     side: PathBuf,
 }
@@ -34,7 +34,7 @@ impl Previous {
         if file.motion.hash != keys.side {
             return None;
         }
-        let bytes = file.motion.read(stage_file).ok()?;
+        let bytes = file.motion.map(stage_file).ok()?;
         let side = stage_file.with_file_name(&file.motion.file);
         let index = MotionIndex::of(&side, &bytes).ok()?;
         (index.patches() == keys.patches.len()).then_some(Previous {
