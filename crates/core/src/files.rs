@@ -62,18 +62,6 @@ pub fn read_bytes(path: &Path) -> Result<Vec<u8>> {
 /// A side file's bytes mapped into memory ([`SideFile::map`]).
 pub struct Mapped(memmap2::Mmap);
 
-impl Mapped {
-    /// The file at `path` mapped, read only, as it is (a build's own side file, checked
-    /// already: see [`SideFile::map`] for why its bytes stay those).
-    pub fn open(path: &Path) -> Result<Mapped> {
-        let file = std::fs::File::open(path).map_err(|e| Error::io(path, "read", e))?;
-        // SAFETY: the map is read only, and its bytes change only if another program writes
-        // the file in place meanwhile (no build does), as with any mapped file.
-        let map = unsafe { memmap2::MmapOptions::new().populate().map(&file) };
-        Ok(Mapped(map.map_err(|e| Error::io(path, "read", e))?))
-    }
-}
-
 impl std::ops::Deref for Mapped {
     type Target = [u8];
     fn deref(&self) -> &[u8] {
@@ -143,9 +131,13 @@ impl SideFile {
     /// writes one in place, so the bytes mapped stay the ones checked while the map lives.
     pub fn map(&self, owner: &Path) -> Result<Mapped> {
         let path = owner.with_file_name(&self.file);
-        let map = Mapped::open(&path)?;
+        let file = std::fs::File::open(&path).map_err(|e| Error::io(&path, "read", e))?;
+        // SAFETY: the map is read only, and its bytes change only if another program writes
+        // the file in place meanwhile (no build does, see above), as with any mapped file.
+        let map = unsafe { memmap2::MmapOptions::new().populate().map(&file) };
+        let map = map.map_err(|e| Error::io(&path, "read", e))?;
         self.expect(owner, &path, (map.len() as u64, Hash::of(&map)))?;
-        Ok(map)
+        Ok(Mapped(map))
     }
 
     /// Checks the size and hash of the side file next to `owner` as [`SideFile::read`] does,

@@ -469,12 +469,6 @@ impl MotionIndex {
     }
 }
 
-/// The largest side file [`TrajectoriesFile::open_for`] maps (its pages count in the process's
-/// resident memory as they are read); a larger one is read a patch at a time. Mapped, its index
-/// is made without copying it through a buffer (painting's 425 MB, once for the check and once
-/// for the report's picture of one patch).
-const MAPPED_BYTES: u64 = 1 << 30;
-
 /// A trajectories file's motion left in its side file ([`TrajectoriesFile::open_for`]), or in
 /// the side files of a stage's shard parts one after another ([`LazyMotion::of_parts`]), each
 /// patch read from its file when asked for.
@@ -499,7 +493,6 @@ struct LazyFile {
 enum Bytes {
     File(std::fs::File),
     Held(std::sync::Arc<Vec<u8>>),
-    Mapped(crate::files::Mapped),
 }
 
 impl LazyMotion {
@@ -565,7 +558,6 @@ impl LazyMotion {
         let read;
         let bytes = match &f.from {
             Bytes::Held(held) => &held[span.clone()],
-            Bytes::Mapped(map) => &map[span.clone()],
             Bytes::File(file) => {
                 let mut bytes = vec![0u8; span.len()];
                 crate::files::read_at(file, &mut bytes, span.start as u64)
@@ -1043,25 +1035,9 @@ impl TrajectoriesFile {
         let file: TrajectoriesFile = crate::files::read_ron(path)?;
         crate::files::expect_stage(path, &file.header, stage, version)?;
         let side = file.motion.check(path)?;
-        if file.motion.bytes > MAPPED_BYTES {
-            let index = MotionIndex::of_file(&side)?;
-            check_patch_count(path, index.patches(), patches)?;
-            let lazy = LazyMotion::of_parts(vec![(path.to_path_buf(), side, index)])?;
-            return Ok((file, lazy));
-        }
-        let map = crate::files::Mapped::open(&side)?;
-        let index = MotionIndex::of(&side, &map)?;
+        let index = MotionIndex::of_file(&side)?;
         check_patch_count(path, index.patches(), patches)?;
-        let lazy = LazyMotion {
-            patches: index.patches(),
-            files: vec![LazyFile {
-                path: path.to_path_buf(),
-                side,
-                from: Bytes::Mapped(map),
-                index,
-                first: 0,
-            }],
-        };
+        let lazy = LazyMotion::of_parts(vec![(path.to_path_buf(), side, index)])?;
         Ok((file, lazy))
     }
 
