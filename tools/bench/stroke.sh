@@ -1,0 +1,60 @@
+#!/bin/sh
+# The benchmark behind BENCHMARKS.md's brush-stroke figures (issue 20): `painting` per m2, one
+# brush stroke (a disc of radius 5 px at 324,396 on its density layer, `crowd-paintings
+# stroke`), rebuilt from a copy of the folder built before it; with several binaries, each run
+# in turn on the same base, RUNS times. Prints each run's wall time, peak memory and stage
+# seconds (from timings.ron).
+#
+#   WORK   an empty folder (the base build, about 0.7 GB, and the runs' copies)
+#   RUNS   how many runs of each binary (default 3)
+#   then the crowd binaries to compare (default: target/release/crowd)
+#
+#   WORK=/tmp/stroke tools/bench/stroke.sh old/crowd target/release/crowd
+set -eu
+: "${WORK:?set WORK to an empty folder}"
+here="$(cd "$(dirname "$0")/../.." && pwd)"
+[ $# -gt 0 ] || set -- "$here/target/release/crowd"
+# The binaries by absolute path: the runs are made in WORK.
+for crowd in "$@"; do
+  shift
+  set -- "$@" "$(cd "$(dirname "$crowd")" && pwd)/$(basename "$crowd")"
+done
+paint="$here/target/release/crowd-paintings"
+[ -x /usr/bin/time ] || { echo "stroke.sh: needs /usr/bin/time (GNU time)" >&2; exit 1; }
+[ -x "$paint" ] || { echo "stroke.sh: build crowd-paintings first (cargo build --release)" >&2; exit 1; }
+mkdir -p "$WORK"
+cd "$WORK"
+cat > p.ron <<'RON'
+(
+    scene: (meters_per_pixel: 1.0, layers: [(kind: Density, path: "density.png")]),
+    people: PerSquareMetre(walkers: 0.5, standers: 0.0),
+    patch_side_m: 8.0,
+    period_s: 20.0,
+    radius_m: 0.3,
+    seed: 1,
+    optimize: (region_patches: Some(16)),
+    output: "out",
+    export: (gltf_region: Some((400.0, 240.0, 560.0, 400.0))),
+)
+RON
+if [ ! -d base ]; then
+  cp "$here/../shared/scenes/painting/density.png" before.png
+  cp before.png after.png
+  "$paint" stroke --layer after.png --at 324,396 --radius 5
+  cp before.png density.png
+  rm -rf out
+  echo "stroke.sh: building the base (painting from nothing)" >&2
+  "$1" build -q --pipeline p.ron >/dev/null 2>build.log
+  mv out base
+fi
+for run in $(seq "${RUNS:-3}"); do
+  for crowd in "$@"; do
+    rm -rf out && cp -a base out && cp after.png density.png && sync
+    /usr/bin/time -f "%e %M" -o time.txt "$crowd" build -q --pipeline p.ron >/dev/null 2>build.log
+    cp before.png density.png
+    stages=$(sed -n 's/^ *"\([a-z]*\)": (/\1/p; s/^ *seconds: \([0-9.]*\),/\1/p' out/timings.ron \
+      | paste -d= - - | awk -F= '{printf "%s=%.2f ", $1, $2}')
+    read -r wall kb < time.txt
+    echo "$(basename "$(dirname "$crowd")")/$(basename "$crowd") run $run: ${wall} s, $((kb / 1024)) MB; $stages"
+  done
+done
