@@ -143,8 +143,8 @@ impl<'p> Artifacts<'p> {
         }
     }
 
-    pub fn made_graph(&mut self, graph: PatchGraph) {
-        self.graph = Some(Arc::new(graph));
+    pub fn made_graph(&mut self, graph: Arc<PatchGraph>) {
+        self.graph = Some(graph);
     }
 
     /// Stage 2's graph.

@@ -347,7 +347,7 @@ fn graph(a: &mut Artifacts, out: &Path, _: Hash, ui: &Ui) -> Result<Ran> {
     let merge_path = a.path(MERGE.output);
     let graph = crowd_graph::build(a.pipeline, &merge_path, &merge_file, &maps, &bar)?;
     let bytes = files::to_stage_ron(&graph).into_bytes();
-    a.made_graph(graph);
+    a.made_graph(graph.share(&bytes));
     Ok(Ran::files(vec![(out.to_path_buf(), bytes)]))
 }
 

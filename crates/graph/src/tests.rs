@@ -335,3 +335,34 @@ fn per_square_metre_a_stroke_changes_only_the_patches_under_it() {
         (0.1f64 * 16.0 * 7.0 + 0.35 * 16.0).round() as u64
     );
 }
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(24))]
+
+    /// What lets a build share the graph it made with its check and report
+    /// (`PatchGraph::share`) rather than parse the file it wrote: the file parses back to
+    /// the same graph, bit for bit.
+    #[test]
+    fn a_graph_read_back_from_its_file_is_the_graph_that_was_written(
+        w in 1u32..6, h in 1u32..5, seed in 0u64..1000, walkers in 1u64..40
+    ) {
+        let mut m = maps(w * 4, h * 4, |x, y| (x * 7 + y * 13 + seed as u32).is_multiple_of(11));
+        for (i, v) in m.walkers.as_mut_slice().iter_mut().enumerate() {
+            if *v > 0.0 {
+                *v = ((i as u64 * 2654435761 + seed) % 1000) as f32 / 999.0;
+            }
+        }
+        let g = build_graph(&m, &inputs(walkers), Hash::of(b"test"), &());
+        prop_assume!(g.is_ok(), "a painting stage 2 refuses: {:?}", g.err());
+        let g = g.unwrap();
+        let text = crowd_core::files::to_stage_ron(&g);
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("graph.ron");
+        std::fs::write(&path, &text).unwrap();
+        let read = PatchGraph::load(&path).unwrap();
+        prop_assert_eq!(&read, &g);
+        let shared = g.share(text.as_bytes());
+        let loaded = PatchGraph::load_shared(&path).unwrap();
+        prop_assert!(std::sync::Arc::ptr_eq(&shared, &loaded));
+    }
+}
