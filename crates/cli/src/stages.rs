@@ -854,6 +854,7 @@ fn smooth(a: &mut Artifacts, out: &Path, hash: Hash, ui: &Ui) -> Result<Ran> {
     let writes = with_keys(out, writes, file.motion.hash, keys, &seen.tables, extra);
     let side = side_file(out, &file);
     let index = MotionIndex::of(&side.0, &bytes)?;
+    index.share(side.1);
     let bytes = std::sync::Arc::new(bytes);
     let motion = LazyMotion::of_bytes((out, &side.0), bytes.clone(), index);
     a.made_lazy_motion(&SMOOTH, (file, motion));

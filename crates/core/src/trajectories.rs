@@ -372,11 +372,38 @@ pub fn decode_motion(path: &Path, bytes: &[u8]) -> Result<Vec<PatchMotion>> {
 
 /// Where each patch's motion lies in a side file's bytes, and how many trajectories it holds,
 /// found from the counts alone (a pass that touches a few bytes a trajectory).
+#[derive(Clone)]
 pub struct MotionIndex {
     spans: Vec<(std::ops::Range<usize>, u32)>,
 }
 
+/// The indexes this process made of side files it wrote, by the files' hashes
+/// ([`MotionIndex::share`]), the last few.
+static SHARED_INDEXES: std::sync::Mutex<Vec<(crate::Hash, MotionIndex)>> =
+    std::sync::Mutex::new(Vec::new());
+
+/// How many [`SHARED_INDEXES`] are kept (a build's stage 6 and, with edits, stage 7).
+const SHARED_INDEX_COUNT: usize = 2;
+
 impl MotionIndex {
+    /// Keeps this index, of a side file whose bytes hash to `hash`, for
+    /// [`TrajectoriesFile::open_for`] in this process: the check and the report after a
+    /// stroke read painting's 425 MB stage 6 file through for its index otherwise (55 ms a
+    /// time), which stage 6 made as it wrote it.
+    pub fn share(&self, hash: crate::Hash) {
+        let mut shared = SHARED_INDEXES.lock().unwrap_or_else(|e| e.into_inner());
+        shared.retain(|(h, _)| *h != hash);
+        shared.push((hash, self.clone()));
+        let extra = shared.len().saturating_sub(SHARED_INDEX_COUNT);
+        shared.drain(..extra);
+    }
+
+    /// The index [`MotionIndex::share`] kept of the side file whose bytes hash to `hash`.
+    fn shared(hash: crate::Hash) -> Option<MotionIndex> {
+        let shared = SHARED_INDEXES.lock().unwrap_or_else(|e| e.into_inner());
+        (shared.iter().find(|(h, _)| *h == hash)).map(|(_, index)| index.clone())
+    }
+
     /// The index of [`encode_motion`]'s `bytes`, refused (naming `path`) unless every count
     /// fits the bytes that are there and they end where the last patch does.
     pub fn of(path: &Path, bytes: &[u8]) -> Result<MotionIndex> {
@@ -1035,7 +1062,9 @@ impl TrajectoriesFile {
         let file: TrajectoriesFile = crate::files::read_ron(path)?;
         crate::files::expect_stage(path, &file.header, stage, version)?;
         let side = file.motion.check(path)?;
-        let index = MotionIndex::of_file(&side)?;
+        // The file holds the bytes of that hash: an index made of them is its index.
+        let index = MotionIndex::shared(file.motion.hash)
+            .map_or_else(|| MotionIndex::of_file(&side), Ok)?;
         check_patch_count(path, index.patches(), patches)?;
         let lazy = LazyMotion::of_parts(vec![(path.to_path_buf(), side, index)])?;
         Ok((file, lazy))
@@ -1170,5 +1199,25 @@ mod tests {
             b[at] = 0xff;
             same(&b);
         }
+    }
+
+    #[test]
+    fn an_index_shared_by_its_file_hash_is_found_by_that_hash_alone_and_the_last_two_kept() {
+        let motion = vec![PatchMotion::default(); 3];
+        let bytes = encode_motion(&motion);
+        let index = MotionIndex::of(Path::new("m.bin"), &bytes).unwrap();
+        let hashes: Vec<crate::Hash> = (0..3u8).map(|k| crate::Hash::of(&[k, 42, 7])).collect();
+        for &h in &hashes {
+            index.share(h);
+        }
+        assert!(
+            MotionIndex::shared(hashes[0]).is_none(),
+            "only the last two are kept"
+        );
+        for &h in &hashes[1..] {
+            let found = MotionIndex::shared(h).expect("shared");
+            assert_eq!(found.spans, index.spans);
+        }
+        assert!(MotionIndex::shared(crate::Hash::of(b"another file")).is_none());
     }
 }
