@@ -136,7 +136,7 @@ fn vertex_bins(v1: DVec2, v2: DVec2) -> (u32, Option<u32>) {
 
 /// One patch's share of the motion figures: its walking time, its frames' bins (sparse:
 /// (bin, frames)), its fastest piece (trajectory, time), and its trajectories' ends.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, Default, PartialEq)]
 pub(crate) struct PatchTally {
     walking: u64,
     in_band: u64,
@@ -271,16 +271,7 @@ pub(crate) fn patch_tally(
     table: &Table,
 ) -> PatchTally {
     let (mut accel, mut turn) = (Vec::new(), Vec::new());
-    let mut t = PatchTally {
-        walking: 0,
-        in_band: 0,
-        accel: Vec::new(),
-        turn: Vec::new(),
-        fastest: (0.0, None),
-        ends: Vec::new(),
-        pos_err: 0.0,
-        time_err: 0.0,
-    };
+    let mut t = PatchTally::default();
     for (i, tr) in m.trajectories.iter().enumerate() {
         let pts = &tr.points;
         for w in pts.windows(2).filter(|w| w[1].t > w[0].t) {
@@ -642,16 +633,7 @@ mod tests {
                     .expect("a crossing of a border")
             };
             let mut tallies: Vec<PatchTally> = (0..tables.len())
-                .map(|_| PatchTally {
-                    walking: 0,
-                    in_band: 0,
-                    accel: Vec::new(),
-                    turn: Vec::new(),
-                    fastest: (0.0, None),
-                    ends: Vec::new(),
-                    pos_err: 0.0,
-                    time_err: 0.0,
-                })
+                .map(|_| PatchTally::default())
                 .collect();
             let mut counts = vec![(0u32, DVec2::ZERO, 0u32, DVec2::ZERO); world as usize];
             for &(c, side, entry, vx, vy) in &ends {
