@@ -5,7 +5,7 @@
 
 use crowd_core::Hash;
 use crowd_core::patch_keys::{Keys, Record, Table};
-use crowd_core::trajectories::{MotionIndex, PatchMotion, TrajectoriesFile};
+use crowd_core::trajectories::{MotionIndex, PatchMotion, PatchSums, TrajectoriesFile};
 use std::path::{Path, PathBuf};
 
 /// The keys file beside a stage file.
@@ -166,14 +166,15 @@ pub enum PatchBytes<'a> {
 
 /// The side file of `patches` (in patch order), each reused patch copied and renumbered from
 /// its last build's table to its table in `tables`, each made one encoded, in parallel; with
-/// what each patch adds to the stage file's summary. The bytes of the motion decoded,
+/// what each patch adds to the stage file's summary, and the file's index (from the sizes
+/// laid out, not read through again). The bytes of the motion decoded,
 /// renumbered and encoded again (`crowd_core::trajectories::encode_motion`), without
 /// decoding: a stroke's stage 6 decoded painting's 17 million points (0.54 GB of fresh
 /// memory) and encoded them again, a tenth of the stroke.
 pub fn side_bytes(
     patches: &[PatchBytes],
     tables: &[Table],
-) -> (Vec<u8>, Vec<crowd_core::trajectories::PatchSums>) {
+) -> (Vec<u8>, Vec<PatchSums>, MotionIndex) {
     use crowd_core::trajectories::{self as tr, encoded_head};
     use rayon::prelude::*;
     let bytes_of = |p: &PatchBytes| match p {
@@ -185,12 +186,13 @@ pub fn side_bytes(
     let (start, mut rest) = out.split_at_mut(head.len());
     start.copy_from_slice(&head);
     let mut parts = Vec::with_capacity(patches.len());
-    for p in patches {
-        let (part, tail) = std::mem::take(&mut rest).split_at_mut(bytes_of(p));
+    let sizes: Vec<usize> = patches.iter().map(bytes_of).collect();
+    for &size in &sizes {
+        let (part, tail) = std::mem::take(&mut rest).split_at_mut(size);
         parts.push(part);
         rest = tail;
     }
-    let sums = (parts.into_par_iter().zip(patches).zip(tables))
+    let sums: Vec<PatchSums> = (parts.into_par_iter().zip(patches).zip(tables))
         .map(|((part, p), table)| {
             match p {
                 PatchBytes::Reused(bytes, was) => {
@@ -203,5 +205,64 @@ pub fn side_bytes(
             tr::sums_of_encoded(part).expect("a patch's bytes, encoded or read through")
         })
         .collect();
-    (out, sums)
+    let index = MotionIndex::of_sizes(sizes.into_iter().zip(sums.iter().map(|s| s.trajectories())));
+    (out, sums, index)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crowd_core::trajectories::{
+        ControlPoint, PointKind, Summing, Trajectory, encode_motion, encode_patch_bytes, summarize,
+    };
+    use glam::DVec2;
+
+    fn patch(k: usize) -> PatchMotion {
+        PatchMotion {
+            standers: (0..k % 2).map(|i| DVec2::new(i as f64, 1.0)).collect(),
+            trajectories: (0..k)
+                .map(|j| Trajectory {
+                    entry: j as u32,
+                    exit: (j + k) as u32,
+                    points: (0..2 + j)
+                        .map(|i| ControlPoint {
+                            pos: DVec2::new(i as f64 * 0.5, k as f64),
+                            t: i as f64 * 7.5,
+                            kind: if i == 1 {
+                                PointKind::Pause
+                            } else {
+                                PointKind::Sample
+                            },
+                        })
+                        .collect(),
+                })
+                .collect(),
+        }
+    }
+
+    #[test]
+    fn a_side_file_of_reused_and_made_patches_is_the_encoding_of_their_motion() {
+        let motion: Vec<PatchMotion> = (0..7).map(patch).collect();
+        let encoded: Vec<Vec<u8>> = motion.iter().map(encode_patch_bytes).collect();
+        // Patches numbered alike before and after (tables with no crossings) are kept as
+        // they were; every other patch is made now.
+        let same = Table::default();
+        let patches: Vec<PatchBytes> = (0..motion.len())
+            .map(|p| match p % 2 {
+                0 => PatchBytes::Reused(&encoded[p], &same),
+                _ => PatchBytes::Made(motion[p].clone()),
+            })
+            .collect();
+        let tables = vec![Table::default(); motion.len()];
+        let (bytes, sums, index) = side_bytes(&patches, &tables);
+        assert_eq!(bytes, encode_motion(&motion));
+        let read = MotionIndex::of(Path::new("m.bin"), &bytes).unwrap();
+        for p in 0..motion.len() {
+            assert_eq!(index.span(p), read.span(p), "patch {p}");
+            assert_eq!(index.trajectories(p), read.trajectories(p), "patch {p}");
+        }
+        let mut summing = Summing::new(20.0);
+        sums.iter().for_each(|s| summing.add_sums(s));
+        assert_eq!(summing.finish(), summarize(&motion, 20.0));
+    }
 }

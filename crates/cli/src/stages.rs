@@ -15,7 +15,7 @@ use crowd_core::maps::MergeFile;
 use crowd_core::patch_keys::Seen;
 use crowd_core::patterns::Patterns;
 use crowd_core::trajectories::SideMotion::{self, Streamed};
-use crowd_core::trajectories::{LazyMotion, MotionIndex, PatchMotion, TrajectoriesFile};
+use crowd_core::trajectories::{LazyMotion, PatchMotion, TrajectoriesFile};
 use crowd_core::{Hash, PatchGraph};
 use rayon::prelude::*;
 use std::borrow::Cow;
@@ -832,7 +832,7 @@ fn smooth(a: &mut Artifacts, out: &Path, hash: Hash, ui: &Ui) -> Result<Ran> {
         patches.push(bytes);
         extra.push(figures);
     }
-    let (bytes, sums) = reuse::side_bytes(&patches, &seen.tables);
+    let (bytes, sums, index) = reuse::side_bytes(&patches, &seen.tables);
     drop(patches);
     drop(reused);
     drop(previous);
@@ -853,7 +853,6 @@ fn smooth(a: &mut Artifacts, out: &Path, hash: Hash, ui: &Ui) -> Result<Ran> {
     let note = reuse::note(extra.len() - todo.len(), extra.len());
     let writes = with_keys(out, writes, file.motion.hash, keys, &seen.tables, extra);
     let side = side_file(out, &file);
-    let index = MotionIndex::of(&side.0, &bytes)?;
     index.share(side.1);
     let bytes = std::sync::Arc::new(bytes);
     let motion = LazyMotion::of_bytes((out, &side.0), bytes.clone(), index);

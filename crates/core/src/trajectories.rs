@@ -444,6 +444,19 @@ impl MotionIndex {
         Ok(MotionIndex { spans })
     }
 
+    /// The index of a side file [`encoded_head`] and the patches laid after it, each of
+    /// `(bytes, trajectories)` (what its maker knows, without reading them through).
+    pub fn of_sizes(patches: impl IntoIterator<Item = (usize, u32)>) -> MotionIndex {
+        let mut at = HEAD_BYTES;
+        let spans = (patches.into_iter())
+            .map(|(bytes, trajectories)| {
+                at += bytes;
+                (at - bytes..at, trajectories)
+            })
+            .collect();
+        MotionIndex { spans }
+    }
+
     /// How many patches the file holds.
     pub fn patches(&self) -> usize {
         self.spans.len()

@@ -324,10 +324,10 @@ fn ease_ticks(
         let (a, b) = (&exact[k], &exact[k + 1]);
         a.pos.distance(b.pos) / (b.t - a.t).max(TICK_S)
     };
-    let mut eased = 0.0f64;
     if points.len() < 3 {
-        return eased;
+        return 0.0;
     }
+    let mut eased = 0.0f64;
     // Each piece's speeds are made once and carried to the next point (they were half of a
     // stroke's library): the same values, so the same choices, as made afresh at each point.
     let (mut exact_before, mut before) = (exact_speed(0), speed(&points[0], &points[1]));

@@ -54,6 +54,13 @@ pub struct PatchSums {
     durations: Vec<f64>,
 }
 
+impl PatchSums {
+    /// How many trajectories the patch holds.
+    pub fn trajectories(&self) -> u32 {
+        self.durations.len() as u32
+    }
+}
+
 /// One patch's [`PatchSums`] from its bytes, or `None` where they are not a patch's.
 pub fn sums_of_encoded(bytes: &[u8]) -> Option<PatchSums> {
     let list = trajectories(bytes)?;
