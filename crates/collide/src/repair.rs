@@ -111,7 +111,7 @@ pub fn remove_collisions(
         })
         .collect();
     let walls = patch.walls();
-    let mut tracks = Tracks::new(paths.iter().map(Path::segments).collect());
+    let mut tracks = Tracks::indexed(paths.iter().map(Path::segments).collect(), patch);
     let mut rows = rows(&tracks, patch);
     let worst = |rows: &[Vec<Encounter>]| {
         rows.iter()

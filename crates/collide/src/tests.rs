@@ -401,8 +401,9 @@ fn distances(rows: &[Vec<repair::Encounter>]) -> Vec<((usize, String), f64)> {
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(64))]
 
-    /// Refreshing the rows after some walkers moved (only the changed spans measured again)
-    /// gives the rows a fresh measurement gives.
+    /// Refreshing the rows after some walkers moved (only the changed spans measured again,
+    /// and of those only the walkers the index places near) gives the rows a fresh
+    /// measurement of every pair gives.
     #[test]
     fn refreshed_rows_equal_rows_measured_anew(
         walkers in proptest::collection::vec((0u8..4, 0.7f64..7.3, 0.0f64..20.0, 0u8..4, 0.7f64..7.3, 4.0f64..12.0), 4..16),
@@ -413,7 +414,8 @@ proptest! {
             .iter()
             .map(|&(se, s_in, t, sx, s_out, dt)| banded(se, s_in, t, sx + 1, s_out, t + dt))
             .collect();
-        let mut tracks = repair::Tracks::new(paths.iter().map(Path::segments).collect());
+        let mut tracks =
+            repair::Tracks::indexed(paths.iter().map(Path::segments).collect(), &patch);
         let mut rows = repair::rows(&tracks, &patch);
         for (w, when, dx, dy) in moves {
             let p = w % paths.len();
@@ -422,7 +424,8 @@ proptest! {
             paths[p].push_at(t, DVec2::new(dx, dy), 0.25, 1.8, out_of_bands, |_| true);
             tracks.set(p, paths[p].segments());
             repair::refresh(&mut rows, &mut tracks, &[p], &patch);
-            let fresh = repair::rows(&tracks, &patch);
+            let every_pair = repair::Tracks::new(paths.iter().map(Path::segments).collect());
+            let fresh = repair::rows(&every_pair, &patch);
             let (got, want) = (distances(&rows), distances(&fresh));
             prop_assert_eq!(got.len(), want.len());
             for (g, w) in got.iter().zip(&want) {

@@ -15,6 +15,7 @@ pub mod approach;
 pub mod clear;
 pub mod encounter;
 pub mod grid;
+mod occupancy;
 pub mod patch;
 pub mod route;
 pub mod rows;

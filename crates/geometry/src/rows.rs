@@ -1,13 +1,14 @@
 //! The distance matrix of a patch: every walker's encounters within reach, by walker, and
 //! how it is brought up to date after some walkers moved without measuring everything again.
 
-use crate::encounter::{Encounter, Other, box_gap_squared, fixed_row, pair, pair_in};
+use crate::encounter::{Encounter, Other, fixed_row, pair, pair_in};
 use crate::patch::Patch;
-use crate::tracks::{ALWAYS, Span, Tracks};
-use glam::DVec2;
+use crate::tracks::{ALWAYS, Near, Span, Tracks};
 
 /// Every encounter within reach in a patch, by walker: row `a` holds walker `a`'s encounters
 /// with every later walker (and its own later copies), with the standers and the obstacles.
+/// Of [`Tracks::indexed`], only the walkers that may come within reach are measured, here and
+/// in [`refresh`].
 pub fn rows(tracks: &Tracks, patch: &Patch) -> Vec<Vec<Encounter>> {
     (0..tracks.len()).map(|a| row(tracks, a, patch)).collect()
 }
@@ -20,20 +21,20 @@ pub fn rows(tracks: &Tracks, patch: &Patch) -> Vec<Vec<Encounter>> {
 pub fn refresh(rows: &mut [Vec<Encounter>], tracks: &mut Tracks, touched: &[usize], patch: &Patch) {
     let changed = |p: usize| tracks.changed[p].unwrap_or(ALWAYS);
     let outside = |t: f64, (lo, hi): Span| t < lo - 1e-9 || t > hi + 1e-9;
-    // Where a moved walker's changed pieces stay out of reach of the other's whole path, the
-    // pair cannot have come nearer: the test [`pair_in`]'s broad phase makes, on less.
+    // Where a moved walker's changed pieces cannot come within reach of the other, the pair
+    // cannot have come nearer: most pairs end here, unmeasured.
     let reach = 2.0 * patch.radius_m;
-    let moved_box: Vec<Option<(DVec2, DVec2)>> = touched
+    let near: Vec<Near> = touched
         .iter()
-        .map(|&p| tracks.box_during(p, changed(p)))
+        .map(|&p| tracks.near(p, changed(p), reach))
         .collect();
-    let out_of_reach = |moved: usize, other: usize| {
-        let k = touched
+    let at = |moved: usize| {
+        touched
             .iter()
             .position(|&p| p == moved)
-            .expect("a touched walker");
-        moved_box[k].is_none_or(|b| box_gap_squared(b, tracks.boxes[other]) > reach * reach)
+            .expect("a touched walker")
     };
+    let out_of_reach = |moved: usize, other: usize| !near[at(moved)].may_meet(tracks, other);
     // The pair (a, b) after one of them, `moved`, changed over `span`.
     let update = |old: Option<Encounter>, a: usize, b: usize, a_moved: bool| {
         let (moved, other) = if a_moved { (a, b) } else { (b, a) };
@@ -99,7 +100,9 @@ pub fn refresh(rows: &mut [Vec<Encounter>], tracks: &mut Tracks, touched: &[usiz
 
 /// Every encounter of walker `a` with walkers `b >= a`, standers and obstacles.
 fn row(tracks: &Tracks, a: usize, patch: &Patch) -> Vec<Encounter> {
+    let near = tracks.near(a, ALWAYS, 2.0 * patch.radius_m);
     let mut out: Vec<Encounter> = (a..tracks.len())
+        .filter(|&b| b == a || near.may_meet(tracks, b))
         .filter_map(|b| pair(tracks, a, b, patch))
         .collect();
     out.extend(fixed_row(tracks, a, patch));

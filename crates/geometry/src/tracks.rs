@@ -2,6 +2,9 @@
 //! which each changed: what the encounter test reads, and what lets [`crate::rows::refresh`]
 //! measure again only what changed.
 
+use crate::encounter::box_gap_squared;
+use crate::occupancy::{Occupancy, Walkers};
+use crate::patch::Patch;
 use crate::segment::Segment;
 use glam::DVec2;
 
@@ -18,6 +21,9 @@ pub struct Tracks {
     /// near each other only for a moment are measured piece by piece only around it.
     pub(crate) chunks: Vec<Vec<Chunk>>,
     pub(crate) changed: Vec<Option<Span>>,
+    /// Where each walker comes, by slot, for tracks made [`Tracks::indexed`]; kept up to
+    /// date by [`Tracks::set`].
+    occupancy: Option<Occupancy>,
 }
 
 /// Pieces per [`Chunk`]: long enough that a chunk's box is worth testing, short enough that
@@ -37,6 +43,26 @@ pub(crate) struct Chunk {
     pub end: u32,
 }
 
+/// Who may come within reach of a walker over a stretch of its time ([`Tracks::near`]).
+pub(crate) enum Near {
+    /// The walkers that share a slot with it (indexed tracks).
+    Sharing(Walkers),
+    /// Those whose whole path's box comes within the reach of its box over the stretch (none
+    /// where it has no piece there).
+    Boxed(Option<(DVec2, DVec2)>, f64),
+}
+
+impl Near {
+    pub(crate) fn may_meet(&self, tracks: &Tracks, other: usize) -> bool {
+        match self {
+            Near::Sharing(walkers) => walkers.contains(other),
+            Near::Boxed(moved, reach) => {
+                moved.is_some_and(|b| box_gap_squared(b, tracks.boxes[other]) <= reach * reach)
+            }
+        }
+    }
+}
+
 /// A time span `[start, end]`, s.
 pub(crate) type Span = (f64, f64);
 pub(crate) const ALWAYS: Span = (f64::NEG_INFINITY, f64::INFINITY);
@@ -51,14 +77,40 @@ impl Tracks {
             boxes,
             chunks,
             changed,
+            occupancy: None,
+        }
+    }
+
+    /// [`Tracks::new`], indexed by place and moment of the loop (see [`crate::occupancy`]) so
+    /// that [`crate::rows`] and [`crate::refresh`] measure only the walkers that may come
+    /// within reach: worth its upkeep where walkers move often and have few pieces (stage 5's
+    /// pushes), not where they have many and rarely move (stage 6's curves).
+    pub fn indexed(segs: Vec<Vec<Segment>>, patch: &Patch) -> Tracks {
+        let occupancy = Occupancy::new(&segs, 2.0 * patch.radius_m, patch.period_s);
+        Tracks {
+            occupancy: Some(occupancy),
+            ..Tracks::new(segs)
+        }
+    }
+
+    /// Who may come within `reach` of walker `p` during `span` of `p`'s time, in any period:
+    /// the others surely do not.
+    pub(crate) fn near(&self, p: usize, span: Span, reach: f64) -> Near {
+        match &self.occupancy {
+            Some(occupancy) => Near::Sharing(occupancy.near(p, span)),
+            None => Near::Boxed(self.box_during(p, span), reach),
         }
     }
 
     /// Walker `p` now walks `segs`.
     pub fn set(&mut self, p: usize, segs: Vec<Segment>) {
-        if let Some(span) = changed_span(&self.segs[p], &segs) {
-            self.changed[p] =
-                Some(self.changed[p].map_or(span, |c| (c.0.min(span.0), c.1.max(span.1))));
+        let Some(span) = changed_span(&self.segs[p], &segs) else {
+            return;
+        };
+        self.changed[p] =
+            Some(self.changed[p].map_or(span, |c| (c.0.min(span.0), c.1.max(span.1))));
+        if let Some(occupancy) = &mut self.occupancy {
+            occupancy.mark(p, &segs);
         }
         self.boxes[p] = bounds(&segs);
         self.chunks[p] = chunks(&segs);
@@ -67,7 +119,7 @@ impl Tracks {
 
     /// The box that holds walker `p`'s pieces that overlap `span` (a run's box where the run
     /// overlaps it: a little larger, never smaller); `None` where no piece does.
-    pub(crate) fn box_during(&self, p: usize, (lo, hi): Span) -> Option<(DVec2, DVec2)> {
+    fn box_during(&self, p: usize, (lo, hi): Span) -> Option<(DVec2, DVec2)> {
         let chunks = &self.chunks[p];
         let first = chunks.partition_point(|c| c.t1 < lo);
         chunks[first..]

@@ -1,0 +1,316 @@
+//! Where each walker of a patch comes, by place and by moment of the loop: the broad phase
+//! of [`crate::rows`] for [`crate::Tracks::indexed`]. The patch is cut into cells a reach and
+//! a half wide and the period into slices of about 0.75 s; each (slice, cell) slot holds the set of walkers that come
+//! within half a reach of the cell during the slice, in any period. Two walkers that come
+//! within reach of each other at some moment (a whole number of periods apart) then share
+//! that moment's slot, so a walker that shares no slot with a moved walker's changed stretch
+//! needs no measuring: in a dense patch a push so measures a few neighbours, not everyone.
+
+use crate::segment::Segment;
+use crate::tracks::Span;
+use glam::DVec2;
+
+/// About how long a slice of the period lasts, s, and how many reaches wide a cell is: a
+/// walker covers about a cell in a slice. (Stage 5 on `painting`, user seconds: 0.5 s and 1
+/// reach 10.6-10.9, 0.75 s and 1.5 reaches 10.2-10.7, 1 s and 2 reaches 10.3-10.6; the
+/// finer the slots, the fewer pairs measured and the more kept up to date.)
+const SLICE_S: f64 = 0.75;
+const CELL_REACHES: f64 = 1.5;
+/// The most slices of a period and cells along a side of the grid: a long period widens the
+/// slices, a path far outside its patch widens the cells, and neither grows the grid.
+const MAX_SLICES: usize = 256;
+const MAX_CELLS: usize = 64;
+/// How far a slice reaches past its ends, s: a moment at a slice's edge, rounded one way in
+/// one walker's time and the other way a period later, is in both slices.
+const EDGE_S: f64 = 1e-6;
+
+/// The cut of a patch into slots: cells of `1 / per_m` from `origin` (a place beyond the grid
+/// falls in its edge cell), slices of `slice_s` of the period.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Grid {
+    origin: DVec2,
+    /// Cells a metre (the inverse of their side).
+    per_m: f64,
+    cells: [usize; 2],
+    slice_s: f64,
+    slices: usize,
+    /// How far around a piece its slots reach: half the reach, and a hair more so that a pair
+    /// measured a hair nearer than reach by rounding is never missed.
+    around: f64,
+}
+
+impl Grid {
+    fn new(segs: &[Vec<Segment>], reach: f64, period: f64) -> Grid {
+        let around = reach / 2.0 * (1.0 + 1e-9) + 1e-9;
+        let (lo, hi) = segs.iter().flatten().fold(
+            (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY)),
+            |(lo, hi), s| (lo.min(s.p0).min(s.p1), hi.max(s.p0).max(s.p1)),
+        );
+        let (lo, hi) = match lo.is_finite() && hi.is_finite() {
+            true => (lo - around, hi + around),
+            false => (DVec2::ZERO, DVec2::ZERO),
+        };
+        let extent = (hi - lo).max(DVec2::ZERO);
+        let cell_m = (CELL_REACHES * reach)
+            .max(extent.max_element() / MAX_CELLS as f64)
+            .max(1e-3);
+        let along = |x: f64| ((x / cell_m).ceil() as usize).clamp(1, MAX_CELLS);
+        let slices = ((period / SLICE_S).ceil() as usize).clamp(1, MAX_SLICES);
+        Grid {
+            origin: lo,
+            per_m: 1.0 / cell_m,
+            cells: [along(extent.x), along(extent.y)],
+            slice_s: period / slices as f64,
+            slices,
+            around,
+        }
+    }
+
+    fn slots(&self) -> usize {
+        self.slices * self.cells[0] * self.cells[1]
+    }
+
+    /// The cell of `p` along each axis, held at the grid's edge.
+    fn cell_of(&self, p: DVec2) -> [usize; 2] {
+        let c = (p - self.origin) * self.per_m;
+        // Truncation is the floor from 0 up, and the edge cell below 0.
+        let hold = |x: f64, n: usize| (x.max(0.0) as usize).min(n - 1);
+        [hold(c.x, self.cells[0]), hold(c.y, self.cells[1])]
+    }
+
+    /// The slice of the moment `t`, counted from time 0 (not wrapped to the period).
+    fn slice_of(&self, t: f64) -> i64 {
+        floor(t / self.slice_s)
+    }
+
+    /// Every slot the pieces `segs` come into, with the slice (counted from time 0) it came
+    /// in at (a slot may come more than once).
+    fn visit(&self, segs: &[Segment], mut slot: impl FnMut(i64, u32)) {
+        let per_slice = self.cells[0] * self.cells[1];
+        let slices = self.slices as i64;
+        for s in segs {
+            let v = s.velocity();
+            let (k0, k1) = (self.slice_of(s.t0 - EDGE_S), self.slice_of(s.t1 + EDGE_S));
+            // The slice in the period, kept in step with `k` (no division a slice).
+            let mut wrapped = k0.rem_euclid(slices) as usize;
+            for k in k0..=k1 {
+                let from = s.t0.max(k as f64 * self.slice_s - EDGE_S);
+                let to = s.t1.min((k + 1) as f64 * self.slice_s + EDGE_S);
+                if from <= to {
+                    // A piece is straight: where it is over the slice lies between its ends.
+                    let (p, q) = (s.p0 + v * (from - s.t0), s.p0 + v * (to - s.t0));
+                    let c0 = self.cell_of(p.min(q) - self.around);
+                    let c1 = self.cell_of(p.max(q) + self.around);
+                    let base = wrapped * per_slice;
+                    for y in c0[1]..=c1[1] {
+                        for x in c0[0]..=c1[0] {
+                            slot(k, (base + y * self.cells[0] + x) as u32);
+                        }
+                    }
+                }
+                wrapped += 1;
+                if wrapped == self.slices {
+                    wrapped = 0;
+                }
+            }
+        }
+    }
+}
+
+/// `x.floor() as i64` (saturating), without the library call: asked a few times a piece.
+fn floor(x: f64) -> i64 {
+    let t = x as i64;
+    if (t as f64) > x {
+        t.saturating_sub(1)
+    } else {
+        t
+    }
+}
+
+/// A set of a patch's walkers, a bit each.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct Walkers(Vec<u64>);
+
+impl Walkers {
+    pub(crate) fn contains(&self, p: usize) -> bool {
+        self.0.get(p / 64).is_some_and(|w| w >> (p % 64) & 1 == 1)
+    }
+}
+
+/// The walkers of each slot of a patch (see the module's comment).
+#[derive(Debug, Clone)]
+pub(crate) struct Occupancy {
+    grid: Grid,
+    /// Words of a slot's set.
+    words: usize,
+    /// Slot by slot, `words` words each.
+    bits: Vec<u64>,
+    /// Each walker's slots, with the slice (from time 0) it came into each at: what takes it
+    /// out of them, and what finds who is near it over a stretch of its time.
+    slots: Vec<Vec<(i64, u32)>>,
+}
+
+impl Occupancy {
+    /// The slots of the walkers `segs`, for pairs that matter within `reach` in a loop of
+    /// `period`.
+    pub(crate) fn new(segs: &[Vec<Segment>], reach: f64, period: f64) -> Occupancy {
+        let grid = Grid::new(segs, reach, period);
+        let words = segs.len().div_ceil(64).max(1);
+        let mut occupancy = Occupancy {
+            grid,
+            words,
+            bits: vec![0; grid.slots() * words],
+            slots: vec![Vec::new(); segs.len()],
+        };
+        for (p, s) in segs.iter().enumerate() {
+            occupancy.mark(p, s);
+        }
+        occupancy
+    }
+
+    /// Walker `p` now comes where the pieces `segs` do, and nowhere else.
+    pub(crate) fn mark(&mut self, p: usize, segs: &[Segment]) {
+        let (word, bit) = (p / 64, 1u64 << (p % 64));
+        let mut slots = std::mem::take(&mut self.slots[p]);
+        for &(_, slot) in &slots {
+            self.bits[slot as usize * self.words + word] &= !bit;
+        }
+        slots.clear();
+        self.grid.visit(segs, |k, slot| {
+            self.bits[slot as usize * self.words + word] |= bit;
+            slots.push((k, slot));
+        });
+        self.slots[p] = slots;
+    }
+
+    /// Every walker that shares a slot with walker `p` over `span` of its time: a walker not in
+    /// it never comes within reach of `p` then, in any period.
+    pub(crate) fn near(&self, p: usize, (lo, hi): Span) -> Walkers {
+        let (from, to) = (
+            self.grid.slice_of(lo - EDGE_S),
+            self.grid.slice_of(hi + EDGE_S),
+        );
+        let mut near = vec![0u64; self.words];
+        for &(k, slot) in &self.slots[p] {
+            if k >= from && k <= to {
+                let of = &self.bits[slot as usize * self.words..][..self.words];
+                for (n, w) in near.iter_mut().zip(of) {
+                    *n |= w;
+                }
+            }
+        }
+        Walkers(near)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::encounter::pair;
+    use crate::patch::Patch;
+    use crate::tracks::{ALWAYS, Tracks};
+    use proptest::prelude::*;
+
+    fn walk(start: f64, from: (f64, f64), steps: &[(f64, f64, f64)]) -> Vec<Segment> {
+        let mut out = Vec::new();
+        let (mut p, mut t) = (DVec2::from(from), start);
+        for &(dt, dx, dy) in steps {
+            let q = p + DVec2::new(dx, dy);
+            out.push(Segment {
+                p0: p,
+                t0: t,
+                p1: q,
+                t1: t + dt,
+            });
+            (p, t) = (q, t + dt);
+        }
+        out
+    }
+
+    fn any_walk() -> impl Strategy<Value = Vec<Segment>> {
+        (
+            -25.0f64..25.0,
+            (-1.0f64..9.0, -1.0f64..9.0),
+            proptest::collection::vec((0.0f64..4.0, -3.0f64..3.0, -3.0f64..3.0), 1..8),
+        )
+            .prop_map(|(start, from, steps)| walk(start, from, &steps))
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(256))]
+
+        /// Every pair the exact test finds within reach shares a slot, over the whole of both
+        /// walks and over any stretch of the first that holds the encounter.
+        #[test]
+        fn every_pair_within_reach_shares_a_slot(
+            walks in proptest::collection::vec(any_walk(), 2..7),
+            period in 2.0f64..30.0,
+            radius in 0.05f64..1.0,
+            moved in 0usize..7,
+            (from, to) in (-30.0f64..30.0, 0.0f64..20.0),
+        ) {
+            let patch = Patch {
+                side_m: 8.0,
+                period_s: period,
+                radius_m: radius,
+                obstacles: &[],
+                standers: &[],
+            };
+            let tracks = Tracks::new(walks.clone());
+            let occupancy = Occupancy::new(&walks, 2.0 * radius, period);
+            let a = moved % walks.len();
+            let span = (from, from + to);
+            let whole = occupancy.near(a, ALWAYS);
+            let during = occupancy.near(a, span);
+            for b in 0..walks.len() {
+                if let Some(e) = pair(&tracks, a, b, &patch) {
+                    prop_assert!(whole.contains(b), "{a} and {b} met at {}", e.t);
+                    if e.t >= span.0 && e.t <= span.1 {
+                        prop_assert!(during.contains(b), "{a} and {b} met at {}", e.t);
+                    }
+                }
+            }
+        }
+    }
+
+    proptest! {
+        /// Two walkers side by side a hair less than a reach apart, anywhere in the grid and
+        /// at any moment of the loop, share a slot: the slots reach round a piece far enough.
+        #[test]
+        fn walkers_just_within_reach_share_a_slot(
+            walks in proptest::collection::vec(any_walk(), 1..4),
+            (x, y, quarter, speed) in (0.0f64..8.0, 0.0f64..8.0, 0u8..4, 0.0f64..2.0),
+            (start, duration, apart) in (-20.0f64..20.0, 0.1f64..6.0, 0.99f64..0.9999),
+            (period, radius) in (2.0f64..30.0, 0.05f64..1.0),
+        ) {
+            let reach = 2.0 * radius;
+            // Along an axis: the gap between their slots is then the gap between them.
+            let along = DVec2::from_angle(f64::from(quarter) * std::f64::consts::FRAC_PI_2);
+            let step = along * speed * duration;
+            let a = walk(start, (x, y), &[(duration, step.x, step.y)]);
+            let aside = DVec2::new(x, y) + along.perp() * apart * reach;
+            let b = walk(start, (aside.x, aside.y), &[(duration, step.x, step.y)]);
+            let mut all = walks;
+            all.push(a);
+            all.push(b);
+            let (ia, ib) = (all.len() - 2, all.len() - 1);
+            let occupancy = Occupancy::new(&all, reach, period);
+            prop_assert!(occupancy.near(ia, ALWAYS).contains(ib));
+            prop_assert!(occupancy.near(ib, (start, start)).contains(ia));
+        }
+    }
+
+    /// Two walkers that cross one place half a period apart share no slot; at the same moment
+    /// they do, and a walker moved to the later walk is no longer near.
+    #[test]
+    fn walkers_apart_in_time_share_no_slot() {
+        let across = walk(0.0, (0.0, 4.0), &[(8.0, 8.0, 0.0)]);
+        let later = walk(10.0, (4.0, 0.0), &[(8.0, 0.0, 8.0)]);
+        let now = walk(0.0, (4.0, 0.0), &[(8.0, 0.0, 8.0)]);
+        let mut occupancy = Occupancy::new(&[across, later.clone(), now], 0.6, 20.0);
+        let near = occupancy.near(0, ALWAYS);
+        assert!(near.contains(0) && !near.contains(1) && near.contains(2));
+        occupancy.mark(2, &later);
+        assert!(!occupancy.near(0, ALWAYS).contains(2));
+    }
+}
