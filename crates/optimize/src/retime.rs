@@ -45,33 +45,40 @@ pub fn retime(state: &mut State) -> usize {
                 .collect()
         })
         .collect();
-    let mut next = vec![(usize::MAX, 0.0); total];
-    for (e, x, walk) in pairs.into_iter().flatten() {
-        next[e] = (x, walk);
-    }
-    let location: Vec<(usize, usize)> = state
+    let mut nodes: Vec<Node> = state
         .crossings
         .iter()
         .enumerate()
-        .flat_map(|(b, list)| (0..list.len()).map(move |i| (b, i)))
+        .flat_map(|(b, list)| {
+            (0..list.len()).map(move |i| Node {
+                border: b as u32,
+                index: i as u32,
+                next: END,
+                seen: false,
+                walk: 0.0,
+            })
+        })
         .collect();
-    let mut seen = vec![false; total];
+    for (e, x, walk) in pairs.into_iter().flatten() {
+        (nodes[e].next, nodes[e].walk) = (x as u32, walk);
+    }
     let mut retimed = 0;
     for start in 0..total {
-        if seen[start] {
+        if nodes[start].seen {
             continue;
         }
         // Follow the loop from `start`: each crossing a comfortable walk after the previous
         // one, nudged in time where the border is busy, left alone where no nudge fits. The
         // loop closes with one pair of whatever duration is left: loops of a random matching
         // are long, so that is one pair in many.
-        seen[start] = true;
-        let (b, i) = location[start];
-        let mut t = state.crossings[b][i].t;
-        let (mut c, mut walk) = next[start];
-        while c != usize::MAX && !seen[c] {
-            seen[c] = true;
-            let (b, i) = location[c];
+        nodes[start].seen = true;
+        let Node { border, index, .. } = nodes[start];
+        let mut t = state.crossings[border as usize][index as usize].t;
+        let (mut c, mut walk) = (nodes[start].next, nodes[start].walk);
+        while c != END && !nodes[c as usize].seen {
+            let node = &mut nodes[c as usize];
+            node.seen = true;
+            let (b, i) = (node.border as usize, node.index as usize);
             if state.held[b] {
                 // A held crossing keeps its time: the walker goes on from it.
             } else if let Some(new_t) = nudge(state, b, i, t + walk) {
@@ -79,12 +86,27 @@ pub fn retime(state: &mut State) -> usize {
                 retimed += 1;
             }
             t = state.crossings[b][i].t;
-            (c, walk) = next[c];
+            (c, walk) = (node.next, node.walk);
         }
     }
     state.remeasure_all();
     retimed
 }
+
+/// A crossing as the loops are followed: its border and place in the border's list, the
+/// crossing after it in its loop ([`END`]: none) and the walk between them, and whether its
+/// loop was followed yet. One record, so that a step of the loop (a random place in memory)
+/// misses the cache once for it, not once per list.
+#[derive(Debug, Clone, Copy)]
+struct Node {
+    border: u32,
+    index: u32,
+    next: u32,
+    seen: bool,
+    walk: f64,
+}
+
+const END: u32 = u32::MAX;
 
 /// The time nearest `target` (within a few seconds) at which crossing `i` of `border` keeps
 /// its spacing, if any.
