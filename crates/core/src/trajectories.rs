@@ -231,10 +231,26 @@ pub fn encoded_size(p: &PatchMotion) -> usize {
 /// Writes one patch's motion into `out`, exactly [`encoded_size`] bytes.
 pub fn encode_patch(p: &PatchMotion, out: &mut [u8]) {
     let mut at = 0;
-    let mut put = |bytes: &[u8]| {
+    write_patch(p, |bytes| {
         out[at..at + bytes.len()].copy_from_slice(bytes);
         at += bytes.len();
-    };
+    });
+}
+
+/// [`encode_patch`] into memory not written yet (a buffer's spare room, so that a side file
+/// of 0.4 GB is not cleared first only to be written over): writes every byte of `out`,
+/// which is exactly [`encoded_size`] bytes.
+pub fn encode_patch_uninit(p: &PatchMotion, out: &mut [std::mem::MaybeUninit<u8>]) {
+    let mut at = 0;
+    write_patch(p, |bytes| {
+        out[at..at + bytes.len()].write_copy_of_slice(bytes);
+        at += bytes.len();
+    });
+    assert_eq!(at, out.len(), "a patch's room is its encoded size");
+}
+
+/// The bytes of one patch's motion, in order, to `put`.
+fn write_patch(p: &PatchMotion, mut put: impl FnMut(&[u8])) {
     put(&(p.standers.len() as u32).to_le_bytes());
     for s in &p.standers {
         put(&s.x.to_le_bytes());
