@@ -1,10 +1,11 @@
 //! Where each walker of a patch comes, by place and by moment of the loop: the broad phase
 //! of [`crate::rows`] for [`crate::Tracks::indexed`]. The patch is cut into cells a reach and
-//! a half wide and the period into slices of about 0.75 s; each (slice, cell) slot holds the set of walkers that come
-//! within half a reach of the cell during the slice, in any period. Two walkers that come
-//! within reach of each other at some moment (a whole number of periods apart) then share
-//! that moment's slot, so a walker that shares no slot with a moved walker's changed stretch
-//! needs no measuring: in a dense patch a push so measures a few neighbours, not everyone.
+//! a half wide and the period into slices of about 0.75 s; each (slice, cell) slot holds the
+//! set of walkers that come within half a reach of the cell during the slice, in any period.
+//! Two walkers that come within reach of each other at some moment (a whole number of periods
+//! apart) then share that moment's slot, so a walker that shares no slot with a moved
+//! walker's changed stretch needs no measuring: in a dense patch a push so measures a few
+//! neighbours, not everyone.
 
 use crate::segment::Segment;
 use crate::tracks::Span;
@@ -16,10 +17,12 @@ use glam::DVec2;
 /// finer the slots, the fewer pairs measured and the more kept up to date.)
 const SLICE_S: f64 = 0.75;
 const CELL_REACHES: f64 = 1.5;
-/// The most slices of a period and cells along a side of the grid: a long period widens the
-/// slices, a path far outside its patch widens the cells, and neither grows the grid.
+/// The most slices of a period, cells along a side of the grid and slots in all: a long period
+/// widens the slices, a large patch or a path far outside it widens the cells, and none grows
+/// the grid past 2 MB a 64 walkers.
 const MAX_SLICES: usize = 256;
 const MAX_CELLS: usize = 64;
+const MAX_SLOTS: usize = 1 << 18;
 /// How far a slice reaches past its ends, s: a moment at a slice's edge, rounded one way in
 /// one walker's time and the other way a period later, is in both slices.
 const EDGE_S: f64 = 1e-6;
@@ -51,15 +54,18 @@ impl Grid {
             false => (DVec2::ZERO, DVec2::ZERO),
         };
         let extent = (hi - lo).max(DVec2::ZERO);
-        let cell_m = (CELL_REACHES * reach)
+        let slices = ((period / SLICE_S).ceil() as usize).clamp(1, MAX_SLICES);
+        let mut cell_m = (CELL_REACHES * reach)
             .max(extent.max_element() / MAX_CELLS as f64)
             .max(1e-3);
-        let along = |x: f64| ((x / cell_m).ceil() as usize).clamp(1, MAX_CELLS);
-        let slices = ((period / SLICE_S).ceil() as usize).clamp(1, MAX_SLICES);
+        let along = |x: f64, cell_m: f64| ((x / cell_m).ceil() as usize).clamp(1, MAX_CELLS);
+        while slices * along(extent.x, cell_m) * along(extent.y, cell_m) > MAX_SLOTS {
+            cell_m *= 2.0;
+        }
         Grid {
             origin: lo,
             per_m: 1.0 / cell_m,
-            cells: [along(extent.x), along(extent.y)],
+            cells: [along(extent.x, cell_m), along(extent.y, cell_m)],
             slice_s: period / slices as f64,
             slices,
             around,
@@ -298,6 +304,15 @@ mod tests {
             prop_assert!(occupancy.near(ia, ALWAYS).contains(ib));
             prop_assert!(occupancy.near(ib, (start, start)).contains(ia));
         }
+    }
+
+    /// A long loop over a large place widens the slots; it does not grow their number.
+    #[test]
+    fn the_grid_holds_at_most_max_slots() {
+        let far = walk(0.0, (-400.0, -300.0), &[(900.0, 800.0, 700.0)]);
+        let grid = Grid::new(&[far], 0.6, 1000.0);
+        assert!(grid.slots() <= MAX_SLOTS, "{} slots", grid.slots());
+        assert_eq!(grid.slices, MAX_SLICES);
     }
 
     /// Two walkers that cross one place half a period apart share no slot; at the same moment

@@ -83,8 +83,9 @@ impl Tracks {
 
     /// [`Tracks::new`], indexed by place and moment of the loop (see [`crate::occupancy`]) so
     /// that [`crate::rows`] and [`crate::refresh`] measure only the walkers that may come
-    /// within reach: worth its upkeep where walkers move often and have few pieces (stage 5's
-    /// pushes), not where they have many and rarely move (stage 6's curves).
+    /// within reach: worth its upkeep for stage 5's few-piece walks, pushed a million times on
+    /// `painting`, not for stage 6's curves, whose pairs that share no slot are the cheap ones
+    /// to measure (BENCHMARKS.md, twentieth part).
     pub fn indexed(segs: Vec<Vec<Segment>>, patch: &Patch) -> Tracks {
         let occupancy = Occupancy::new(&segs, 2.0 * patch.radius_m, patch.period_s);
         Tracks {
