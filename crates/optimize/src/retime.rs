@@ -60,7 +60,8 @@ pub fn retime(state: &mut State) -> usize {
         })
         .collect();
     for (e, x, walk) in pairs.into_iter().flatten() {
-        (nodes[e].next, nodes[e].walk) = (x as u32, walk);
+        let x = u32::try_from(x).ok().filter(|&x| x != END);
+        (nodes[e].next, nodes[e].walk) = (x.expect("fewer than 2^32 - 1 crossings"), walk);
     }
     let mut retimed = 0;
     for start in 0..total {
