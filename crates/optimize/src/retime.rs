@@ -63,32 +63,52 @@ pub fn retime(state: &mut State) -> usize {
         let x = u32::try_from(x).ok().filter(|&x| x != END);
         (nodes[e].next, nodes[e].walk) = (x.expect("fewer than 2^32 - 1 crossings"), walk);
     }
-    let mut retimed = 0;
+    // The loops in the order they are followed: a chain of random places in memory, walked
+    // here with nothing else to wait for. Then followed along this list, whose next steps'
+    // borders the processor reads ahead while it nudges (0.46 -> 0.38 s on painting).
+    let mut order: Vec<Visit> = Vec::with_capacity(total);
     for start in 0..total {
         if nodes[start].seen {
             continue;
         }
-        // Follow the loop from `start`: each crossing a comfortable walk after the previous
-        // one, nudged in time where the border is busy, left alone where no nudge fits. The
-        // loop closes with one pair of whatever duration is left: loops of a random matching
-        // are long, so that is one pair in many.
         nodes[start].seen = true;
-        let Node { border, index, .. } = nodes[start];
-        let mut t = state.crossings[border as usize][index as usize].t;
+        let visit = |node: &Node, walk| Visit {
+            border: node.border,
+            index: node.index,
+            walk,
+        };
+        order.push(visit(&nodes[start], None));
         let (mut c, mut walk) = (nodes[start].next, nodes[start].walk);
         while c != END && !nodes[c as usize].seen {
             let node = &mut nodes[c as usize];
             node.seen = true;
-            let (b, i) = (node.border as usize, node.index as usize);
+            order.push(visit(node, Some(walk)));
+            (c, walk) = (node.next, node.walk);
+        }
+    }
+    drop(nodes);
+    let mut retimed = 0;
+    let mut t = 0.0;
+    for &Visit {
+        border,
+        index,
+        walk,
+    } in &order
+    {
+        let (b, i) = (border as usize, index as usize);
+        // Each crossing a comfortable walk after the previous one, nudged in time where the
+        // border is busy, left alone where no nudge fits. A loop closes with one pair of
+        // whatever duration is left: loops of a random matching are long, so that is one pair
+        // in many.
+        if let Some(walk) = walk {
             if state.held[b] {
                 // A held crossing keeps its time: the walker goes on from it.
             } else if let Some(new_t) = nudge(state, b, i, t + walk) {
                 state.crossings[b][i].t = new_t;
                 retimed += 1;
             }
-            t = state.crossings[b][i].t;
-            (c, walk) = (node.next, node.walk);
         }
+        t = state.crossings[b][i].t;
     }
     state.remeasure_all();
     retimed
@@ -108,6 +128,14 @@ struct Node {
 }
 
 const END: u32 = u32::MAX;
+
+/// A step of a loop: a crossing, and the walk from the one before (`None`: the loop's first).
+#[derive(Debug, Clone, Copy)]
+struct Visit {
+    border: u32,
+    index: u32,
+    walk: Option<f64>,
+}
 
 /// The time nearest `target` (within a few seconds) at which crossing `i` of `border` keeps
 /// its spacing, if any.
