@@ -210,19 +210,8 @@ fn with_obstacle(tracks: &Tracks, a: usize, o: usize, patch: &Patch) -> Option<E
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::segment::pieces;
+    use crate::testing::{open_patch, walk};
     use proptest::prelude::*;
-
-    /// A walk of `steps` pieces from `start` s, each `dt` long, moving by `moves`.
-    fn walk(start: f64, from: (f64, f64), steps: &[(f64, f64, f64)]) -> Vec<Segment> {
-        let mut at = (DVec2::new(from.0, from.1), start);
-        let mut points = vec![at];
-        for &(dx, dy, dt) in steps {
-            at = (at.0 + DVec2::new(dx, dy), at.1 + dt);
-            points.push(at);
-        }
-        pieces(points)
-    }
 
     fn any_walk() -> impl Strategy<Value = Vec<Segment>> {
         (
@@ -263,13 +252,7 @@ mod tests {
             radius in 0.2f64..1.5,
         ) {
             let tracks = Tracks::new(vec![a.clone(), b.clone()]);
-            let patch = Patch {
-                side_m: 8.0,
-                period_s: period,
-                radius_m: radius,
-                obstacles: &[],
-                standers: &[],
-            };
+            let patch = open_patch(period, radius);
             for (x, y, same) in [(0, 1, false), (0, 0, true), (1, 1, true)] {
                 let (sa, sb) = (tracks.get(x), tracks.get(y));
                 let want = brute(sa, sb, same, period).filter(|&d| d < 2.0 * radius);

@@ -33,3 +33,34 @@ pub use rows::{refresh, rows};
 pub use segment::{Segment, at_time, copies, pieces};
 pub use tracks::Tracks;
 pub use trajectory::{entry_ghost, exit_ghost, ghosts, trajectory_segments};
+
+/// What the crate's unit tests build their walks and patches from.
+#[cfg(test)]
+mod testing {
+    use crate::patch::Patch;
+    use crate::segment::{Segment, pieces};
+    use glam::DVec2;
+
+    /// A walk of pieces from `from` at `start` s, each step moving by `(dx, dy)` over `dt`.
+    pub fn walk(start: f64, from: (f64, f64), steps: &[(f64, f64, f64)]) -> Vec<Segment> {
+        let mut at = (DVec2::new(from.0, from.1), start);
+        let mut points = vec![at];
+        for &(dx, dy, dt) in steps {
+            at = (at.0 + DVec2::new(dx, dy), at.1 + dt);
+            points.push(at);
+        }
+        pieces(points)
+    }
+
+    /// An 8 m patch looping every `period` s, for walkers of `radius` m, with nothing standing
+    /// in it.
+    pub fn open_patch(period: f64, radius: f64) -> Patch<'static> {
+        Patch {
+            side_m: 8.0,
+            period_s: period,
+            radius_m: radius,
+            obstacles: &[],
+            standers: &[],
+        }
+    }
+}

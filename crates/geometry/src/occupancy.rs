@@ -213,25 +213,9 @@ impl Occupancy {
 mod tests {
     use super::*;
     use crate::encounter::pair;
-    use crate::patch::Patch;
+    use crate::testing::{open_patch, walk};
     use crate::tracks::{ALWAYS, Tracks};
     use proptest::prelude::*;
-
-    fn walk(start: f64, from: (f64, f64), steps: &[(f64, f64, f64)]) -> Vec<Segment> {
-        let mut out = Vec::new();
-        let (mut p, mut t) = (DVec2::from(from), start);
-        for &(dt, dx, dy) in steps {
-            let q = p + DVec2::new(dx, dy);
-            out.push(Segment {
-                p0: p,
-                t0: t,
-                p1: q,
-                t1: t + dt,
-            });
-            (p, t) = (q, t + dt);
-        }
-        out
-    }
 
     fn any_walk() -> impl Strategy<Value = Vec<Segment>> {
         (
@@ -239,7 +223,10 @@ mod tests {
             (-1.0f64..9.0, -1.0f64..9.0),
             proptest::collection::vec((0.0f64..4.0, -3.0f64..3.0, -3.0f64..3.0), 1..8),
         )
-            .prop_map(|(start, from, steps)| walk(start, from, &steps))
+            .prop_map(|(start, from, steps)| {
+                let steps: Vec<_> = steps.into_iter().map(|(dt, dx, dy)| (dx, dy, dt)).collect();
+                walk(start, from, &steps)
+            })
     }
 
     proptest! {
@@ -255,13 +242,7 @@ mod tests {
             moved in 0usize..7,
             (from, to) in (-30.0f64..30.0, 0.0f64..20.0),
         ) {
-            let patch = Patch {
-                side_m: 8.0,
-                period_s: period,
-                radius_m: radius,
-                obstacles: &[],
-                standers: &[],
-            };
+            let patch = open_patch(period, radius);
             let tracks = Tracks::new(walks.clone());
             let occupancy = Occupancy::new(&walks, 2.0 * radius, period);
             let a = moved % walks.len();
@@ -293,9 +274,9 @@ mod tests {
             // Along an axis: the gap between their slots is then the gap between them.
             let along = DVec2::from_angle(f64::from(quarter) * std::f64::consts::FRAC_PI_2);
             let step = along * speed * duration;
-            let a = walk(start, (x, y), &[(duration, step.x, step.y)]);
+            let a = walk(start, (x, y), &[(step.x, step.y, duration)]);
             let aside = DVec2::new(x, y) + along.perp() * apart * reach;
-            let b = walk(start, (aside.x, aside.y), &[(duration, step.x, step.y)]);
+            let b = walk(start, (aside.x, aside.y), &[(step.x, step.y, duration)]);
             let mut all = walks;
             all.push(a);
             all.push(b);
@@ -309,7 +290,7 @@ mod tests {
     /// A long loop over a large place widens the slots; it does not grow their number.
     #[test]
     fn the_grid_holds_at_most_max_slots() {
-        let far = walk(0.0, (-400.0, -300.0), &[(900.0, 800.0, 700.0)]);
+        let far = walk(0.0, (-400.0, -300.0), &[(800.0, 700.0, 900.0)]);
         let grid = Grid::new(&[far], 0.6, 1000.0);
         assert!(grid.slots() <= MAX_SLOTS, "{} slots", grid.slots());
         assert_eq!(grid.slices, MAX_SLICES);
@@ -319,9 +300,9 @@ mod tests {
     /// they do, and a walker moved to the later walk is no longer near.
     #[test]
     fn walkers_apart_in_time_share_no_slot() {
-        let across = walk(0.0, (0.0, 4.0), &[(8.0, 8.0, 0.0)]);
-        let later = walk(10.0, (4.0, 0.0), &[(8.0, 0.0, 8.0)]);
-        let now = walk(0.0, (4.0, 0.0), &[(8.0, 0.0, 8.0)]);
+        let across = walk(0.0, (0.0, 4.0), &[(8.0, 0.0, 8.0)]);
+        let later = walk(10.0, (4.0, 0.0), &[(0.0, 8.0, 8.0)]);
+        let now = walk(0.0, (4.0, 0.0), &[(0.0, 8.0, 8.0)]);
         let mut occupancy = Occupancy::new(&[across, later.clone(), now], 0.6, 20.0);
         let near = occupancy.near(0, ALWAYS);
         assert!(near.contains(0) && !near.contains(1) && near.contains(2));
