@@ -20,17 +20,19 @@ unsafe extern "C" {
 /// header that `libmimalloc-sys` 0.1.49, pinned by `Cargo.lock`, builds; read it again there
 /// when that crate moves).
 const MI_OPTION_PURGE_DELAY: std::ffi::c_int = 15;
-/// Freed memory goes back to the kernel after this long unused, ms (mimalloc's default: 10),
+/// Freed memory goes back to the kernel after this long unused, ms (the v3 default),
 /// in a build split over processes: a stage's tables freed and the next stage's allocated
 /// within a second reuse the same pages, and a part's peak stays what sizes its jobs.
 const PURGE_DELAY_SPLIT_MS: std::ffi::c_long = 1000;
-/// The same in any other command: kept for ten seconds, so that a brush stroke's rebuild (4-5
-/// s) hands nothing back and touches no fresh page twice. On the machines this project is
-/// built on (virtual, their memory taken back by the host once the guest frees it) a fresh
-/// page costs several times a reused one: painting's stroke took 0.15-0.6 s less (322,000
-/// page faults against 434,000), its cold build 0.4 s less at 1.32 GB against 1.21 GB; the
-/// quarter's gather peaked at 0.68 GB against 0.62 GB, so a split build keeps the second.
-const PURGE_DELAY_MS: std::ffi::c_long = 10_000;
+/// The same in any other command: never (mimalloc's -1), so that no page a build freed is
+/// handed back and touched fresh again. On the machines this project is built on (virtual,
+/// their memory taken back by the host once the guest frees it) a fresh page costs several
+/// times a reused one: touching a fresh gigabyte took 2.4 s against 0.5 s reused. Kept ten
+/// seconds, painting's build from nothing took 543,000-621,000 page faults; kept for good,
+/// 359,000-376,000 (about its peak), 0.4-1.2 s faster, at a peak of 1.44-1.51 GB against
+/// 1.38-1.54 GB: a stage's tables are made in the room the last one freed. The brush stroke:
+/// 4.38-4.46 s against 4.75-5.48 s (BENCHMARKS.md, issue 20's twenty-first part).
+const PURGE_DELAY_MS: std::ffi::c_long = -1;
 
 /// Asks Linux not to back this process's memory with transparent huge pages. mimalloc asks
 /// for them on its arenas; the kernel then zeroes 2 MiB at the first touch of any byte of
