@@ -17,11 +17,11 @@ use crowd_core::patch_keys::Table;
 use crowd_core::{Cell, Hash, PatchGraph};
 use rayon::prelude::*;
 
-/// Pieces a shard's strip holds at most: half the whole check's, for a shard holds its world's
-/// graph and stage 3 beside it. The million's shard 0 (stage 6, one thread, the same memo
-/// bytes): strips of 4 million pieces 11.3-12.6 s and 1.01 GB, its other stages at most 0.78
-/// GB; of 2 million 13.0-13.7 s and 0.73-0.74 GB; of 1 million 15.5-15.9 s and 0.61 GB.
-const PART_STRIP_PIECES: u64 = strips::STRIP_PIECES / 2;
+/// Pieces a shard's strip holds at most: the whole check's (a shard holds its world's graph and
+/// stage 3 beside it). The million's shard 0 (stage 6, one thread, the same memo bytes):
+/// strips of 4 million pieces 11.3-12.6 s and 1.01 GB, its other stages at most 0.78 GB; of 2
+/// million 13.0-13.7 s and 0.73-0.74 GB; of 1 million 15.5-15.9 s and 0.61 GB.
+const PART_STRIP_PIECES: u64 = strips::STRIP_PIECES;
 
 /// The memo the check that gathers may take from one shard: the own share of each of
 /// `patches` (in patch order, with `keys` their stage keys, `world.source` giving their motion)
