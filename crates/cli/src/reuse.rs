@@ -157,70 +157,89 @@ pub fn note(reused: usize, total: usize) -> String {
     format!("{reused} of {total} patches reused")
 }
 
-/// A patch of a side file made of bytes ([`side_bytes`]): the last build's, numbered by its
-/// table, or made now.
-pub enum PatchBytes<'a> {
-    Reused(&'a [u8], &'a Table),
-    Made(PatchMotion),
+/// A side file made a run of patches at a time ([`side_pieces`]): its head, then each
+/// patch's bytes, a piece each (the file is the pieces one after another); the file's size
+/// and hash; what each patch adds to the stage file's summary; its index (from the sizes
+/// made, not read through again); and each patch's figures for the keys file.
+pub struct SidePieces {
+    pub pieces: Vec<Vec<u8>>,
+    pub file: (u64, Hash),
+    pub sums: Vec<PatchSums>,
+    pub index: MotionIndex,
+    pub figures: Vec<Vec<u8>>,
 }
 
-/// The side file of `patches` (in patch order), each reused patch copied and renumbered from
-/// its last build's table to its table in `tables`, each made one encoded, in parallel; with
-/// what each patch adds to the stage file's summary, and the file's index (from the sizes
-/// laid out, not read through again). The bytes of the motion decoded,
-/// renumbered and encoded again (`crowd_core::trajectories::encode_motion`), without
-/// decoding: a stroke's stage 6 decoded painting's 17 million points (0.54 GB of fresh
-/// memory) and encoded them again, a tenth of the stroke.
-pub fn side_bytes(
-    patches: &[PatchBytes],
-    tables: &[Table],
-) -> (Vec<u8>, Vec<PatchSums>, MotionIndex) {
-    use crowd_core::trajectories::{self as tr, encoded_head};
+/// Patches made a run at a time before their bytes are hashed.
+const RUN: usize = 512;
+
+/// The side file of `patches` patches, patch `p` being the bytes and figures `make(p)` gives:
+/// made in parallel a run of [`RUN`] at a time, in patch order, each run hashed on a thread of
+/// its own while the next is made. Each patch's bytes are made in a vector of their own, as
+/// soon as the patch is, in memory its thread just freed: painting's stage 6 held every
+/// smoothed patch (0.6 GB) and then wrote their 412 MB of bytes into one buffer of fresh
+/// memory (1.5 s of its cores, most of it the first touch of each page).
+pub fn side_pieces(
+    patches: usize,
+    make: impl Fn(usize) -> (Vec<u8>, Vec<u8>) + Sync,
+) -> SidePieces {
+    use crowd_core::trajectories::{encoded_head, sums_of_encoded};
     use rayon::prelude::*;
-    let bytes_of = |p: &PatchBytes| match p {
-        PatchBytes::Reused(bytes, _) => bytes.len(),
-        PatchBytes::Made(motion) => tr::encoded_size(motion),
-    };
-    let head = encoded_head(patches.len());
-    let sizes: Vec<usize> = patches.iter().map(bytes_of).collect();
-    let body: usize = sizes.iter().sum();
-    // Every byte after the head is written once, by its patch's part below: a buffer cleared
-    // first was a tenth of a second of one core on a stroke (the allocator clears memory it
-    // takes back), with the other idle.
-    let mut out: Vec<u8> = Vec::with_capacity(head.len() + body);
-    out.extend_from_slice(&head);
-    let mut rest = &mut out.spare_capacity_mut()[..body];
-    let mut parts = Vec::with_capacity(patches.len());
-    for &size in &sizes {
-        let (part, tail) = std::mem::take(&mut rest).split_at_mut(size);
-        parts.push(part);
-        rest = tail;
-    }
-    (parts.into_par_iter().zip(patches).zip(tables)).for_each(|((part, p), table)| match p {
-        PatchBytes::Reused(bytes, was) => {
-            let part = part.write_copy_of_slice(bytes);
-            tr::renumber_encoded(part, |c| table.global(was.local(c)))
-                .expect("a side file's patch, read through by its index");
+    let mut sizes = Vec::with_capacity(patches);
+    let mut sums = Vec::with_capacity(patches);
+    let mut figures = Vec::with_capacity(patches);
+    let (pieces, file) = std::thread::scope(|s| {
+        let (send, receive) = std::sync::mpsc::channel::<Vec<Vec<u8>>>();
+        let hasher = s.spawn(move || {
+            let mut pieces = Vec::with_capacity(patches + 1);
+            pieces.push(encoded_head(patches).to_vec());
+            let mut hash = Hash::pieces();
+            hash.update(&pieces[0]);
+            for run in receive {
+                run.iter().for_each(|bytes| hash.update(bytes));
+                pieces.extend(run);
+            }
+            (pieces, hash.finish())
+        });
+        for start in (0..patches).step_by(RUN) {
+            let run: Vec<(Vec<u8>, Vec<u8>, PatchSums)> = (start..(start + RUN).min(patches))
+                .into_par_iter()
+                .map(|p| {
+                    let (bytes, figures) = make(p);
+                    let sums = sums_of_encoded(&bytes).expect("a patch's bytes, as encoded");
+                    (bytes, figures, sums)
+                })
+                .collect();
+            let mut bytes = Vec::with_capacity(run.len());
+            for (b, f, s) in run {
+                sizes.push((b.len(), s.trajectories()));
+                sums.push(s);
+                figures.push(f);
+                bytes.push(b);
+            }
+            // The hasher ends only when the sender is dropped: it is there to receive.
+            let _ = send.send(bytes);
         }
-        PatchBytes::Made(motion) => tr::encode_patch_uninit(motion, part),
+        drop(send);
+        hasher
+            .join()
+            .unwrap_or_else(|panic| std::panic::resume_unwind(panic))
     });
-    // SAFETY: the parts split the first `body` bytes of the spare room between them, and each
-    // part was written whole above (`write_copy_of_slice` copies a patch's bytes of the same
-    // size; `encode_patch_uninit` writes every byte of its part or panics).
-    unsafe { out.set_len(head.len() + body) };
-    let mut starts = Vec::with_capacity(sizes.len());
-    sizes.iter().fold(head.len(), |at, &size| {
-        starts.push(at);
-        at + size
-    });
-    let sums: Vec<PatchSums> = (starts.par_iter().zip(&sizes))
-        .map(|(&at, &size)| {
-            tr::sums_of_encoded(&out[at..at + size])
-                .expect("a patch's bytes, encoded or read through")
-        })
-        .collect();
-    let index = MotionIndex::of_sizes(sizes.into_iter().zip(sums.iter().map(|s| s.trajectories())));
-    (out, sums, index)
+    SidePieces {
+        pieces,
+        file,
+        sums,
+        index: MotionIndex::of_sizes(sizes),
+        figures,
+    }
+}
+
+/// A reused patch's bytes copied from the last build's side file, its crossings renumbered
+/// from the table they were numbered by (`was`) to its table now.
+pub fn renumbered(bytes: &[u8], was: &Table, now: &Table) -> Vec<u8> {
+    let mut bytes = bytes.to_vec();
+    crowd_core::trajectories::renumber_encoded(&mut bytes, |c| now.global(was.local(c)))
+        .expect("a side file's patch, read through by its index");
+    bytes
 }
 
 #[cfg(test)]
@@ -256,27 +275,34 @@ mod tests {
 
     #[test]
     fn a_side_file_of_reused_and_made_patches_is_the_encoding_of_their_motion() {
-        let motion: Vec<PatchMotion> = (0..7).map(patch).collect();
-        let encoded: Vec<Vec<u8>> = motion.iter().map(encode_patch_bytes).collect();
-        // Patches numbered alike before and after (tables with no crossings) are kept as
-        // they were; every other patch is made now.
-        let same = Table::default();
-        let patches: Vec<PatchBytes> = (0..motion.len())
-            .map(|p| match p % 2 {
-                0 => PatchBytes::Reused(&encoded[p], &same),
-                _ => PatchBytes::Made(motion[p].clone()),
-            })
-            .collect();
-        let tables = vec![Table::default(); motion.len()];
-        let (bytes, sums, index) = side_bytes(&patches, &tables);
-        assert_eq!(bytes, encode_motion(&motion));
-        let read = MotionIndex::of(Path::new("m.bin"), &bytes).unwrap();
-        for p in 0..motion.len() {
-            assert_eq!(index.span(p), read.span(p), "patch {p}");
-            assert_eq!(index.trajectories(p), read.trajectories(p), "patch {p}");
+        // More patches than a run, so that runs follow one another through the hasher.
+        for count in [0, 7, RUN + 3] {
+            let motion: Vec<PatchMotion> = (0..count).map(|k| patch(k % 9)).collect();
+            let encoded: Vec<Vec<u8>> = motion.iter().map(encode_patch_bytes).collect();
+            // Patches numbered alike before and after (tables with no crossings) are copied
+            // as they were; every other patch is made now.
+            let same = Table::default();
+            let side = side_pieces(count, |p| match p % 2 {
+                0 => (renumbered(&encoded[p], &same, &same), vec![p as u8]),
+                _ => (encode_patch_bytes(&motion[p]), vec![p as u8]),
+            });
+            let bytes = side.pieces.concat();
+            assert_eq!(bytes, encode_motion(&motion));
+            assert_eq!(side.file, (bytes.len() as u64, Hash::of(&bytes)));
+            let read = MotionIndex::of(Path::new("m.bin"), &bytes).unwrap();
+            assert_eq!(side.index.patches(), count);
+            for p in 0..count {
+                assert_eq!(side.index.span(p), read.span(p), "patch {p}");
+                assert_eq!(
+                    side.index.trajectories(p),
+                    read.trajectories(p),
+                    "patch {p}"
+                );
+                assert_eq!(side.figures[p], vec![p as u8]);
+            }
+            let mut summing = Summing::new(20.0);
+            side.sums.iter().for_each(|s| summing.add_sums(s));
+            assert_eq!(summing.finish(), summarize(&motion, 20.0));
         }
-        let mut summing = Summing::new(20.0);
-        sums.iter().for_each(|s| summing.add_sums(s));
-        assert_eq!(summing.finish(), summarize(&motion, 20.0));
     }
 }

@@ -48,9 +48,10 @@ pub struct Ran {
     /// Files written already to their temporary names, too large to hold (a gathering build's
     /// side file), put in place before `writes`.
     pub streamed: Vec<crowd_core::files::StreamedFile>,
-    /// Files to write whose bytes the stages after it read meanwhile (a stroke's stage 6 side
-    /// file, which export thins), put in place after `streamed` and before `writes`.
-    pub shared: Vec<(PathBuf, std::sync::Arc<Vec<u8>>)>,
+    /// Files to write, as pieces one after another, that the stages after it read meanwhile
+    /// (stage 6's side file, which export thins), put in place after `streamed` and before
+    /// `writes`.
+    pub shared: Vec<(PathBuf, std::sync::Arc<Vec<Vec<u8>>>)>,
     /// The files to write, side files before the file that names them.
     pub writes: Writes,
     /// A figure worth printing after the stage (stage 3's E).

@@ -810,59 +810,66 @@ fn smooth(a: &mut Artifacts, out: &Path, hash: Hash, ui: &Ui) -> Result<Ran> {
     let reused: Vec<Option<reuse::Encoded>> = (0..keys.len())
         .map(|p| previous.as_ref()?.take_encoded(p, keys[p]))
         .collect();
-    let todo: Vec<usize> = (0..reused.len()).filter(|&p| reused[p].is_none()).collect();
-    let made = crowd_smooth::smooth_patches(&graph, &patterns.1, &collided.1, &inputs, &bar, &todo);
-    // Stage 5's motion is read no more: let it go before the encoding.
-    let collided_file = collided.0.clone();
-    drop(collided);
+    let todo = reused.iter().filter(|r| r.is_none()).count();
+    let progress: &dyn crowd_core::Progress = &bar;
+    progress.begin("smooth", todo as u64);
+    let smoother = crowd_smooth::Smoother::new(&graph, patterns.1.view(), &collided.1, &inputs);
     let counted = |counts: [u64; 3]| counts.iter().flat_map(|c| c.to_le_bytes()).collect();
-    let mut made = made.into_iter().map(|(m, counts)| (m, counted(counts)));
-    let mut patches = Vec::with_capacity(reused.len());
-    let mut extra: Vec<Vec<u8>> = Vec::with_capacity(reused.len());
-    for r in &reused {
-        let (bytes, figures) = match r {
-            Some((bytes, was, figures)) => {
-                (reuse::PatchBytes::Reused(bytes, was), figures.to_vec())
-            }
-            None => {
-                let (motion, figures) = made.next().expect("every patch smoothed or reused");
-                (reuse::PatchBytes::Made(motion), figures)
-            }
-        };
-        patches.push(bytes);
-        extra.push(figures);
-    }
-    let (bytes, sums, index) = reuse::side_bytes(&patches, &seen.tables);
-    drop(patches);
+    // Each patch is encoded as soon as it is smoothed: the world's smoothed motion is never
+    // held (`reuse::side_pieces`).
+    let side = reuse::side_pieces(reused.len(), |p| match &reused[p] {
+        Some((bytes, was, figures)) => (
+            reuse::renumbered(bytes, was, &seen.tables[p]),
+            figures.to_vec(),
+        ),
+        None => {
+            let (motion, counts) = smoother.patch(p);
+            progress.advance(1);
+            (
+                crowd_core::trajectories::encode_patch_bytes(&motion),
+                counted(counts),
+            )
+        }
+    });
+    drop(smoother);
     drop(reused);
     drop(previous);
+    // Stage 5's motion is read no more.
+    let collided_file = collided.0.clone();
+    drop(collided);
     let count = |bytes: &[u8], i: usize| {
         bytes
             .get(8 * i..8 * i + 8)
             .and_then(|b| b.try_into().ok())
             .map_or(0, u64::from_le_bytes)
     };
-    let counts = extra
-        .iter()
-        .map(|b| [count(b, 0), count(b, 1), count(b, 2)]);
+    let counts = (side.figures.iter()).map(|b| [count(b, 0), count(b, 1), count(b, 2)]);
     let summary = crowd_smooth::summary_of(counts);
     let mut summing = crowd_core::trajectories::Summing::new(inputs.period_s);
-    sums.iter().for_each(|s| summing.add_sums(s));
-    let encoded = SideMotion::Encoded(&bytes, summing.finish());
+    side.sums.iter().for_each(|s| summing.add_sums(s));
+    let encoded = SideMotion::Encoded(side.file, summing.finish());
     let (file, writes) = crowd_smooth::encode(out, encoded, summary, &collided_file, &inputs, hash);
-    let note = reuse::note(extra.len() - todo.len(), extra.len());
-    let writes = with_keys(out, writes, file.motion.hash, keys, &seen.tables, extra);
-    let side = side_file(out, &file);
-    index.share(side.1);
-    let bytes = std::sync::Arc::new(bytes);
-    let motion = LazyMotion::of_bytes((out, &side.0), bytes.clone(), index);
+    let note = reuse::note(side.figures.len() - todo, side.figures.len());
+    let writes = with_keys(
+        out,
+        writes,
+        file.motion.hash,
+        keys,
+        &seen.tables,
+        side.figures,
+    );
+    let known = side_file(out, &file);
+    side.index.share(known.1);
+    // Written meanwhile (`files::Staging`), and thinned by export from memory.
+    let pieces = std::sync::Arc::new(side.pieces);
+    let motion = LazyMotion::of_pieces((out, &known.0), pieces.clone(), side.index);
     a.made_lazy_motion(&SMOOTH, (file, motion));
     Ok(Ran {
         note: Some(note),
-        shared: vec![(side.0.clone(), bytes)],
+        shared: vec![(known.0.clone(), pieces)],
         ..Ran::files(writes)
     }
-    .knowing(side.0, side.1))
+    .knowing(known.0, known.1))
 }
 
 /// A shard's stage 6: its part ([`smooth_part`]), then its share of the check

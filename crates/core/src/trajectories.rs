@@ -204,8 +204,11 @@ pub fn encoded_head(patches: usize) -> [u8; HEAD_BYTES] {
 /// One patch's bytes as [`encode_motion`] writes them among the others: a side file is
 /// [`encoded_head`] and its patches' bytes one after another.
 pub fn encode_patch_bytes(p: &PatchMotion) -> Vec<u8> {
-    let mut out = vec![0u8; encoded_size(p)];
-    encode_patch(p, &mut out);
+    let size = encoded_size(p);
+    let mut out = Vec::with_capacity(size);
+    encode_patch_uninit(p, &mut out.spare_capacity_mut()[..size]);
+    // SAFETY: `encode_patch_uninit` wrote every one of the first `size` bytes (or panicked).
+    unsafe { out.set_len(size) };
     out
 }
 
@@ -237,9 +240,9 @@ pub fn encode_patch(p: &PatchMotion, out: &mut [u8]) {
     });
 }
 
-/// [`encode_patch`] into memory not written yet (a buffer's spare room, so that a side file
-/// of 0.4 GB is not cleared first only to be written over): writes every byte of `out`,
-/// which is exactly [`encoded_size`] bytes.
+/// [`encode_patch`] into memory not written yet (a vector's spare room, so that it is not
+/// cleared first only to be written over): writes every byte of `out`, which is exactly
+/// [`encoded_size`] bytes.
 pub fn encode_patch_uninit(p: &PatchMotion, out: &mut [std::mem::MaybeUninit<u8>]) {
     let mut at = 0;
     write_patch(p, |bytes| {
@@ -545,10 +548,10 @@ struct LazyFile {
 }
 
 /// Where a [`LazyFile`]'s bytes are: in its file, or held (the side file a build made and
-/// writes meanwhile).
+/// writes meanwhile: its head, then each patch's bytes, a piece each).
 enum Bytes {
     File(std::fs::File),
-    Held(std::sync::Arc<Vec<u8>>),
+    Held(std::sync::Arc<Vec<Vec<u8>>>),
 }
 
 impl LazyMotion {
@@ -584,19 +587,25 @@ impl LazyMotion {
         LazyMotion::of_parts(vec![(path.to_path_buf(), side.to_path_buf(), index)])
     }
 
-    /// The motion of the side file `bytes` (of the stage file `path`, to be `side`), held:
-    /// `index` is [`MotionIndex::of`] them.
-    pub fn of_bytes(
+    /// The motion of the side file `pieces` (of the stage file `path`, to be `side`), held:
+    /// [`encoded_head`], then each patch's bytes, a piece each; `index` is [`MotionIndex::of`]
+    /// them one after another.
+    pub fn of_pieces(
         (path, side): (&Path, &Path),
-        bytes: std::sync::Arc<Vec<u8>>,
+        pieces: std::sync::Arc<Vec<Vec<u8>>>,
         index: MotionIndex,
     ) -> LazyMotion {
+        assert_eq!(
+            pieces.len(),
+            index.patches() + 1,
+            "a head and a piece a patch"
+        );
         LazyMotion {
             patches: index.patches(),
             files: vec![LazyFile {
                 path: path.to_path_buf(),
                 side: side.to_path_buf(),
-                from: Bytes::Held(bytes),
+                from: Bytes::Held(pieces),
                 index,
                 first: 0,
             }],
@@ -613,7 +622,7 @@ impl LazyMotion {
         let span = f.index.spans[p - f.first].0.clone();
         let read;
         let bytes = match &f.from {
-            Bytes::Held(held) => &held[span.clone()],
+            Bytes::Held(pieces) => &pieces[p - f.first + 1][..],
             Bytes::File(file) => {
                 let mut bytes = vec![0u8; span.len()];
                 crate::files::read_at(file, &mut bytes, span.start as u64)
@@ -809,8 +818,9 @@ impl Summing {
 pub enum SideMotion<'a> {
     Held(&'a [PatchMotion]),
     Streamed(&'a crate::files::StreamedFile, MotionSummary),
-    /// Encoded already, to be written by the caller, with the summary of its motion.
-    Encoded(&'a [u8], MotionSummary),
+    /// Encoded already (its size and hash), to be written by the caller, with the summary of
+    /// its motion.
+    Encoded((u64, crate::Hash), MotionSummary),
 }
 
 impl<'a> From<&'a [PatchMotion]> for SideMotion<'a> {
@@ -843,8 +853,9 @@ pub fn encode_file<'a>(
             let (path, record) = SideFile::beside(out, &bytes);
             (summarize(motion, period_s), record, Some((path, bytes)))
         }
-        SideMotion::Encoded(bytes, summary) => {
-            let (_, record) = SideFile::beside(out, bytes);
+        SideMotion::Encoded((bytes, hash), summary) => {
+            let (_, mut record) = SideFile::beside(out, &[]);
+            (record.bytes, record.hash) = (bytes, hash);
             (summary, record, None)
         }
         SideMotion::Streamed(side, summary) => {
