@@ -183,8 +183,9 @@ pub fn write_all(writes: &[(std::path::PathBuf, Vec<u8>)]) -> Result<()> {
 
 /// Writes `pieces`, one after another, to a new file at `path` and waits until they are on
 /// disk, as a file must be before it is renamed over another: else a crash may leave the new
-/// name with no bytes, and ext4 flushes it in the rename itself (painting's 425 MB side file: 0.23 s of a stroke's
-/// rebuild, on the build's critical path rather than on the writer's thread).
+/// name with no bytes, and ext4 flushes it in the rename itself (painting's 425 MB side file:
+/// 0.23 s of a stroke's rebuild, on the build's critical path rather than on the writer's
+/// thread).
 fn write_durably(path: &Path, pieces: &[Vec<u8>]) -> std::io::Result<()> {
     use std::io::Write;
     let mut file = std::fs::File::create(path)?;
