@@ -12,13 +12,12 @@
 #   WORK=/tmp/cold tools/bench/cold.sh old/crowd target/release/crowd
 set -eu
 : "${WORK:?set WORK to an empty folder}"
-here="$(cd "$(dirname "$0")/../.." && pwd)"
+. "$(dirname "$0")/common.sh"
 [ $# -gt 0 ] || set -- "$here/target/release/crowd"
 for crowd in "$@"; do
   shift
-  set -- "$@" "$(cd "$(dirname "$crowd")" && pwd)/$(basename "$crowd")"
+  set -- "$@" "$(absolute "$crowd")"
 done
-[ -x /usr/bin/time ] || { echo "cold.sh: needs /usr/bin/time (GNU time)" >&2; exit 1; }
 mkdir -p "$WORK"
 cd "$WORK"
 # painting.ron with its layer's path made absolute and its output here.
@@ -29,9 +28,8 @@ for run in $(seq "${RUNS:-2}"); do
     rm -rf out && sync
     echo 3 2>/dev/null > /proc/sys/vm/drop_caches || echo "cold.sh: page cache not dropped (not root)" >&2
     /usr/bin/time -f "%e %U %S %M %R" -o time.txt "$crowd" build -q --pipeline p.ron >/dev/null 2>build.log
-    stages=$(sed -n 's/^ *"\([a-z]*\)": (/\1/p; s/^ *seconds: \([0-9.]*\),/\1/p' out/timings.ron \
-      | paste -d= - - | awk -F= '{printf "%s=%.2f ", $1, $2}')
     read -r wall user sys kb faults < time.txt
-    echo "$(date +%H:%M) $(basename "$(dirname "$crowd")")/$(basename "$crowd") run $run: ${wall} s (user $user, system $sys), $((kb / 1024)) MB, $faults page faults; $stages"
+    echo "$(date +%H:%M) $(label "$crowd") run $run: ${wall} s (user $user, system $sys)," \
+      "$((kb / 1024)) MB, $faults page faults; $(stage_seconds out)"
   done
 done

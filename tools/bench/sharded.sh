@@ -17,10 +17,9 @@ set -eu
 : "${WORK:?set WORK to an empty folder}"
 shards="${SHARDS:-8}"
 at_once="${AT_ONCE:-2}"
-here="$(cd "$(dirname "$0")/../.." && pwd)"
+. "$(dirname "$0")/common.sh"
 export CROWD="${CROWD:-$here/target/release/crowd}"
 export PIPELINE SHARDS="$shards" SHARED="$WORK/shared"
-[ -x /usr/bin/time ] || { echo "sharded.sh: needs /usr/bin/time (GNU time)" >&2; exit 1; }
 mkdir -p "$WORK/shared" "$WORK/logs"
 start=$(date +%s)
 # Each shard in its own scratch folder, on one thread (rayon reads RAYON_NUM_THREADS when

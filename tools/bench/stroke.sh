@@ -12,15 +12,13 @@
 #   WORK=/tmp/stroke tools/bench/stroke.sh old/crowd target/release/crowd
 set -eu
 : "${WORK:?set WORK to an empty folder}"
-here="$(cd "$(dirname "$0")/../.." && pwd)"
+. "$(dirname "$0")/common.sh"
 [ $# -gt 0 ] || set -- "$here/target/release/crowd"
-# The binaries by absolute path: the runs are made in WORK.
 for crowd in "$@"; do
   shift
-  set -- "$@" "$(cd "$(dirname "$crowd")" && pwd)/$(basename "$crowd")"
+  set -- "$@" "$(absolute "$crowd")"
 done
 paint="$here/target/release/crowd-paintings"
-[ -x /usr/bin/time ] || { echo "stroke.sh: needs /usr/bin/time (GNU time)" >&2; exit 1; }
 [ -x "$paint" ] || { echo "stroke.sh: build crowd-paintings first (cargo build --release)" >&2; exit 1; }
 mkdir -p "$WORK"
 cd "$WORK"
@@ -52,9 +50,7 @@ for run in $(seq "${RUNS:-3}"); do
     rm -rf out && cp -a base out && cp after.png density.png && sync
     /usr/bin/time -f "%e %M" -o time.txt "$crowd" build -q --pipeline p.ron >/dev/null 2>build.log
     cp before.png density.png
-    stages=$(sed -n 's/^ *"\([a-z]*\)": (/\1/p; s/^ *seconds: \([0-9.]*\),/\1/p' out/timings.ron \
-      | paste -d= - - | awk -F= '{printf "%s=%.2f ", $1, $2}')
     read -r wall kb < time.txt
-    echo "$(basename "$(dirname "$crowd")")/$(basename "$crowd") run $run: ${wall} s, $((kb / 1024)) MB; $stages"
+    echo "$(label "$crowd") run $run: ${wall} s, $((kb / 1024)) MB; $(stage_seconds out)"
   done
 done
