@@ -154,6 +154,21 @@ pub(crate) struct Occupancy {
     /// Each walker's slots, with the slice (from time 0) it came into each at: what takes it
     /// out of them, and what finds who is near it over a stretch of its time.
     slots: Vec<Vec<(i64, u32)>>,
+    /// Where each of a walker's pieces' slots end in its `slots`: a push changes a stretch
+    /// of a path, and only that stretch's pieces are visited again ([`Occupancy::remark`]).
+    ends: Vec<Vec<u32>>,
+    /// The slots a [`Occupancy::remark`] took out, a bit each (all clear between calls).
+    gone: Vec<u64>,
+    /// A [`Occupancy::remark`]'s kept tail of slots and ends, held for their allocations.
+    aside: (Vec<(i64, u32)>, Vec<u32>),
+}
+
+/// How a walker's pieces changed: the first `head` and the last `tail` are the same pieces as
+/// before (as [`crate::Tracks::set`] finds them).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Kept {
+    pub head: usize,
+    pub tail: usize,
 }
 
 impl Occupancy {
@@ -167,6 +182,9 @@ impl Occupancy {
             words,
             bits: vec![0; grid.slots() * words],
             slots: vec![Vec::new(); segs.len()],
+            ends: vec![Vec::new(); segs.len()],
+            gone: vec![0; grid.slots().div_ceil(64)],
+            aside: (Vec::new(), Vec::new()),
         };
         for (p, s) in segs.iter().enumerate() {
             occupancy.mark(p, s);
@@ -176,17 +194,70 @@ impl Occupancy {
 
     /// Walker `p` now comes where the pieces `segs` do, and nowhere else.
     pub(crate) fn mark(&mut self, p: usize, segs: &[Segment]) {
+        let was = self.ends[p].len();
+        self.remark(p, segs, Kept { head: 0, tail: 0 }, was);
+    }
+
+    /// Walker `p` now walks `segs`, of which the first `kept.head` and the last `kept.tail`
+    /// are the same pieces as the last ones of the `was` it walked before: only the pieces
+    /// between are visited again (a push moves a stretch of a path: a quarter of its
+    /// pieces on `painting`, where visiting every piece again was a sixth of stage 5). The
+    /// slots and sets are the same as visiting every piece again gives.
+    pub(crate) fn remark(&mut self, p: usize, segs: &[Segment], kept: Kept, was: usize) {
         let (word, bit) = (p / 64, 1u64 << (p % 64));
+        let Kept { head, tail } = kept;
         let mut slots = std::mem::take(&mut self.slots[p]);
-        for &(_, slot) in &slots {
+        let mut ends = std::mem::take(&mut self.ends[p]);
+        let end_of = |ends: &[u32], piece: usize| piece.checked_sub(1).map_or(0, |n| ends[n]);
+        // The old slots of the changed pieces: from the end of the head's to the start of
+        // the tail's. Each is taken out, and noted in `gone`.
+        let (from, to) = (
+            end_of(&ends, head) as usize,
+            end_of(&ends, was - tail) as usize,
+        );
+        let flip = |gone: &mut [u64], slot: u32| gone[slot as usize / 64] ^= 1 << (slot % 64);
+        let is_gone = |gone: &[u64], slot: u32| gone[slot as usize / 64] >> (slot % 64) & 1 == 1;
+        for &(_, slot) in &slots[from..to] {
             self.bits[slot as usize * self.words + word] &= !bit;
+            if !is_gone(&self.gone, slot) {
+                flip(&mut self.gone, slot);
+            }
         }
-        slots.clear();
-        self.grid.visit(segs, |k, slot| {
-            self.bits[slot as usize * self.words + word] |= bit;
-            slots.push((k, slot));
-        });
+        if from < to {
+            // A kept piece may come into a slot a changed one left: it is still in it.
+            for &(_, slot) in slots[..from].iter().chain(&slots[to..]) {
+                if is_gone(&self.gone, slot) {
+                    self.bits[slot as usize * self.words + word] |= bit;
+                }
+            }
+            for &(_, slot) in &slots[from..to] {
+                if is_gone(&self.gone, slot) {
+                    flip(&mut self.gone, slot);
+                }
+            }
+        }
+        // The tail's slots and ends wait aside while the changed pieces' are made; its ends
+        // then move by how many more (or fewer) slots those took.
+        let (mut tail_slots, mut tail_ends) = std::mem::take(&mut self.aside);
+        tail_slots.clear();
+        tail_slots.extend_from_slice(&slots[to..]);
+        tail_ends.clear();
+        tail_ends.extend_from_slice(&ends[was - tail..]);
+        slots.truncate(from);
+        ends.truncate(head);
+        for s in &segs[head..segs.len() - tail] {
+            self.grid.visit(std::slice::from_ref(s), |k, slot| {
+                self.bits[slot as usize * self.words + word] |= bit;
+                slots.push((k, slot));
+            });
+            ends.push(slots.len() as u32);
+        }
+        let made = slots.len();
+        ends.extend(tail_ends.iter().map(|&e| (e as usize - to + made) as u32));
+        slots.extend_from_slice(&tail_slots);
         self.slots[p] = slots;
+        self.ends[p] = ends;
+        self.aside = (tail_slots, tail_ends);
     }
 
     /// Every walker that shares a slot with walker `p` over `span` of its time: a walker not in
@@ -284,6 +355,58 @@ mod tests {
             let occupancy = Occupancy::new(&all, reach, period);
             prop_assert!(occupancy.near(ia, ALWAYS).contains(ib));
             prop_assert!(occupancy.near(ib, (start, start)).contains(ia));
+        }
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(256))]
+
+        /// Visiting only a walk's changed stretch again leaves every slot's set, and every
+        /// walker's slots, as visiting the whole walk again does: over a run of changes, in
+        /// any grid, with kept pieces that share slots with the changed ones.
+        #[test]
+        fn a_changed_stretch_remarked_is_a_walk_marked_anew(
+            walks in proptest::collection::vec(any_walk(), 1..5),
+            changes in proptest::collection::vec(
+                (0usize..5, 0usize..8, 0usize..8, any_walk()), 1..6),
+            period in 2.0f64..30.0,
+            radius in 0.05f64..1.0,
+        ) {
+            let reach = 2.0 * radius;
+            let mut walks = walks;
+            let mut occupancy = Occupancy::new(&walks, reach, period);
+            for (who, head, tail, middle) in changes {
+                let p = who % walks.len();
+                let old = &walks[p];
+                let head = head.min(old.len());
+                let tail = tail.min(old.len() - head);
+                // Changed pieces anywhere the walk goes: the middle moved to start where
+                // the head ends.
+                let start = head.checked_sub(1).map_or(0.0, |h| old[h].t1);
+                let shift = start - middle[0].t0;
+                let middle = middle.iter().map(|s| s.shifted(shift));
+                let new: Vec<Segment> = old[..head]
+                    .iter()
+                    .copied()
+                    .chain(middle)
+                    .chain(old[old.len() - tail..].iter().copied())
+                    .collect();
+                let was = old.len();
+                occupancy.remark(p, &new, Kept { head, tail }, was);
+                walks[p] = new;
+                // The grid was cut for the first walks: the same cut, marked anew.
+                let mut fresh = occupancy.clone();
+                fresh.bits.iter_mut().for_each(|w| *w = 0);
+                fresh.slots.iter_mut().for_each(Vec::clear);
+                fresh.ends.iter_mut().for_each(Vec::clear);
+                for (q, w) in walks.iter().enumerate() {
+                    fresh.mark(q, w);
+                }
+                prop_assert_eq!(&occupancy.bits, &fresh.bits);
+                prop_assert_eq!(&occupancy.slots, &fresh.slots);
+                prop_assert_eq!(&occupancy.ends, &fresh.ends);
+                prop_assert!(occupancy.gone.iter().all(|&w| w == 0));
+            }
         }
     }
 

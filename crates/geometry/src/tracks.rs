@@ -3,7 +3,7 @@
 //! measure again only what changed.
 
 use crate::encounter::box_gap_squared;
-use crate::occupancy::{Occupancy, Walkers};
+use crate::occupancy::{Kept, Occupancy, Walkers};
 use crate::patch::Patch;
 use crate::segment::Segment;
 use glam::DVec2;
@@ -105,13 +105,13 @@ impl Tracks {
 
     /// Walker `p` now walks `segs`.
     pub fn set(&mut self, p: usize, segs: Vec<Segment>) {
-        let Some(span) = changed_span(&self.segs[p], &segs) else {
+        let Some((span, kept)) = changed_span(&self.segs[p], &segs) else {
             return;
         };
         self.changed[p] =
             Some(self.changed[p].map_or(span, |c| (c.0.min(span.0), c.1.max(span.1))));
         if let Some(occupancy) = &mut self.occupancy {
-            occupancy.mark(p, &segs);
+            occupancy.remark(p, &segs, kept, self.segs[p].len());
         }
         self.boxes[p] = bounds(&segs);
         self.chunks[p] = chunks(&segs);
@@ -144,8 +144,9 @@ impl Tracks {
 }
 
 /// The time span over which two versions of a path differ: from the start of the first piece
-/// that differs to the end of the last (`None`: the same pieces).
-fn changed_span(old: &[Segment], new: &[Segment]) -> Option<Span> {
+/// that differs to the end of the last (`None`: the same pieces); and how many pieces at
+/// either end are the same.
+fn changed_span(old: &[Segment], new: &[Segment]) -> Option<(Span, Kept)> {
     let n = old.len().min(new.len());
     let head = (0..n).take_while(|&i| old[i] == new[i]).count();
     if head == old.len() && head == new.len() {
@@ -163,7 +164,7 @@ fn changed_span(old: &[Segment], new: &[Segment]) -> Option<Span> {
         }
     };
     let (start, end) = (first(old).min(first(new)), last(old).max(last(new)));
-    Some((start.min(end), start.max(end)))
+    Some(((start.min(end), start.max(end)), Kept { head, tail }))
 }
 
 /// The corners of the box that holds a path.
