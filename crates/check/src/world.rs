@@ -318,7 +318,8 @@ impl Scene {
         let mut cell: Vec<Span> = ids.iter().map(|&i| self.span(i)).collect();
         cell.sort_unstable_by_key(|s| (ordered_bits(s.0), s.2));
         // The box test is written out in each loop, `visit` called only past it: as a
-        // closure called for every pair, it was a call per pair (a sixth of the check).
+        // closure called for every pair, it was a call per pair (a sixth of the check). One
+        // loop over the runs chained, or flattened, took 3-4 % more of the check's time.
         for (x, &(start, end, i, lo, hi)) in cell.iter().enumerate() {
             if periodic && end - start >= period {
                 for o in cell.iter().filter(|o| o.2 != i) {

@@ -198,11 +198,11 @@ impl Occupancy {
         self.remark(p, segs, Kept { head: 0, tail: 0 }, was);
     }
 
-    /// Walker `p` now walks `segs`, of which the first `kept.head` and the last `kept.tail`
-    /// are the same pieces as the last ones of the `was` it walked before: only the pieces
-    /// between are visited again (a push moves a stretch of a path: a quarter of its
-    /// pieces on `painting`, where visiting every piece again was a sixth of stage 5). The
-    /// slots and sets are the same as visiting every piece again gives.
+    /// Walker `p` now walks `segs`, whose first `kept.head` and last `kept.tail` pieces are
+    /// the first and last of the `was` pieces it walked before: only the pieces between are
+    /// visited again (a push moves a stretch of a path: a quarter of its pieces on
+    /// `painting`, where visiting every piece again was a sixth of stage 5). The slots and
+    /// sets are the ones visiting every piece again gives.
     pub(crate) fn remark(&mut self, p: usize, segs: &[Segment], kept: Kept, was: usize) {
         let (word, bit) = (p / 64, 1u64 << (p % 64));
         let Kept { head, tail } = kept;
