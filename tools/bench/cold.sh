@@ -13,11 +13,7 @@
 set -eu
 : "${WORK:?set WORK to an empty folder}"
 . "$(dirname "$0")/common.sh"
-[ $# -gt 0 ] || set -- "$here/target/release/crowd"
-for crowd in "$@"; do
-  shift
-  set -- "$@" "$(absolute "$crowd")"
-done
+. "$(dirname "$0")/binaries.sh"
 mkdir -p "$WORK"
 cd "$WORK"
 # painting.ron with its layer's path made absolute and its output here.

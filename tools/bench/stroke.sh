@@ -13,11 +13,7 @@
 set -eu
 : "${WORK:?set WORK to an empty folder}"
 . "$(dirname "$0")/common.sh"
-[ $# -gt 0 ] || set -- "$here/target/release/crowd"
-for crowd in "$@"; do
-  shift
-  set -- "$@" "$(absolute "$crowd")"
-done
+. "$(dirname "$0")/binaries.sh"
 paint="$here/target/release/crowd-paintings"
 [ -x "$paint" ] || { echo "stroke.sh: build crowd-paintings first (cargo build --release)" >&2; exit 1; }
 mkdir -p "$WORK"
