@@ -279,12 +279,21 @@ fn the_city_with_an_edit_of_each_kind_meets_them_and_ships_without_a_collision()
         if e["kind"] == "Meet" {
             assert!(after < 0.5, "{e}");
         }
-        // The square fills to within 15 % of what it asks (0.059 -> 0.267 people/m2 for 0.3).
+        // The square fills to within 30 % of what it asks (0.059 -> 0.229 people/m2 for 0.3),
+        // and the report warns where it is more than 15 % short. Walkers packed into a
+        // square collide, and the ladder holds both of each pair on their plans: before it,
+        // this edit's walks held 91 % of the target. What is left is sensitive to the
+        // walks it starts from: with the same stage 6, the square moved by 0.5 m or its
+        // window by 0.1 s reached 76-91 %; a stage 6 that changed two of the patch's 20
+        // walkers a little, 73-91 % (BENCHMARKS.md, twenty-third part).
         if e["kind"] == "Density" {
             let d: DensityFigures = serde_json::from_value(e["density"].clone()).unwrap();
-            assert!(d.after > d.before && d.reached(0.15), "{e}");
+            assert!(d.after > d.before && d.reached(0.3), "{e}");
+            let warned = !d.reached(crowd_moments::DENSITY_SHARE);
+            assert_eq!(e.get("warning").is_some(), warned, "{e}");
+        } else {
+            assert!(e.get("warning").is_none(), "{e}");
         }
-        assert!(e.get("warning").is_none(), "{e}");
         // Its time, from `timings.ron`.
         assert!(e["seconds"].as_f64().is_some_and(|t| t > 0.0), "{e}");
     }

@@ -179,6 +179,7 @@ pub fn edit_patch(
     let edited: Vec<Trajectory> = (0..before.len()).map(|j| candidate(j, &[])).collect();
     let ladder = Ladder {
         levels: 0,
+        halvings: 0,
         holds: HOLDS,
     };
     let chosen = keep_clear(before, edited, &cx.patch, ladder, |j, _, held| {

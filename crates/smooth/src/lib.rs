@@ -40,7 +40,7 @@ use rayon::prelude::*;
 
 /// The stage name in `smoothed.ron`'s header.
 pub const STAGE: &str = "smooth";
-pub const VERSION: u32 = 10;
+pub const VERSION: u32 = 11;
 
 /// Everything each patch's stage 6 depends on, hashed: its stage 5 motion and its four
 /// neighbours' (each in its own numbering, with its surroundings: the velocity at a crossing is
@@ -364,6 +364,7 @@ fn smooth_patch(
         .collect();
     let ladder = crowd_geometry::Ladder {
         levels: LEVELS,
+        halvings: CURVE_LEVELS,
         holds: HOLDS,
     };
     let chosen =
