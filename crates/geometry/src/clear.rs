@@ -136,6 +136,7 @@ impl Step {
         now: &Tracks,
         patch: &Patch,
     ) -> Step {
+        // With no halvings (stage 7's ladder), both always step.
         let on_halvings = |i: usize| halvings == 0 || level[i] <= halvings;
         let mut movers = vec![(e.a, e.t)];
         if let Other::Walker { b, shift } = e.other {
