@@ -261,6 +261,56 @@ mod tests {
             .all(|(&m, &w)| m >= 0.0 || m >= w - 1e-9)
     }
 
+    /// A walker pushed past its halvings by a stander is not stepped back further for a
+    /// partner whose curve then comes too close: the partner steps back alone, as far as the
+    /// encounter shows it must.
+    #[test]
+    fn a_walker_past_its_halvings_is_not_stepped_back_for_a_partner_still_on_them() {
+        let stander = [DVec2::new(4.0, 4.61)];
+        let patch = Patch {
+            standers: &stander,
+            ..open_patch(20.0, 0.3)
+        };
+        // Along y, bent by `by` m at its middle (at 2 s).
+        let bent = |y: f64, by: f64| {
+            walk(
+                0.0,
+                &[(0.0, y), (2.0, y), (4.0, y + by), (6.0, y), (8.0, y)],
+            )
+        };
+        // A's curve bends 0.3 m towards the stander its line passes 1 cm clear of: no
+        // halving clears it. B's curve bends 0.3 m towards A's line, 0.7 m from its own.
+        let walks = [
+            (bent(4.0, 0.0), bent(4.0, 0.3)),
+            (bent(3.3, 0.0), bent(3.3, 0.3)),
+        ];
+        let candidate = |i: usize, level: u32| {
+            let (before, moved) = &walks[i];
+            match level {
+                0..=HALVINGS => halved(before, moved, level),
+                // Past the halvings: a 64th of the bend, clear of the stander.
+                5 => bent(before.points[0].pos.y, 0.3 / 64.0),
+                _ => before.clone(),
+            }
+        };
+        let before: Vec<Trajectory> = walks.iter().map(|w| w.0.clone()).collect();
+        let ladder = Ladder {
+            levels: 6,
+            halvings: HALVINGS,
+            holds: 0,
+        };
+        let chosen = keep_clear(
+            &before,
+            vec![candidate(0, 0), candidate(1, 0)],
+            &patch,
+            ladder,
+            |i, level, _| candidate(i, level),
+        );
+        // A took the first walk past its halvings and kept it; B steps back two halvings,
+        // the first that clear A there (one would pass 0.45 m from it).
+        assert_eq!(chosen, vec![candidate(0, 5), candidate(1, 2)]);
+    }
+
     proptest! {
         #![proptest_config(ProptestConfig::with_cases(256))]
 
