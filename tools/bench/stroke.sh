@@ -2,10 +2,11 @@
 # The benchmark behind BENCHMARKS.md's brush-stroke figures (issue 20): `painting` per m2, one
 # brush stroke (a disc of radius 5 px at 324,396 on its density layer, `crowd-paintings
 # stroke`), rebuilt from a copy of the folder built before it; with several binaries, each run
-# in turn on the same base, RUNS times. Prints each run's wall time, peak memory and stage
-# seconds (from timings.ron).
+# in turn on a base it built itself (a base from another binary whose stage versions differ
+# would be rebuilt whole, not by the stroke), RUNS times. Prints each run's wall time, peak
+# memory and stage seconds (from timings.ron).
 #
-#   WORK   an empty folder (the base build, about 0.7 GB, and the runs' copies)
+#   WORK   an empty folder (a base build per binary, about 0.7 GB each, and the runs' copies)
 #   RUNS   how many runs of each binary (default 3)
 #   then the crowd binaries to compare (default: target/release/crowd)
 #
@@ -31,19 +32,26 @@ cat > p.ron <<'RON'
     export: (gltf_region: Some((400.0, 240.0, 560.0, 400.0))),
 )
 RON
-if [ ! -d base ]; then
+if [ ! -f after.png ]; then
   cp "$here/../shared/scenes/painting/density.png" before.png
   cp before.png after.png
   "$paint" stroke --layer after.png --at 324,396 --radius 5
+fi
+# The base folder of binary $1.
+base() {
+  echo "base-$(label "$1" | tr / -)"
+}
+for crowd in "$@"; do
+  [ -d "$(base "$crowd")" ] && continue
   cp before.png density.png
   rm -rf out
-  echo "stroke.sh: building the base (painting from nothing)" >&2
-  "$1" build -q --pipeline p.ron >/dev/null 2>build.log
-  mv out base
-fi
+  echo "stroke.sh: building $(base "$crowd") (painting from nothing)" >&2
+  "$crowd" build -q --pipeline p.ron >/dev/null 2>build.log
+  mv out "$(base "$crowd")"
+done
 for run in $(seq "${RUNS:-3}"); do
   for crowd in "$@"; do
-    rm -rf out && cp -a base out && cp after.png density.png && sync
+    rm -rf out && cp -a "$(base "$crowd")" out && cp after.png density.png && sync
     /usr/bin/time -f "%e %M" -o time.txt "$crowd" build -q --pipeline p.ron >/dev/null 2>build.log
     cp before.png density.png
     read -r wall kb < time.txt
