@@ -44,7 +44,8 @@ fn key(e: &Encounter) -> (usize, u8, usize) {
 /// On the halvings, a pair steps past every level the encounter shows cannot clear it, and a
 /// walker whose partner is already past the halvings steps back alone. On `painting` that
 /// took stage 6's candidates past each walker's first from 0.85 million to 0.34 million and
-/// left more walkers on their curves at every level (BENCHMARKS.md, twenty-third part).
+/// left more walkers on their curves and fewer far down the ladder (BENCHMARKS.md,
+/// twenty-third part).
 pub fn keep_clear(
     before: &[Trajectory],
     mut after: Vec<Trajectory>,
