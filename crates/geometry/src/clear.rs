@@ -20,7 +20,10 @@ pub struct Ladder {
     pub levels: u32,
     /// How many levels after the first each halve its departure from the unchanged
     /// trajectory (level `k <= halvings` departs by `2^-k` of level 0's): a walker steps past
-    /// those the encounter shows cannot clear it (see [`keep_clear`]).
+    /// those the encounter shows cannot clear it (see [`keep_clear`]). With none (stage 7,
+    /// whose levels past the first are holds), every level is stepped one at a time and both
+    /// walkers of a pair always step: stage 7 was left as it was (its density edit on
+    /// `city-edits` loses most to the holds of both walkers; holding one is not tried yet).
     pub halvings: u32,
     pub holds: u32,
 }
